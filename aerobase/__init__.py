@@ -1,0 +1,1 @@
+"""The `aerobase` console script: one entry point that dispatches to each deployable."""

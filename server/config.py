@@ -1,0 +1,80 @@
+"""Settings of the server, read once at start from the environment (pydantic-settings)."""
+
+from __future__ import annotations
+
+from functools import cached_property
+from pathlib import Path
+from typing import Literal
+
+from pydantic import AliasChoices, Field, model_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+PLACEHOLDER_SECRETS = {"", "change-me", "changeme", "secret"}
+
+
+class Settings(BaseSettings):
+    """Every setting of `aerobase server`, with a working default for one machine."""
+
+    model_config = SettingsConfigDict(env_prefix="AEROBASE_", extra="ignore", populate_by_name=True)
+
+    environment: Literal["development", "production", "test"] = "development"
+    host: str = "127.0.0.1"
+    port: int = 8000
+    public_url: str | None = Field(
+        default=None, description="URL daemons use to reach this server; written into asset config files"
+    )
+    database_url: str = Field(
+        default="sqlite+aiosqlite:///./var/aerobase.db",
+        validation_alias=AliasChoices("DATABASE_URL", "AEROBASE_DATABASE_URL"),
+    )
+    redis_url: str | None = Field(
+        default=None, validation_alias=AliasChoices("REDIS_URL", "AEROBASE_REDIS_URL")
+    )
+    influxdb_url: str | None = Field(
+        default=None, validation_alias=AliasChoices("INFLUXDB_URL", "AEROBASE_INFLUXDB_URL")
+    )
+    migrate_on_start: bool = True
+    log_format: Literal["auto", "json", "console"] = "auto"
+    log_level: str = "INFO"
+
+    # sessions
+    session_ttl_s: int = Field(default=12 * 3600, ge=60)
+    session_idle_s: int = Field(default=30 * 60, ge=10)
+    asset_session_ttl_s: int = Field(default=7 * 24 * 3600, ge=60)
+    asset_session_idle_s: int = Field(default=60, ge=5)
+
+    # failed-login rate limits
+    login_window_s: int = Field(default=15 * 60, ge=1)
+    login_max_failures_account: int = Field(default=5, ge=1)
+    login_max_failures_address: int = Field(default=20, ge=1)
+
+    # password hashing (argon2id); defaults are argon2-cffi's RFC 9106 low-memory profile
+    argon2_time_cost: int = Field(default=3, ge=1)
+    argon2_memory_kib: int = Field(default=65536, ge=8)
+    argon2_parallelism: int = Field(default=4, ge=1)
+
+    # scrypt for asset config files (log2 of N)
+    config_scrypt_log_n: int = Field(default=15, ge=10, le=20)
+
+    @model_validator(mode="after")
+    def _check_production(self) -> Settings:
+        if self.environment == "production" and self.database_url.startswith("sqlite"):
+            # Allowed, but a production deployment should say it on purpose.
+            pass
+        return self
+
+    @cached_property
+    def effective_public_url(self) -> str:
+        """The URL written into config files: explicit, else derived from host and port."""
+        if self.public_url:
+            return self.public_url.rstrip("/")
+        host = "127.0.0.1" if self.host in ("0.0.0.0", "::") else self.host
+        return f"http://{host}:{self.port}"
+
+    def sqlite_path(self) -> Path | None:
+        """The file of a SQLite database URL, so its folder can be created."""
+        prefix = "sqlite+aiosqlite:///"
+        if self.database_url.startswith(prefix):
+            rest = self.database_url[len(prefix):]
+            return None if rest in ("", ":memory:") else Path(rest)
+        return None

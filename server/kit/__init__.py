@@ -1,0 +1,1 @@
+"""Shared building blocks of the server: database, errors, scoping, security, time."""
