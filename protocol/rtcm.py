@@ -106,3 +106,59 @@ class Reframer:
                 self.bad_frames += 1
                 self.skipped_bytes += 1
                 del buf[:1]
+
+
+# --- MAVLink GPS_RTCM_DATA fragmentation --------------------------------------------------
+# GPS_RTCM_DATA carries at most 180 bytes. flags: bit 0 = fragmented, bits 1-2 = fragment id
+# (0..3), bits 3-7 = sequence id (0..31). A message of up to 180 bytes goes unfragmented; a longer one is
+# sent in up to four fragments, and a fragment shorter than 180 bytes ends it, so a message
+# that is an exact multiple of 180 bytes is followed by an empty fragment.
+
+MAVLINK_FRAGMENT = 180
+MAVLINK_MAX_MESSAGE = 4 * MAVLINK_FRAGMENT
+
+
+def mavlink_fragments(message: bytes, sequence_id: int) -> list[tuple[int, bytes]]:
+    """Split one RTCM message into (flags, data) pairs for GPS_RTCM_DATA."""
+    seq = (sequence_id & 0x1F) << 3
+    if len(message) <= MAVLINK_FRAGMENT:
+        return [(seq, message)]
+    if len(message) >= MAVLINK_MAX_MESSAGE:
+        # four full fragments leave no room for the terminating empty one
+        raise ValueError(f"RTCM message of {len(message)} bytes is too long for GPS_RTCM_DATA")
+    chunks = [message[i : i + MAVLINK_FRAGMENT] for i in range(0, len(message), MAVLINK_FRAGMENT)]
+    if len(chunks[-1]) == MAVLINK_FRAGMENT:
+        chunks.append(b"")
+    return [(seq | (fid << 1) | 1, chunk) for fid, chunk in enumerate(chunks)]
+
+
+@dataclass
+class MavlinkReassembler:
+    """Rebuilds RTCM messages from GPS_RTCM_DATA fragments (flags, data), as an autopilot does."""
+
+    incomplete: int = 0
+    _seq: int | None = None
+    _parts: dict[int, bytes] = field(default_factory=dict)
+
+    def push(self, flags: int, data: bytes) -> bytes | None:
+        """Add one fragment; return the whole message once it is complete."""
+        if not flags & 1:
+            self._reset()
+            return bytes(data)
+        seq, fid = (flags >> 3) & 0x1F, (flags >> 1) & 0x03
+        if self._seq is not None and seq != self._seq:
+            self._reset()
+        self._seq = seq
+        self._parts[fid] = bytes(data)
+        if len(data) < MAVLINK_FRAGMENT:
+            if all(i in self._parts for i in range(fid + 1)):
+                message = b"".join(self._parts[i] for i in range(fid + 1))
+                self._seq, self._parts = None, {}
+                return message
+            self._reset()
+        return None
+
+    def _reset(self) -> None:
+        if self._parts:
+            self.incomplete += 1
+        self._seq, self._parts = None, {}
