@@ -1,0 +1,62 @@
+"""The FastAPI application factory and its lifespan (engine, migrations, background services)."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import AsyncIterator, Awaitable, Callable
+from contextlib import asynccontextmanager
+from typing import Any
+
+from fastapi import FastAPI
+from fastapi.middleware.gzip import GZipMiddleware
+
+from server import migrate
+from server.assets.endpoints import router as assets_router
+from server.audit.endpoints import router as audit_router
+from server.auth.endpoints import router as auth_router
+from server.config import Settings
+from server.health import router as health_router
+from server.kit.db import make_engine, make_sessionmaker
+from server.kit.errors import install_error_handlers
+from server.kit.security import Passwords
+from server.organizations.endpoints import router as organizations_router
+
+log = logging.getLogger(__name__)
+VERSION = "0.1.0"
+
+SessionEndListener = Callable[[list[Any]], Awaitable[None]]
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """Build the application; nothing connects until its lifespan starts."""
+    settings = settings or Settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        path = settings.sqlite_path()
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        if settings.migrate_on_start:
+            await asyncio.to_thread(migrate.upgrade, settings.database_url)
+        engine = make_engine(settings.database_url)
+        app.state.engine = engine
+        app.state.sessionmaker = make_sessionmaker(engine)
+        log.info("server started", extra={"database": engine.url.render_as_string(hide_password=True)})
+        try:
+            yield
+        finally:
+            await engine.dispose()
+
+    app = FastAPI(title="Aerobase", version=VERSION, lifespan=lifespan,
+                  openapi_url="/api/openapi.json", docs_url="/api/docs", redoc_url=None,
+                  description="REST API of the Aerobase drone-in-a-box platform. See frontend_api.md.")
+    app.state.settings = settings
+    app.state.passwords = Passwords(settings.argon2_time_cost, settings.argon2_memory_kib,
+                                    settings.argon2_parallelism)
+    app.state.session_end_listeners = []  # async callables given the ids of ended sessions
+    app.add_middleware(GZipMiddleware, minimum_size=2048)
+    install_error_handlers(app)
+    for router in (health_router, auth_router, organizations_router, assets_router, audit_router):
+        app.include_router(router)
+    return app

@@ -1,0 +1,1 @@
+"""Assets (UAVs and landing bases) and their encrypted credential files."""

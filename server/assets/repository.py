@@ -1,0 +1,27 @@
+"""All SQL of assets."""
+
+from __future__ import annotations
+
+from sqlalchemy import select
+
+from server.assets.models import Asset
+from server.kit.scope import ScopedRepository
+
+
+class AssetRepository(ScopedRepository[Asset]):
+    """Assets of the caller's organisation."""
+
+    model = Asset
+    noun = "asset"
+
+    async def name_taken(self, name: str) -> bool:
+        """True when any organisation already uses this name (names are global)."""
+        stmt = select(Asset.id).where(Asset.name == name)  # unscoped: global uniqueness check only
+        return (await self.db.execute(stmt)).first() is not None
+
+    async def list_filtered(self, limit: int, offset: int, kind: str | None) -> list[Asset]:
+        """Assets of the caller's organisation, optionally of one kind."""
+        stmt = self.select().order_by(Asset.created_at).limit(limit).offset(offset)
+        if kind:
+            stmt = stmt.where(Asset.kind == kind)
+        return list((await self.db.execute(stmt)).scalars())

@@ -1,0 +1,72 @@
+"""All SQL of sessions and failed logins (identity lookups: not organisation-scoped)."""
+
+from __future__ import annotations
+
+import uuid
+from datetime import datetime, timedelta
+
+from sqlalchemy import delete, func, select
+from sqlalchemy.ext.asyncio import AsyncSession
+
+from server.auth.models import AuthSession, LoginFailure
+
+
+class SessionRepository:
+    """Sessions by token hash and by account."""
+
+    def __init__(self, db: AsyncSession) -> None:
+        self.db = db
+
+    async def by_token_hash(self, token_hash: str) -> AuthSession | None:
+        """The session holding this token, ended or not."""
+        stmt = select(AuthSession).where(AuthSession.token_hash == token_hash)  # unscoped: identity lookup
+        return (await self.db.execute(stmt)).scalar_one_or_none()
+
+    async def by_id(self, session_id: uuid.UUID) -> AuthSession | None:
+        """The session with this id."""
+        return await self.db.get(AuthSession, session_id)
+
+    async def open_for(self, *, user_id: uuid.UUID | None = None,
+                       asset_id: uuid.UUID | None = None) -> list[AuthSession]:
+        """Sessions of one account that have not been ended (they may have expired)."""
+        stmt = select(AuthSession).where(AuthSession.ended_at.is_(None))  # unscoped: identity lookup
+        if user_id is not None:
+            stmt = stmt.where(AuthSession.user_id == user_id)
+        else:
+            stmt = stmt.where(AuthSession.asset_id == asset_id)
+        return list((await self.db.execute(stmt)).scalars())
+
+    def add(self, session: AuthSession) -> None:
+        """Stage a new session."""
+        self.db.add(session)
+
+
+class LoginFailureRepository:
+    """Counting failed logins per key inside a time window."""
+
+    def __init__(self, db: AsyncSession) -> None:
+        self.db = db
+
+    async def window(self, key: str, since: datetime) -> tuple[int, datetime | None]:
+        """How many failures of `key` since `since`, and the oldest of them."""
+        stmt = select(func.count(), func.min(LoginFailure.at)).where(  # unscoped: rate limiting
+            LoginFailure.key == key, LoginFailure.at >= since
+        )
+        count, oldest = (await self.db.execute(stmt)).one()
+        if oldest is not None and oldest.tzinfo is None:
+            from datetime import UTC
+            oldest = oldest.replace(tzinfo=UTC)
+        return int(count), oldest
+
+    async def add(self, keys: list[str], at: datetime) -> None:
+        """Record one failure against each key."""
+        self.db.add_all([LoginFailure(key=k, at=at) for k in keys])
+        await self.db.flush()
+
+    async def clear(self, key: str) -> None:
+        """Forget the failures of one key (after a successful login)."""
+        await self.db.execute(delete(LoginFailure).where(LoginFailure.key == key))
+
+    async def prune(self, before: datetime) -> None:
+        """Drop failures older than every window."""
+        await self.db.execute(delete(LoginFailure).where(LoginFailure.at < before - timedelta(0)))

@@ -1,0 +1,61 @@
+"""API shapes of login and sessions."""
+
+from __future__ import annotations
+
+import uuid
+from datetime import datetime
+
+from pydantic import BaseModel, ConfigDict
+
+from server.kit.types import Email, LoginPassword, Name, Text
+
+
+class LoginRequest(BaseModel):
+    """A user's credentials; `force` ends a live session instead of being refused."""
+
+    model_config = ConfigDict(extra="forbid")
+    email: Email
+    password: LoginPassword
+    force: bool = False
+    organization_id: uuid.UUID | None = None
+
+
+class AssetLoginRequest(BaseModel):
+    """An asset's name and secret (from its configuration file)."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: Name
+    secret: Text
+    force: bool = False
+
+
+class TokenResponse(BaseModel):
+    """An opaque bearer token."""
+
+    access_token: str
+    token_type: str = "bearer"
+    expires_at: datetime
+    session_id: uuid.UUID
+
+
+class MembershipOut(BaseModel):
+    """One organisation the user belongs to, and the role there."""
+
+    organization_id: uuid.UUID
+    organization_name: str
+    role: str
+
+
+class MeResponse(BaseModel):
+    """The caller."""
+
+    kind: str
+    id: uuid.UUID
+    email: str | None = None
+    name: str | None = None
+    is_superuser: bool = False
+    organization_id: uuid.UUID | None
+    role: str | None
+    memberships: list[MembershipOut] = []
+    session_id: uuid.UUID
+    session_expires_at: datetime

@@ -1,0 +1,144 @@
+"""`aerobase server` and `aerobase admin ...`: serve, migrate, bootstrap organisations and users."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import getpass
+import os
+import sys
+from collections.abc import Sequence
+
+from server import migrate
+from server.auth.service import Account, SessionService
+from server.config import Settings
+from server.kit.db import make_engine, make_sessionmaker
+from server.kit.errors import AppError
+from server.kit.security import Passwords
+from server.logging import configure_logging
+from server.organizations import service
+from server.organizations.models import Role
+from server.organizations.repository import UserRepository
+
+
+def server_main(argv: Sequence[str] | None = None) -> int:
+    """`aerobase server [--host H] [--port P]`: migrate, then serve."""
+    import uvicorn
+
+    from server.app import create_app
+
+    parser = argparse.ArgumentParser(prog="aerobase server")
+    parser.add_argument("--host", default=None)
+    parser.add_argument("--port", type=int, default=None)
+    args = parser.parse_args(argv)
+    overrides = {k: v for k, v in (("host", args.host), ("port", args.port)) if v is not None}
+    settings = Settings(**overrides)
+    configure_logging(settings.log_format, settings.log_level)
+    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_config=None,
+                ws_max_size=1 << 20, proxy_headers=True)
+    return 0
+
+
+def _password(given: str | None, env: str = "AEROBASE_PASSWORD") -> str:
+    if given:
+        return given
+    if os.environ.get(env):
+        return os.environ[env]
+    if not sys.stdin.isatty():
+        raise AppError(f"no password: give --password, set {env}, or run on a terminal to be prompted")
+    first = getpass.getpass("Password: ")
+    if first != getpass.getpass("Repeat password: "):
+        raise AppError("the passwords differ")
+    return first
+
+
+async def _with_db(settings: Settings, fn):  # type: ignore[no-untyped-def]
+    engine = make_engine(settings.database_url)
+    try:
+        async with make_sessionmaker(engine)() as db:
+            result = await fn(db)
+            await db.commit()
+            return result
+    finally:
+        await engine.dispose()
+
+
+def admin_main(argv: Sequence[str] | None = None) -> int:
+    """`aerobase admin migrate|create-org|create-user|create-superuser|token`."""
+    parser = argparse.ArgumentParser(prog="aerobase admin")
+    sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("migrate", help="apply database migrations")
+    p = sub.add_parser("create-org", help="create an organisation; prints its id")
+    p.add_argument("name")
+    p = sub.add_parser("create-user", help="create a user in an organisation")
+    p.add_argument("--org", required=True)
+    p.add_argument("--email", required=True)
+    p.add_argument("--role", required=True, choices=[r.value for r in Role])
+    p.add_argument("--password")
+    p = sub.add_parser("create-superuser", help="create a platform superuser")
+    p.add_argument("--email", required=True)
+    p.add_argument("--password")
+    p = sub.add_parser("token", help="print a session token for scripts")
+    p.add_argument("--email", required=True)
+    p.add_argument("--org", help="organisation to act in (default: the user's first)")
+    p.add_argument("--force", action="store_true", help="end the user's live session if any")
+    args = parser.parse_args(argv)
+
+    settings = Settings()
+    configure_logging(settings.log_format, "WARNING")
+    path = settings.sqlite_path()
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        migrate.upgrade(settings.database_url)
+        if args.command == "migrate":
+            print("database is at the latest migration")
+            return 0
+        passwords = Passwords(settings.argon2_time_cost, settings.argon2_memory_kib,
+                              settings.argon2_parallelism)
+        result = asyncio.run(_with_db(settings, lambda db: _admin(db, args, settings, passwords)))
+        print(result)
+        return 0
+    except AppError as err:
+        print(f"aerobase admin {args.command}: {err.message}", file=sys.stderr)
+        return 1
+
+
+async def _admin(db, args, settings: Settings, passwords: Passwords) -> str:  # type: ignore[no-untyped-def]
+    if args.command == "create-org":
+        return str((await service.create_organization(db, args.name)).id)
+    if args.command == "create-user":
+        org = await service.org_by_name(db, args.org)
+        users = UserRepository(db)
+        user = await users.by_email(args.email)
+        if user is None:
+            user = await service.create_user(db, passwords, email=args.email,
+                                             password=_checked(_password(args.password)))
+        elif any(o.id == org.id for _, o in await users.memberships(user.id)):
+            raise AppError(f"{args.email} is already a member of {args.org}")
+        await service.add_member(db, org.id, user.id, Role(args.role))
+        return str(user.id)
+    if args.command == "create-superuser":
+        user = await service.create_user(db, passwords, email=args.email,
+                                         password=_checked(_password(args.password)), is_superuser=True)
+        return str(user.id)
+    if args.command == "token":
+        users = UserRepository(db)
+        user = await users.by_email(args.email)
+        if user is None:
+            raise AppError(f"no user with e-mail {args.email}")
+        memberships = await users.memberships(user.id)
+        orgs = [o for _, o in memberships if args.org is None or o.name == args.org]
+        if args.org and not orgs:
+            raise AppError(f"{args.email} is not a member of {args.org}")
+        issued = await SessionService(db, settings).open(
+            Account("user", user.id, orgs[0].id if orgs else None, user.email), force=args.force,
+            client_addr=None, via="token.cli")
+        return issued.access_token
+    raise AppError(f"unknown command {args.command}")
+
+
+def _checked(password: str) -> str:
+    if len(password) < 12:
+        raise AppError("the password must have at least 12 characters")
+    return password

@@ -1,0 +1,125 @@
+"""FastAPI dependencies: the unit of work, the caller's identity, role requirements."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator, Callable, Coroutine
+from typing import Annotated, Any
+
+from fastapi import Depends, Request
+from sqlalchemy.ext.asyncio import AsyncSession
+
+from server.auth.models import AuthSession
+from server.auth.service import SessionService
+from server.config import Settings
+from server.kit.errors import Forbidden, Unauthorized
+from server.kit.scope import Principal
+from server.kit.security import Passwords
+from server.organizations.models import Role, User
+from server.organizations.repository import MembershipRepository
+
+
+async def get_db(request: Request) -> AsyncIterator[AsyncSession]:
+    """One transaction per request: committed when the endpoint succeeds, rolled back otherwise."""
+    async with request.app.state.sessionmaker() as db:
+        try:
+            yield db
+            await db.commit()
+        except BaseException:
+            await db.rollback()
+            raise
+
+
+def get_settings(request: Request) -> Settings:
+    """The server's settings."""
+    return request.app.state.settings  # type: ignore[no-any-return]
+
+
+def get_passwords(request: Request) -> Passwords:
+    """The configured password hasher."""
+    return request.app.state.passwords  # type: ignore[no-any-return]
+
+
+DB = Annotated[AsyncSession, Depends(get_db)]
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+PasswordsDep = Annotated[Passwords, Depends(get_passwords)]
+
+
+def bearer_token(request: Request) -> str | None:
+    """The bearer token of the request (header, or `token` query parameter for WebSockets)."""
+    header = request.headers.get("authorization", "")
+    scheme, _, value = header.partition(" ")
+    if scheme.lower() == "bearer" and value.strip():
+        return value.strip()
+    return None
+
+
+async def principal_of(db: AsyncSession, settings: Settings, token: str | None) -> tuple[Principal, AuthSession]:
+    """Resolve a token to the caller; raises Unauthorized."""
+    if not token:
+        raise Unauthorized()
+    session = await SessionService(db, settings).authenticate(token)
+    if session.principal_kind == "asset":
+        return Principal(kind="asset", session_id=session.id, organization_id=session.organization_id,
+                         asset_id=session.asset_id), session
+    user = await db.get(User, session.user_id)
+    if user is None or not user.is_active:
+        raise Unauthorized("account disabled", code="account_disabled")
+    role: Role | None = None
+    if session.organization_id is not None:
+        probe = Principal(kind="user", session_id=session.id, organization_id=session.organization_id)
+        found = await MembershipRepository(db, probe).of_user(user.id)
+        if found is not None:
+            role = found[0].role
+        elif user.is_superuser:
+            role = Role.admin
+    return Principal(kind="user", session_id=session.id, organization_id=session.organization_id
+                     if role else None, role=role, user_id=user.id, is_superuser=user.is_superuser,
+                     label=user.email), session
+
+
+async def current_session(request: Request, db: DB, settings: SettingsDep) -> AuthSession:
+    """The caller's live session."""
+    return (await principal_of(db, settings, bearer_token(request)))[1]
+
+
+async def current_principal(request: Request, db: DB, settings: SettingsDep) -> Principal:
+    """The caller (user or asset), from its bearer token."""
+    principal, _ = await principal_of(db, settings, bearer_token(request))
+    request.state.principal = principal
+    return principal
+
+
+CurrentPrincipal = Annotated[Principal, Depends(current_principal)]
+
+
+def require(role: Role) -> Callable[..., Coroutine[Any, Any, Principal]]:
+    """A dependency admitting users whose role in their organisation is at least `role`."""
+
+    async def dependency(principal: CurrentPrincipal) -> Principal:
+        if principal.kind != "user":
+            raise Forbidden("asset sessions cannot call this endpoint")
+        if principal.role is None or not principal.role.allows(role):
+            have = principal.role.value if principal.role else "no role"
+            raise Forbidden(f"this needs the {role.value} role; you have {have}")
+        return principal
+
+    dependency.min_role = role  # type: ignore[attr-defined]  # read by the authorization test
+    return dependency
+
+
+async def require_superuser(principal: CurrentPrincipal) -> Principal:
+    """A dependency admitting platform superusers only."""
+    if principal.kind != "user" or not principal.is_superuser:
+        raise Forbidden("this needs a platform superuser")
+    return principal
+
+
+Viewer = Annotated[Principal, Depends(require(Role.viewer))]
+Operator = Annotated[Principal, Depends(require(Role.operator))]
+Admin = Annotated[Principal, Depends(require(Role.admin))]
+Superuser = Annotated[Principal, Depends(require_superuser)]
+
+
+def client_addr(request: Request) -> str | None:
+    """The client's address as seen by this server."""
+    return request.client.host if request.client else None

@@ -1,0 +1,135 @@
+"""The typed error tree of the server and the one handler that renders it.
+
+    AppError                      {"error": {"code", "message", "details"}}
+    ├── BadRequest        400
+    ├── Unauthorized      401   not logged in, token unknown, expired or ended
+    ├── Forbidden         403   logged in, but the role does not allow it
+    ├── NotFound          404   also for resources of another organisation
+    ├── Conflict          409   name taken, live session, state clash
+    ├── Unprocessable     422   well-formed but invalid
+    └── RateLimited       429   with Retry-After
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+log = logging.getLogger(__name__)
+
+
+class AppError(Exception):
+    """An error with an HTTP status, a stable code and a message meant for people."""
+
+    status = 400
+    code = "bad_request"
+
+    def __init__(self, message: str, *, code: str | None = None, details: Any = None) -> None:
+        super().__init__(message)
+        self.message = message
+        if code:
+            self.code = code
+        self.details = details
+        self.headers: dict[str, str] = {}
+
+
+class BadRequest(AppError):
+    """The request cannot be understood."""
+
+
+class Unauthorized(AppError):
+    """Authentication is missing or no longer valid."""
+
+    status, code = 401, "unauthorized"
+
+    def __init__(self, message: str = "authentication required", **kw: Any) -> None:
+        super().__init__(message, **kw)
+        self.headers = {"WWW-Authenticate": "Bearer"}
+
+
+class Forbidden(AppError):
+    """The caller's role does not allow this."""
+
+    status, code = 403, "forbidden"
+
+
+class NotFound(AppError):
+    """No such resource in the caller's organisation."""
+
+    status, code = 404, "not_found"
+
+
+class Conflict(AppError):
+    """The request clashes with the current state."""
+
+    status, code = 409, "conflict"
+
+
+class Unprocessable(AppError):
+    """Well-formed but semantically invalid."""
+
+    status, code = 422, "validation_error"
+
+
+class RateLimited(AppError):
+    """Too many attempts; retry after the given number of seconds."""
+
+    status, code = 429, "rate_limited"
+
+    def __init__(self, message: str, retry_after_s: int, **kw: Any) -> None:
+        super().__init__(message, **kw)
+        self.retry_after_s = max(1, int(retry_after_s))
+        self.headers = {"Retry-After": str(self.retry_after_s)}
+
+
+def error_body(code: str, message: str, details: Any = None) -> dict[str, Any]:
+    """The one JSON shape of every error response."""
+    return {"error": {"code": code, "message": message, "details": details}}
+
+
+_STATUS_CODES = {400: "bad_request", 401: "unauthorized", 403: "forbidden", 404: "not_found",
+                 405: "method_not_allowed", 409: "conflict", 413: "too_large", 415: "unsupported_media_type",
+                 422: "validation_error", 429: "rate_limited"}
+
+
+def _clean_validation(errors: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    out = []
+    for e in errors:
+        out.append({"loc": [str(p) for p in e.get("loc", ())], "msg": str(e.get("msg", "")),
+                    "type": str(e.get("type", ""))})
+    return out
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Render every error, ours or the framework's, in the one shape; never a stack trace."""
+
+    @app.exception_handler(AppError)
+    async def _app_error(_: Request, exc: AppError) -> JSONResponse:
+        return JSONResponse(error_body(exc.code, exc.message, exc.details), status_code=exc.status,
+                            headers=exc.headers)
+
+    @app.exception_handler(RequestValidationError)
+    async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
+        details = _clean_validation(list(exc.errors()))
+        first = details[0] if details else {"loc": [], "msg": "invalid request"}
+        where = ".".join(first["loc"])
+        return JSONResponse(
+            error_body("validation_error", f"invalid request: {where}: {first['msg']}", details),
+            status_code=422,
+        )
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
+        code = _STATUS_CODES.get(exc.status_code, "error")
+        return JSONResponse(error_body(code, str(exc.detail)), status_code=exc.status_code,
+                            headers=getattr(exc, "headers", None))
+
+    @app.exception_handler(Exception)
+    async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
+        log.exception("unhandled error on %s %s", request.method, request.url.path)
+        return JSONResponse(error_body("internal_error", "internal server error"), status_code=500)

@@ -1,0 +1,75 @@
+"""The caller's identity and the one place where organisation scoping happens.
+
+Every readable query of an organisation-owned table starts from `scoped(Model, principal)`;
+a test walks the repositories and fails on a raw `select(` of such a table. A row of another
+organisation is therefore simply not found (404), never forbidden (403), so ids cannot be probed.
+"""
+
+from __future__ import annotations
+
+import uuid
+from dataclasses import dataclass
+from typing import Any, Generic, TypeVar
+
+from sqlalchemy import Select, false, select
+from sqlalchemy.ext.asyncio import AsyncSession
+
+from server.kit.errors import NotFound
+from server.organizations.models import Role
+
+
+@dataclass(frozen=True)
+class Principal:
+    """Who is calling: a user (with a role in one organisation) or an asset."""
+
+    kind: str  # "user" | "asset"
+    session_id: uuid.UUID
+    organization_id: uuid.UUID | None
+    role: Role | None = None
+    user_id: uuid.UUID | None = None
+    asset_id: uuid.UUID | None = None
+    is_superuser: bool = False
+    label: str = ""  # e-mail or asset name, for logs and audit
+
+    @property
+    def actor_id(self) -> str:
+        """The id written into the audit log."""
+        return str(self.user_id or self.asset_id)
+
+
+M = TypeVar("M")
+
+
+def scoped(model: type[M], principal: Principal) -> Select[tuple[M]]:
+    """SELECT of `model` restricted to the principal's organisation (nothing without one)."""
+    column: Any = model.organization_id  # type: ignore[attr-defined]
+    if principal.organization_id is None:
+        return select(model).where(false())
+    return select(model).where(column == principal.organization_id)
+
+
+class ScopedRepository(Generic[M]):
+    """Base of repositories of organisation-owned tables: every read starts from `scoped`."""
+
+    model: type[M]
+    noun = "resource"
+
+    def __init__(self, db: AsyncSession, principal: Principal) -> None:
+        self.db = db
+        self.principal = principal
+
+    def select(self) -> Select[tuple[M]]:
+        """The scoped SELECT every query of this repository starts from."""
+        return scoped(self.model, self.principal)
+
+    async def get(self, id_: uuid.UUID) -> M:
+        """The row with this id in the caller's organisation, else NotFound."""
+        row = (await self.db.execute(self.select().where(self.model.id == id_))).scalar_one_or_none()  # type: ignore[attr-defined]
+        if row is None:
+            raise NotFound(f"{self.noun} {id_} not found")
+        return row
+
+    async def list(self, limit: int = 100, offset: int = 0) -> list[M]:
+        """Rows of the caller's organisation, oldest first."""
+        stmt = self.select().order_by(self.model.created_at).limit(limit).offset(offset)  # type: ignore[attr-defined]
+        return list((await self.db.execute(stmt)).scalars())

@@ -1,0 +1,54 @@
+"""API shapes of organisations and users."""
+
+from __future__ import annotations
+
+import uuid
+from datetime import datetime
+
+from pydantic import BaseModel, ConfigDict
+
+from server.kit.types import Email, Name, Password
+from server.organizations.models import Role
+
+
+class OrganizationCreate(BaseModel):
+    """A new organisation."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: Name
+
+
+class OrganizationOut(BaseModel):
+    """An organisation."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: uuid.UUID
+    name: str
+    created_at: datetime
+
+
+class UserCreate(BaseModel):
+    """A new user in the caller's organisation."""
+
+    model_config = ConfigDict(extra="forbid")
+    email: Email
+    password: Password
+    role: Role
+
+
+class UserUpdate(BaseModel):
+    """Changes to a member: role, or disabling the account."""
+
+    model_config = ConfigDict(extra="forbid")
+    role: Role | None = None
+    is_active: bool | None = None
+
+
+class UserOut(BaseModel):
+    """A member of the caller's organisation."""
+
+    id: uuid.UUID
+    email: str
+    role: Role
+    is_active: bool
+    created_at: datetime

@@ -1,0 +1,237 @@
+"""Fixtures shared by every test folder: services, the database, a live server on a real socket."""
+
+from __future__ import annotations
+
+import os
+import socket
+import tempfile
+import threading
+import time
+import uuid
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
+
+
+def free_port() -> int:
+    """A TCP port that is free right now on 127.0.0.1."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def reachable(host: str, port: int, timeout: float = 1.0) -> bool:
+    """True when a TCP connection to host:port succeeds."""
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            return True
+    except OSError:
+        return False
+
+
+def need_service(name: str, host: str, port: int) -> None:
+    """Fail in CI (CI=true), skip with a reason elsewhere, when a service is unreachable."""
+    if reachable(host, port):
+        return
+    message = f"{name} is not reachable on {host}:{port}"
+    if IN_CI:
+        pytest.fail(f"{message} (CI=true: service tests must run)")
+    pytest.skip(f"{message}; start it to run this test (in CI this fails instead)")
+
+
+def wait_for(predicate: Callable[[], Any], timeout: float = 10.0, interval: float = 0.02,
+             what: str = "condition") -> Any:
+    """Poll `predicate` until it returns a truthy value; fail after `timeout` seconds."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(interval)
+
+
+PG_URL_DEFAULT = "postgresql+asyncpg://postgres@127.0.0.1:5432/test"
+
+
+def _reset_postgres(url: str) -> None:
+    import asyncio
+
+    from sqlalchemy import text
+    from sqlalchemy.ext.asyncio import create_async_engine
+
+    async def reset() -> None:
+        engine = create_async_engine(url)
+        async with engine.begin() as conn:
+            await conn.execute(text("DROP SCHEMA IF EXISTS public CASCADE"))
+            await conn.execute(text("CREATE SCHEMA public"))
+        await engine.dispose()
+
+    asyncio.run(reset())
+
+
+@pytest.fixture(scope="session")
+def database_url() -> Iterator[str]:
+    """DATABASE_URL when set (PostgreSQL in CI), else a fresh SQLite file; migrated to head."""
+    from server import migrate
+
+    url = os.environ.get("DATABASE_URL")
+    if url and url.startswith("postgresql"):
+        need_service("PostgreSQL", "127.0.0.1", 5432)
+        _reset_postgres(url)
+        migrate.upgrade(url)
+        yield url
+        return
+    with tempfile.TemporaryDirectory(prefix="aerobase-test-") as tmp:
+        url = f"sqlite+aiosqlite:///{tmp}/test.db"
+        migrate.upgrade(url)
+        yield url
+
+
+def test_settings(database_url: str, **overrides: Any):  # type: ignore[no-untyped-def]
+    """Server settings for tests: real argon2id with a lighter cost, fast scrypt."""
+    from server.config import Settings
+
+    base = dict(database_url=database_url, environment="test", migrate_on_start=False,
+                argon2_time_cost=1, argon2_memory_kib=8192, argon2_parallelism=1,
+                config_scrypt_log_n=12, login_max_failures_address=10_000, log_format="console")
+    base.update(overrides)
+    return Settings(**base)
+
+
+test_settings.__test__ = False  # type: ignore[attr-defined]
+
+
+class LiveServer:
+    """An `aerobase server` app served by uvicorn on a real socket, in a background thread."""
+
+    def __init__(self, settings: Any) -> None:
+        import uvicorn
+
+        from server.app import create_app
+
+        self.port = free_port()
+        self.url = f"http://127.0.0.1:{self.port}"
+        settings.port = self.port
+        self.app = create_app(settings)
+        config = uvicorn.Config(self.app, host="127.0.0.1", port=self.port, log_config=None,
+                                ws_max_size=1 << 20, proxy_headers=True,
+                                forwarded_allow_ips="127.0.0.1", lifespan="on")
+        self.server = uvicorn.Server(config)
+        self.thread = threading.Thread(target=self.server.run, name=f"server-{self.port}", daemon=True)
+
+    def start(self) -> LiveServer:
+        self.thread.start()
+        wait_for(lambda: self.server.started, 30, what="server start")
+        return self
+
+    def stop(self) -> None:
+        self.server.should_exit = True
+        self.thread.join(15)
+
+
+@pytest.fixture(scope="session")
+def live_server(database_url: str) -> Iterator[LiveServer]:
+    """One server for the session (tests isolate themselves by creating their own organisations)."""
+    server = LiveServer(test_settings(database_url)).start()
+    yield server
+    server.stop()
+
+
+@pytest.fixture(scope="session")
+def api(live_server: LiveServer) -> Iterator[httpx.Client]:
+    """An HTTP client for the live server."""
+    with httpx.Client(base_url=live_server.url, timeout=30) as client:
+        yield client
+
+
+SUPERUSER_PASSWORD = "super-secret-password-1"
+
+
+@pytest.fixture(scope="session")
+def superuser_email(database_url: str) -> str:
+    """A platform superuser, created through the admin service on the real database."""
+    import asyncio
+
+    from server.kit.db import make_engine, make_sessionmaker
+    from server.kit.security import Passwords
+    from server.organizations.service import create_user
+
+    email = f"root-{uuid.uuid4().hex[:8]}@aerobase.test"
+
+    async def create() -> None:
+        engine = make_engine(database_url)
+        async with make_sessionmaker(engine)() as db:
+            await create_user(db, Passwords(1, 8192, 1), email=email, password=SUPERUSER_PASSWORD,
+                              is_superuser=True)
+            await db.commit()
+        await engine.dispose()
+
+    asyncio.run(create())
+    return email
+
+
+class Tenant:
+    """An organisation with one logged-in user per role, built through the public API."""
+
+    PASSWORD = "tenant-password-123"
+
+    def __init__(self, api: httpx.Client, superuser_email: str, label: str = "org") -> None:
+        self.api = api
+        self.name = f"{label}-{uuid.uuid4().hex[:10]}"
+        root = login(api, superuser_email, SUPERUSER_PASSWORD, force=True)
+        r = api.post("/api/v1/organizations", json={"name": self.name}, headers=auth(root))
+        assert r.status_code == 201, r.text
+        self.id = r.json()["id"]
+        root = login(api, superuser_email, SUPERUSER_PASSWORD, force=True, organization_id=self.id)
+        self.emails: dict[str, str] = {}
+        self.user_ids: dict[str, str] = {}
+        for role in ("admin", "operator", "viewer"):
+            email = f"{role}-{uuid.uuid4().hex[:8]}@{self.name}.test"
+            r = api.post("/api/v1/users", json={"email": email, "password": self.PASSWORD, "role": role},
+                         headers=auth(root))
+            assert r.status_code == 201, r.text
+            self.emails[role], self.user_ids[role] = email, r.json()["id"]
+        api.post("/api/v1/auth/logout", headers=auth(root))
+        self.tokens = {role: login(api, email, self.PASSWORD) for role, email in self.emails.items()}
+
+    def h(self, role: str = "admin") -> dict[str, str]:
+        """Authorization headers of the user with `role`."""
+        return auth(self.tokens[role])
+
+    def create_asset(self, kind: str = "uav", password: str = "asset-password-123", **extra: Any) -> dict[str, Any]:
+        """Register an asset as the admin; returns the response body (with config_file)."""
+        body = {"name": f"{kind}-{uuid.uuid4().hex[:10]}", "kind": kind, "password": password, **extra}
+        r = self.api.post("/api/v1/assets", json=body, headers=self.h("admin"))
+        assert r.status_code == 201, r.text
+        return dict(r.json())
+
+
+def auth(token: str) -> dict[str, str]:
+    """A bearer Authorization header."""
+    return {"Authorization": f"Bearer {token}"}
+
+
+def login(api: httpx.Client, email: str, password: str, **extra: Any) -> str:
+    """Log in and return the token (fails the test otherwise)."""
+    r = api.post("/api/v1/auth/login", json={"email": email, "password": password, **extra})
+    assert r.status_code == 200, r.text
+    return str(r.json()["access_token"])
+
+
+@pytest.fixture
+def tenant(api: httpx.Client, superuser_email: str) -> Tenant:
+    """A fresh organisation with an admin, an operator and a viewer, all logged in."""
+    return Tenant(api, superuser_email)
+
+
+@pytest.fixture(scope="session")
+def repo_root() -> Path:
+    """The repository's top folder."""
+    return Path(__file__).resolve().parent.parent
