@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/aerobase demo
+	$(BIN)/aerobase server
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -1,0 +1,69 @@
+"""The `aerobase admin` and `aerobase asset decrypt` commands, run as real processes."""
+
+from __future__ import annotations
+
+import base64
+import os
+import subprocess
+import sys
+import tempfile
+
+from tests.conftest import Tenant, auth
+
+
+def _run(args: list[str], env: dict[str, str], stdin: str | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "aerobase.cli", *args], env={**os.environ, **env},
+                          capture_output=True, text=True, timeout=120, input=stdin)
+
+
+def test_admin_bootstrap_and_token(database_url, api):
+    env = {"DATABASE_URL": database_url, "AEROBASE_ARGON2_MEMORY_KIB": "8192", "AEROBASE_ARGON2_TIME_COST": "1"}
+    assert _run(["admin", "migrate"], env).returncode == 0
+    r = _run(["admin", "create-org", "cli-org-1"], env)
+    assert r.returncode == 0, r.stderr
+    org_id = r.stdout.strip()
+    r = _run(["admin", "create-org", "cli-org-1"], env)
+    assert r.returncode == 1 and "already exists" in r.stderr and "Traceback" not in r.stderr
+    r = _run(["admin", "create-user", "--org", "cli-org-1", "--email", "cli@x.test", "--role", "operator"],
+             {**env, "AEROBASE_PASSWORD": "cli-password-123"})
+    assert r.returncode == 0, r.stderr
+    r = _run(["admin", "create-user", "--org", "cli-org-1", "--email", "short@x.test", "--role", "viewer",
+              "--password", "short"], env)
+    assert r.returncode == 1 and "12 characters" in r.stderr
+    r = _run(["admin", "create-superuser", "--email", "cli-root@x.test", "--password", "root-password-123"], env)
+    assert r.returncode == 0, r.stderr
+    token = _run(["admin", "token", "--email", "cli@x.test"], env).stdout.strip()
+    me = api.get("/api/v1/auth/me", headers=auth(token)).json()
+    assert me["organization_id"] == org_id and me["role"] == "operator"
+    # the one-session rule holds for scripts too
+    r = _run(["admin", "token", "--email", "cli@x.test"], env)
+    assert r.returncode == 1 and "live session" in r.stderr
+    assert _run(["admin", "token", "--email", "cli@x.test", "--force"], env).returncode == 0
+
+
+def test_asset_decrypt(tenant: Tenant):
+    asset = tenant.create_asset(password="decrypt-password-1")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "asset.enc")
+        with open(path, "wb") as f:
+            f.write(base64.b64decode(asset["config_file"]))
+        r = _run(["asset", "decrypt", path], {"AEROBASE_ASSET_PASSWORD": "decrypt-password-1"})
+        assert r.returncode == 0, r.stderr
+        assert asset["id"] in r.stdout and '"secret"' in r.stdout
+        r = _run(["asset", "decrypt", path], {"AEROBASE_ASSET_PASSWORD": "wrong-password-1"})
+        assert r.returncode == 1 and "wrong password" in r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+        pw = os.path.join(tmp, "pw")
+        with open(pw, "w") as f:
+            f.write("decrypt-password-1\n")
+        os.chmod(pw, 0o644)
+        r = _run(["asset", "decrypt", path, "--password-file", pw], {"AEROBASE_ASSET_PASSWORD": ""})
+        assert r.returncode == 1 and "chmod 600" in r.stderr
+        os.chmod(pw, 0o600)
+        r = _run(["asset", "decrypt", path, "--password-file", pw], {"AEROBASE_ASSET_PASSWORD": ""})
+        assert r.returncode == 0, r.stderr
+        data = bytearray(open(path, "rb").read())
+        data[40] ^= 0xFF
+        open(path, "wb").write(bytes(data))
+        r = _run(["asset", "decrypt", path], {"AEROBASE_ASSET_PASSWORD": "decrypt-password-1"})
+        assert r.returncode == 1 and "altered" in r.stderr and "Traceback" not in r.stderr
