@@ -1,0 +1,423 @@
+"""The simulated flight controller: ArduPilot Copter modes, arming, commands and mission flight.
+
+`Copter` has no sockets and no clock: `handle(msg, link, wall)` takes one decoded MAVLink
+message, `tick(dt, wall)` advances simulated time, and everything to send lands in `outbox`
+as (link, message) pairs — link None means every connected peer. Positions the autopilot
+believes (missions, guided targets, telemetry) are in the estimated frame: truth plus the
+GNSS error; the dynamics fly the truth, so a vehicle lands where its GNSS says the pad is.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from protocol.rtcm import MavlinkReassembler, Reframer, frame_ok
+from sim.vehicle import mission as ms
+from sim.vehicle.commands import run_command
+from sim.vehicle.constants import (
+    ACCEPTED,
+    AUTO,
+    BRAKE,
+    CRITICAL,
+    FAILED,
+    GUIDED,
+    INFO,
+    LAND,
+    LOITER,
+    MODE_NAMES,
+    NOT_ARMABLE,
+    RTL,
+    STABILIZE,
+    SUPPORTED_MODES,
+    WARNING,
+)  # fmt: skip
+from sim.vehicle.dynamics import Dynamics, DynamicsParams
+from sim.vehicle.geo import GeoOrigin
+from sim.vehicle.gnss import FIX_3D, GnssModel, GnssParams, GnssReading
+from sim.vehicle.guidance import Guidance
+from sim.vehicle.precland import PrecisionLanding, TargetReading
+
+
+class Base(Protocol):
+    """What the vehicle needs from the landing base it lives on (the world's simulated base)."""
+
+    def can_vehicle_leave(self) -> bool:
+        """True when panels are open and the lift is up."""
+        ...
+
+    def set_pad_load(self, mass_g: float, contacts_seated: bool) -> None:
+        """The vehicle's mass on the scale and whether the charging contacts are seated."""
+        ...
+
+    @property
+    def pad_geodetic(self) -> tuple[float, float, float]:
+        """The pad centre: latitude, longitude (degrees), altitude (m MSL)."""
+        ...
+
+
+@dataclass(frozen=True)
+class CopterConfig:
+    """Tunables, named after the ArduPilot parameters they stand for."""
+
+    seed: int | None = None
+    wp_speed: float = 10.0  # WPNAV_SPEED, m/s
+    wp_radius: float = 1.0  # WPNAV_RADIUS, m
+    rtl_alt: float = 15.0  # RTL_ALT, m
+    rtl_loiter_s: float = 2.0  # RTL_LOIT_TIME
+    land_speed: float = 0.5  # LAND_SPEED
+    land_speed_high: float = 1.5  # LAND_SPEED_HIGH
+    land_alt_low: float = 10.0  # LAND_ALT_LOW
+    arm_min_battery_pct: float = 30.0  # BATT_ARM_MAH as a percentage
+    failsafe_battery_pct: float = 15.0  # BATT_LOW as a percentage -> RTL
+    guided_timeout_s: float = 3.0  # GUID_TIMEOUT for velocity targets
+    pad_radius_m: float = 0.6  # landing inside this radius puts the mass on the scale
+    contacts_tolerance_m: float = 0.05  # charging contacts seat inside this radius
+    dynamics: DynamicsParams = field(default_factory=DynamicsParams)
+    gnss: GnssParams = field(default_factory=GnssParams)
+
+
+@dataclass
+class Faults:
+    """Injected faults; the control interface sets them."""
+
+    prearm_failure: str | None = None  # reported as "PreArm: <text>"
+    mute_until: float = 0.0  # wall time; math.inf = until cleared
+    drop_mission: bool = False  # ignore every mission-protocol message
+
+    def muted(self, wall: float) -> bool:
+        """True while the autopilot answers nothing."""
+        return wall < self.mute_until
+
+
+class Copter:
+    """One ArduPilot-Copter-like vehicle on its base."""
+
+    def __init__(self, base: Base, config: CopterConfig | None = None) -> None:
+        self.config = cfg = config or CopterConfig()
+        self.base = base
+        self.origin = GeoOrigin(*base.pad_geodetic)
+        self.dyn = Dynamics(cfg.dynamics)
+        self.gnss = GnssModel(cfg.gnss, seed=cfg.seed)
+        self.precland = PrecisionLanding()
+        self.guidance = Guidance(self)
+        self.rng = random.Random(cfg.seed)
+        self.faults = Faults()
+        self.t = 0.0  # simulated seconds since boot
+        self.wall = 0.0
+        self.mode = STABILIZE
+        self.armed = False
+        self.failsafe = False
+        self.items: list[ms.Item] = [self.home_item()]
+        self.mission_current = 0
+        self.upload: ms.Upload | None = None
+        self.upload_link: Any = None
+        self.outbox: list[tuple[Any, Any]] = []
+        self.reading: GnssReading = self.gnss.reading(0.0)
+        self._reassembler_seq: dict[Any, Any] = {}
+        self._text_times: dict[str, float] = {}
+        self._was_landed = True
+        self._blocked_told = False
+        base.set_pad_load(cfg.dynamics.mass_g, True)
+
+    # --- frames ----------------------------------------------------------------------------
+    def home_item(self) -> ms.Item:
+        """Item 0: home, at the pad."""
+        lat, lon, alt = self.origin.lat, self.origin.lon, self.origin.alt
+        return ms.Item(
+            0, ms.FRAME_GLOBAL, ms.NAV_WAYPOINT, x=round(lat * 1e7), y=round(lon * 1e7), z=alt
+        )
+
+    def estimated_position(self) -> tuple[float, float, float]:
+        """Where the autopilot believes it is (NED from home): truth plus the GNSS error."""
+        n, e, d = self.dyn.state.position
+        err = self.reading.error_ned
+        return n + err[0], e + err[1], d
+
+    def item_ned(self, item: ms.Item) -> tuple[float, float, float]:
+        """A mission item's position in local NED; lat/lon 0 means here."""
+        est = self.estimated_position()
+        if item.x == 0 and item.y == 0:
+            n, e = est[0], est[1]
+        else:
+            n, e, _ = self.origin.to_ned(item.lat, item.lon, self.origin.alt)
+        rel = item.z if item.frame in ms.RELATIVE_FRAMES else item.z - self.origin.alt
+        return n, e, -rel
+
+    def pad_distance(self) -> float:
+        """True horizontal distance from the pad centre, metres."""
+        n, e, _ = self.dyn.state.position
+        return math.hypot(n, e)
+
+    @property
+    def flying(self) -> bool:
+        """True when armed and off the ground."""
+        return self.armed and not self.dyn.state.landed
+
+    # --- output ----------------------------------------------------------------------------
+    def send(self, msg: Any, link: Any = None) -> None:
+        """Queue a message for one link (or every link when None)."""
+        self.outbox.append((link, msg))
+
+    def text(self, severity: int, text: str, throttle_s: float = 0.0) -> None:
+        """Queue a STATUSTEXT, at most once per `throttle_s` wall seconds for the same text."""
+        last = self._text_times.get(text)
+        if throttle_s and last is not None and self.wall - last < throttle_s:
+            return
+        self._text_times[text] = self.wall
+        self.send(mavlink.MAVLink_statustext_message(severity, text[:50].encode()))
+
+    # --- arming and modes -------------------------------------------------------------------
+    def prearm_failure(self) -> str | None:
+        """Why the vehicle may not arm now, or None."""
+        if self.faults.prearm_failure:
+            return self.faults.prearm_failure
+        if self.reading.fix_type < FIX_3D:
+            return "GPS 1: Bad fix"
+        if self.dyn.state.battery_pct < self.config.arm_min_battery_pct:
+            return "Battery 1 below minimum arming capacity"
+        if self.on_pad() and not self.base.can_vehicle_leave():
+            return "Base closed"
+        if self.mode in NOT_ARMABLE:
+            return "Mode not armable"
+        return None
+
+    def arm(self, force: bool = False) -> int:
+        """Arm the motors after the pre-arm checks; a MAV_RESULT."""
+        if self.armed:
+            return ACCEPTED
+        reason = None if force else self.prearm_failure()
+        if reason:
+            self.text(CRITICAL, f"PreArm: {reason}")
+            return FAILED
+        self.armed = True
+        self.dyn.motors_on = True
+        self.guidance.hold()
+        self.text(INFO, "Arming motors")
+        return ACCEPTED
+
+    def disarm(self, force: bool = False) -> int:
+        """Disarm; refused in flight unless forced; a MAV_RESULT."""
+        if not self.armed:
+            return ACCEPTED
+        if self.flying and not force:
+            return FAILED
+        self.armed = False
+        self.dyn.motors_on = False
+        self.text(INFO, "Disarming motors")
+        return ACCEPTED
+
+    def set_mode(self, mode: int) -> bool:
+        """Change flight mode as ArduPilot would; False when refused."""
+        if mode not in SUPPORTED_MODES:
+            return False
+        needs_position = mode in (AUTO, GUIDED, LOITER, RTL, BRAKE)
+        if needs_position and self.reading.fix_type < FIX_3D:
+            self.text(WARNING, f"Flight mode change failed: {MODE_NAMES[mode]} needs position")
+            return False
+        if (
+            mode == AUTO
+            and self.armed
+            and self.dyn.state.landed
+            and not ms.starts_with_takeoff(self.items)
+        ):
+            self.text(CRITICAL, "Auto: Missing Takeoff Cmd")
+            return False
+        self.mode = mode
+        self.guidance.enter_mode(mode)
+        return True
+
+    def on_pad(self) -> bool:
+        """True when landed within the pad radius."""
+        return self.dyn.state.landed and self.pad_distance() <= self.config.pad_radius_m
+
+    # --- time ------------------------------------------------------------------------------
+    def tick(self, dt: float, wall: float, wind_ne: tuple[float, float] = (0.0, 0.0)) -> None:
+        """Advance simulated time by `dt` seconds (wall time `wall` for protocol timers)."""
+        self.wall = wall
+        self.t += dt
+        self.reading = self.gnss.step(dt, wall)
+        if self.upload is not None:
+            action = self.upload.update(wall)
+            if action:
+                self._upload_action(action)
+        blocked = self.on_pad() and self.armed and not self.base.can_vehicle_leave()
+        self.guidance.update(dt, blocked)
+        if blocked and not self._blocked_told:
+            self.text(WARNING, "Base closed: cannot take off")
+        self._blocked_told = blocked
+        self.dyn.step(dt, wind_ne)
+        self._check_landing()
+        self._check_battery()
+
+    def _check_landing(self) -> None:
+        landed = self.dyn.state.landed
+        if landed == self._was_landed:
+            return
+        self._was_landed = landed
+        if not landed:
+            self.base.set_pad_load(0.0, False)
+            return
+        dist = self.pad_distance()
+        if dist <= self.config.pad_radius_m:
+            self.base.set_pad_load(
+                self.config.dynamics.mass_g, dist <= self.config.contacts_tolerance_m
+            )
+
+    def _check_battery(self) -> None:
+        if self.failsafe or not self.flying:
+            return
+        if self.dyn.state.battery_pct < self.config.failsafe_battery_pct:
+            self.failsafe = True
+            self.text(CRITICAL, "Battery Failsafe")
+            if self.mode not in (RTL, LAND):
+                self.set_mode(RTL)
+
+    # --- input -----------------------------------------------------------------------------
+    def handle(self, msg: Any, link: Any, wall: float) -> None:
+        """Act on one decoded MAVLink message received on `link`."""
+        self.wall = wall
+        kind = msg.get_type()
+        target = getattr(msg, "target_system", 0)
+        if target not in (0, 1):
+            return
+        if kind.startswith("MISSION_") and self.faults.drop_mission:
+            return
+        handler = getattr(self, f"_on_{kind.lower()}", None)
+        if handler is not None:
+            handler(msg, link)
+
+    def _on_command_long(self, msg: Any, link: Any) -> None:
+        p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
+        result = run_command(self, msg.command, p, link)
+        self.send(mavlink.MAVLink_command_ack_message(msg.command, result), link)
+
+    def _on_command_int(self, msg: Any, link: Any) -> None:
+        p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x / 1e7, msg.y / 1e7, msg.z)
+        result = run_command(self, msg.command, p, link)
+        self.send(mavlink.MAVLink_command_ack_message(msg.command, result), link)
+
+    def _on_set_mode(self, msg: Any, link: Any) -> None:
+        ok = self.set_mode(msg.custom_mode)
+        self.send(mavlink.MAVLink_command_ack_message(11, ACCEPTED if ok else FAILED), link)
+
+    def _on_set_position_target_local_ned(self, msg: Any, link: Any) -> None:
+        if self.mode == GUIDED and self.armed:
+            self.guidance.guided_target(msg)
+
+    def _on_landing_target(self, msg: Any, link: Any) -> None:
+        reading = TargetReading(
+            msg.frame, msg.angle_x, msg.angle_y, msg.distance, msg.x, msg.y, msg.z,
+            bool(msg.position_valid),
+        )  # fmt: skip
+        est = self.estimated_position()
+        s = self.dyn.state
+        reason = self.precland.handle(
+            reading, self.t, (est[0], est[1]), s.altitude, (s.roll, s.pitch, s.yaw)
+        )
+        if reason:
+            self.text(WARNING, reason, throttle_s=2.0)
+
+    def _on_gps_rtcm_data(self, msg: Any, link: Any) -> None:
+        reassembler = self._reassembler_seq.setdefault(link, MavlinkReassembler())
+        message = reassembler.push(msg.flags, bytes(msg.data[: msg.len]))
+        if message is None:
+            return
+        if frame_ok(message):
+            self.gnss.correction(self.wall, True)
+            return
+        reframer = Reframer()
+        good = list(reframer.feed(message))
+        for _ in good:
+            self.gnss.correction(self.wall, True)
+        if not good:
+            self.gnss.correction(self.wall, False)
+
+    # --- mission protocol ------------------------------------------------------------------
+    def _on_mission_count(self, msg: Any, link: Any) -> None:
+        if getattr(msg, "mission_type", 0) != 0:
+            self.send(
+                mavlink.MAVLink_mission_ack_message(255, 0, ms.UNSUPPORTED, msg.mission_type), link
+            )
+            return
+        if (
+            self.upload is not None
+            and not self.upload.done
+            and self.upload.count == msg.count
+            and link is self.upload_link
+        ):
+            self._upload_action(self.upload.on_count_again(self.wall))
+            return
+        self.upload = ms.Upload(msg.count, self.wall)
+        self.upload_link = link
+        self._upload_action(self.upload.start())
+
+    def _on_mission_item_int(self, msg: Any, link: Any) -> None:
+        if self.upload is None or self.upload.done:
+            return
+        item = ms.Item(
+            msg.seq, msg.frame, msg.command, msg.param1, msg.param2, msg.param3, msg.param4,
+            msg.x, msg.y, msg.z, msg.autocontinue,
+        )  # fmt: skip
+        action = self.upload.on_item(item, self.wall)
+        if action:
+            self._upload_action(action)
+
+    def _upload_action(self, action: tuple[str, int]) -> None:
+        kind, value = action
+        if kind == "request":
+            self.send(mavlink.MAVLink_mission_request_int_message(255, 0, value), self.upload_link)
+            return
+        self.send(mavlink.MAVLink_mission_ack_message(255, 0, value), self.upload_link)
+        if value == ms.ACCEPTED and self.upload is not None:
+            self.items = [self.home_item(), *self.upload.items[1:]]
+            self.mission_current = min(self.mission_current, len(self.items) - 1)
+            self.text(INFO, f"Flight plan received ({len(self.items)} items)")
+
+    def _on_mission_request_list(self, msg: Any, link: Any) -> None:
+        self.send(mavlink.MAVLink_mission_count_message(255, 0, len(self.items)), link)
+
+    def _on_mission_request_int(self, msg: Any, link: Any) -> None:
+        if not 0 <= msg.seq < len(self.items):
+            self.send(mavlink.MAVLink_mission_ack_message(255, 0, ms.INVALID_SEQUENCE), link)
+            return
+        it = self.home_item() if msg.seq == 0 else self.items[msg.seq]
+        self.send(
+            mavlink.MAVLink_mission_item_int_message(
+                255, 0, it.seq, it.frame, it.command, int(it.seq == self.mission_current),
+                it.autocontinue, it.param1, it.param2, it.param3, it.param4, it.x, it.y, it.z,
+            ),
+            link,
+        )  # fmt: skip
+
+    _on_mission_request = _on_mission_request_int
+
+    def _on_mission_ack(self, msg: Any, link: Any) -> None:
+        """The ground's ack closing a download: nothing to do."""
+
+    def _on_mission_clear_all(self, msg: Any, link: Any) -> None:
+        self.items = [self.home_item()]
+        self.mission_current = 0
+        self.guidance.mission_cleared()
+        self.send(mavlink.MAVLink_mission_ack_message(255, 0, ms.ACCEPTED), link)
+
+    def _on_mission_set_current(self, msg: Any, link: Any) -> None:
+        if 0 < msg.seq < len(self.items):
+            self.mission_current = msg.seq
+            if self.mode == AUTO and self.armed:
+                self.guidance.start_item(msg.seq)
+        self.send(
+            mavlink.MAVLink_mission_current_message(self.mission_current, len(self.items)), link
+        )
+
+    def _on_request_data_stream(self, msg: Any, link: Any) -> None:
+        if self.streams is not None:
+            self.streams.request_data_stream(
+                msg.req_stream_id, msg.req_message_rate, msg.start_stop
+            )
+
+    streams: Any = None  # the link layer's StreamScheduler, set by the server

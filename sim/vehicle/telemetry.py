@@ -1,0 +1,225 @@
+"""Telemetry of the simulated autopilot: message builders and the stream scheduler (wall time)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from sim.vehicle.constants import AUTO, BRAKE, GUIDED, LAND, LOITER, RTL
+
+if TYPE_CHECKING:
+    from sim.vehicle.copter import Copter
+
+HEARTBEAT, SYS_STATUS, GPS_RAW_INT, ATTITUDE = 0, 1, 24, 30
+LOCAL_POSITION_NED, GLOBAL_POSITION_INT, MISSION_CURRENT, VFR_HUD = 32, 33, 42, 74
+BATTERY_STATUS, HOME_POSITION, EXTENDED_SYS_STATE = 147, 242, 245
+
+# MAV_SYS_STATUS_SENSOR bits: gyro, accel, mag, baro, gps, motor outputs, battery, prearm
+SENSORS = 0x1 | 0x2 | 0x4 | 0x8 | 0x20 | 0x8000 | 0x2000000 | 0x10000000
+PREARM_BIT = 0x10000000
+GPS_BIT = 0x20
+
+
+def _heartbeat(c: Copter) -> Any:
+    base_mode = 1 | 16  # custom mode enabled, stabilize
+    if c.mode in (AUTO, GUIDED, RTL, LAND, LOITER, BRAKE):
+        base_mode |= 8
+    if c.armed:
+        base_mode |= 128
+    status = 5 if c.failsafe else 4 if c.armed else 3  # CRITICAL, ACTIVE, STANDBY
+    return mavlink.MAVLink_heartbeat_message(2, 3, base_mode, c.mode, status, 3)
+
+
+def _sys_status(c: Copter) -> Any:
+    s = c.dyn.state
+    health = SENSORS
+    if c.prearm_failure() is not None and not c.armed:
+        health &= ~PREARM_BIT
+    if c.reading.fix_type < 3:
+        health &= ~GPS_BIT
+    return mavlink.MAVLink_sys_status_message(
+        SENSORS, SENSORS, health, 200, round(s.voltage * 1000), round(s.current_a * 100),
+        round(s.battery_pct), 0, 0, 0, 0, 0, 0,
+    )  # fmt: skip
+
+
+def _battery(c: Copter) -> Any:
+    s = c.dyn.state
+    cells = c.config.dynamics.cells
+    per_cell = round(s.voltage * 1000 / cells)
+    volts = [per_cell] * cells + [65535] * (10 - cells)
+    return mavlink.MAVLink_battery_status_message(
+        0, 0, 1, 2500, volts, round(s.current_a * 100), round(s.consumed_mah), -1,
+        round(s.battery_pct),
+    )  # fmt: skip
+
+
+def _estimated_geodetic(c: Copter) -> tuple[float, float, float]:
+    n, e, d = c.estimated_position()
+    return c.origin.to_geodetic(n, e, d)
+
+
+def _global_position(c: Copter) -> Any:
+    s = c.dyn.state
+    lat, lon, alt = _estimated_geodetic(c)
+    hdg = round(math.degrees(s.yaw) % 360 * 100)
+    vn, ve, vd = (round(v * 100) for v in s.velocity)
+    return mavlink.MAVLink_global_position_int_message(
+        round(c.t * 1000) & 0xFFFFFFFF, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
+        round(s.altitude * 1000), vn, ve, vd, hdg,
+    )  # fmt: skip
+
+
+def _local_position(c: Copter) -> Any:
+    n, e, d = c.estimated_position()
+    v = c.dyn.state.velocity
+    return mavlink.MAVLink_local_position_ned_message(
+        round(c.t * 1000) & 0xFFFFFFFF, n, e, d, v[0], v[1], v[2]
+    )
+
+
+def _attitude(c: Copter) -> Any:
+    s = c.dyn.state
+    yaw = (s.yaw + math.pi) % (2 * math.pi) - math.pi
+    return mavlink.MAVLink_attitude_message(
+        round(c.t * 1000) & 0xFFFFFFFF, s.roll, s.pitch, yaw, 0, 0, 0
+    )
+
+
+def _gps_raw(c: Copter) -> Any:
+    r = c.reading
+    n, e, d = c.dyn.state.position
+    lat, lon, alt = c.origin.to_geodetic(n + r.error_ned[0], e + r.error_ned[1], d + r.error_ned[2])
+    v = c.dyn.state.velocity
+    speed = math.hypot(v[0], v[1])
+    cog = round(math.degrees(math.atan2(v[1], v[0])) % 360 * 100) if speed > 0.2 else 65535
+    return mavlink.MAVLink_gps_raw_int_message(
+        round(c.t * 1e6), r.fix_type, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
+        round(r.hdop * 100), round(r.hdop * 150), round(speed * 100), cog, r.satellites,
+        round(alt * 1000), round(r.h_acc_m * 1000), round(r.h_acc_m * 1500),
+    )  # fmt: skip
+
+
+def _mission_current(c: Copter) -> Any:
+    return mavlink.MAVLink_mission_current_message(
+        c.mission_current, len(c.items), c.guidance.reported_mission_state(), int(c.mode == AUTO)
+    )
+
+
+def _vfr_hud(c: Copter) -> Any:
+    s = c.dyn.state
+    speed = math.hypot(s.velocity[0], s.velocity[1])
+    hdg = round(math.degrees(s.yaw)) % 360
+    alt = c.origin.alt + s.altitude
+    return mavlink.MAVLink_vfr_hud_message(
+        speed, speed, hdg, 50 if c.armed else 0, alt, -s.velocity[2]
+    )
+
+
+def _home(c: Copter) -> Any:
+    o = c.origin
+    return mavlink.MAVLink_home_position_message(
+        round(o.lat * 1e7), round(o.lon * 1e7), round(o.alt * 1000), 0, 0, 0, [1, 0, 0, 0], 0, 0, 0
+    )
+
+
+def _extended_sys_state(c: Copter) -> Any:
+    return mavlink.MAVLink_extended_sys_state_message(0, c.guidance.landed_state())
+
+
+BUILDERS: dict[int, Callable[[Copter], Any]] = {
+    HEARTBEAT: _heartbeat,
+    SYS_STATUS: _sys_status,
+    GPS_RAW_INT: _gps_raw,
+    ATTITUDE: _attitude,
+    LOCAL_POSITION_NED: _local_position,
+    GLOBAL_POSITION_INT: _global_position,
+    MISSION_CURRENT: _mission_current,
+    VFR_HUD: _vfr_hud,
+    BATTERY_STATUS: _battery,
+    HOME_POSITION: _home,
+    EXTENDED_SYS_STATE: _extended_sys_state,
+}
+
+DEFAULT_INTERVALS: dict[int, float | None] = {
+    HEARTBEAT: 1.0,
+    SYS_STATUS: 0.5,
+    GPS_RAW_INT: 0.2,
+    ATTITUDE: 0.1,
+    LOCAL_POSITION_NED: 0.2,
+    GLOBAL_POSITION_INT: 0.2,
+    MISSION_CURRENT: 1.0,
+    VFR_HUD: 0.5,
+    BATTERY_STATUS: 1.0,
+    HOME_POSITION: 5.0,
+    EXTENDED_SYS_STATE: 1.0,
+}
+
+# REQUEST_DATA_STREAM groups, as ArduPilot files its messages
+DATA_STREAMS: dict[int, tuple[int, ...]] = {
+    1: (),  # RAW_SENSORS: IMU messages, not simulated
+    2: (SYS_STATUS, GPS_RAW_INT, MISSION_CURRENT, EXTENDED_SYS_STATE),  # EXTENDED_STATUS
+    3: (),  # RC_CHANNELS
+    6: (GLOBAL_POSITION_INT, LOCAL_POSITION_NED),  # POSITION
+    10: (ATTITUDE,),  # EXTRA1
+    11: (VFR_HUD,),  # EXTRA2
+    12: (BATTERY_STATUS,),  # EXTRA3
+}
+
+
+class StreamScheduler:
+    """Which telemetry message is due when (wall seconds); SET_MESSAGE_INTERVAL edits it."""
+
+    def __init__(self, now: float = 0.0) -> None:
+        self.intervals: dict[int, float | None] = dict(DEFAULT_INTERVALS)
+        self._next: dict[int, float] = dict.fromkeys(self.intervals, now)
+        self._once: list[int] = []
+
+    def set_interval(self, msg_id: int, interval_us: float) -> bool:
+        """MAV_CMD_SET_MESSAGE_INTERVAL: -1 stops, 0 restores the default, else microseconds."""
+        if msg_id not in BUILDERS:
+            return False
+        if interval_us < 0:
+            self.intervals[msg_id] = None
+        elif interval_us == 0:
+            self.intervals[msg_id] = DEFAULT_INTERVALS[msg_id]
+        else:
+            self.intervals[msg_id] = max(interval_us / 1e6, 0.005)
+        self._next[msg_id] = 0.0
+        return True
+
+    def request_data_stream(self, stream_id: int, rate_hz: int, start: int) -> None:
+        """REQUEST_DATA_STREAM: set every message of a group (0 = all) to `rate_hz`, or stop them."""
+        groups = DATA_STREAMS.values() if stream_id == 0 else [DATA_STREAMS.get(stream_id, ())]
+        for group in groups:
+            for msg_id in group:
+                if start and rate_hz > 0:
+                    self.set_interval(msg_id, 1e6 / rate_hz)
+                else:
+                    self.set_interval(msg_id, -1)
+
+    def send_once(self, msg_id: int) -> bool:
+        """MAV_CMD_REQUEST_MESSAGE: send `msg_id` at the next opportunity."""
+        if msg_id not in BUILDERS:
+            return False
+        self._once.append(msg_id)
+        return True
+
+    def due(self, now: float) -> list[int]:
+        """Message ids to send now; advances their schedule."""
+        out, self._once = self._once, []
+        for msg_id, interval in self.intervals.items():
+            if interval is None or now < self._next.get(msg_id, 0.0):
+                continue
+            out.append(msg_id)
+            nxt = self._next.get(msg_id, 0.0) + interval
+            self._next[msg_id] = nxt if nxt > now else now + interval
+        return out
+
+
+def build(c: Copter, msg_id: int) -> Any:
+    """The current value of telemetry message `msg_id`."""
+    return BUILDERS[msg_id](c)
