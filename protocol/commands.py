@@ -1,0 +1,186 @@
+"""Inbound commands: run each id once, answer redeliveries from the ledger.
+
+A handler is an async function taking a `CommandRequest` and either returning a final
+`CommandResultPayload` (or None for plain success), or an async generator that yields
+`CommandProgress` values (sent as in_progress results) and finally a final result.
+An exception becomes a `failed` result. Every result goes through the outbox, recorded in
+the same transaction as the ledger, so none is lost and none is produced twice.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import uuid
+from collections.abc import AsyncIterator, Awaitable, Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from protocol.messages import Command, CommandProgress, CommandResultPayload, now_ms
+from protocol.outbox import AsyncOutbox
+
+log = logging.getLogger(__name__)
+
+HandlerOutput = (
+    AsyncIterator[CommandProgress | CommandResultPayload] | Awaitable[CommandResultPayload | None]
+)
+
+
+@dataclass(frozen=True, slots=True)
+class CommandRequest:
+    """One command for a handler: its id, name, params and deadline (unix ms)."""
+
+    id: uuid.UUID
+    name: str
+    params: dict[str, Any] = field(default_factory=dict)
+    deadline: int = 0
+
+    def remaining_s(self) -> float:
+        """Seconds left before the deadline (negative once past it)."""
+        return (self.deadline - now_ms()) / 1000
+
+
+Handler = Callable[[CommandRequest], HandlerOutput]
+
+
+def result(
+    status: str, reason: str = "", data: dict[str, Any] | None = None
+) -> CommandResultPayload:
+    """Shorthand for a command result."""
+    return CommandResultPayload(status=status, reason=reason, data=data)  # type: ignore[arg-type]
+
+
+@dataclass(slots=True)
+class CommandStats:
+    """Counters of the dispatcher."""
+
+    executed: int = 0
+    redelivered: int = 0
+    rejected: int = 0
+
+
+class CommandDispatcher:
+    """Routes commands to handlers by name, once per command id."""
+
+    def __init__(self, outbox: AsyncOutbox, queued: Callable[[], None] = lambda: None):
+        """Record results in `outbox`; call `queued()` after each result is queued."""
+        self._outbox = outbox
+        self._queued = queued
+        self._handlers: dict[str, Handler] = {}
+        self._tasks: dict[str, asyncio.Task[None]] = {}
+        self.stats = CommandStats()
+
+    def register(self, name: str, handler: Handler) -> None:
+        """Run `handler` for commands called `name` (replacing any previous one)."""
+        self._handlers[name] = handler
+
+    @property
+    def running(self) -> frozenset[str]:
+        """Ids of the commands executing in this process."""
+        return frozenset(self._tasks)
+
+    async def recover(self) -> int:
+        """Fail the commands a previous process left running; returns how many."""
+        interrupted = await self._outbox.running_commands()
+        for record in interrupted:
+            log.warning("command %s (%s) was interrupted by a restart", record.id, record.name)
+            await self._finish(record.id, result("failed", "interrupted: the agent restarted"))
+        return len(interrupted)
+
+    async def handle(self, command: Command) -> None:
+        """Start a new command, or answer a redelivered one without running it again."""
+        cid, name = str(command.id), command.payload.name
+        known = await self._outbox.begin_command(cid, name)
+        if known is not None:
+            self.stats.redelivered += 1
+            if known.state == "done" and known.result is not None:
+                log.info("command %s redelivered: answering its first result", cid)
+                await self._requeue(cid, known.result)
+            elif cid in self._tasks:
+                log.info("command %s redelivered while running: answering in_progress", cid)
+                await self._requeue(cid, known.progress or _still_running().model_dump_json())
+            else:
+                await self._finish(cid, result("failed", "interrupted: the agent restarted"))
+            return
+        handler = self._handlers.get(name)
+        if handler is None:
+            self.stats.rejected += 1
+            await self._finish(cid, result("rejected", f"unknown command {name!r}"))
+            return
+        if command.payload.deadline and command.payload.deadline < now_ms():
+            self.stats.rejected += 1
+            await self._finish(cid, result("timed_out", "the deadline passed before it started"))
+            return
+        request = CommandRequest(
+            command.id, name, dict(command.payload.params), command.payload.deadline
+        )
+        self.stats.executed += 1
+        task = asyncio.create_task(self._run(handler, request), name=f"command-{name}-{cid}")
+        self._tasks[cid] = task
+        task.add_done_callback(lambda _t: self._tasks.pop(cid, None))
+
+    async def stop(self) -> None:
+        """Cancel running commands; each records a `canceled` result."""
+        tasks = list(self._tasks.values())
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+
+    async def _run(self, handler: Handler, request: CommandRequest) -> None:
+        cid = str(request.id)
+        try:
+            final = await self._drive(handler, request)
+        except asyncio.CancelledError:
+            await self._finish(cid, result("canceled", "the agent is stopping"))
+            raise
+        except Exception as err:
+            log.exception("command %s (%s) failed", cid, request.name)
+            final = result("failed", f"{type(err).__name__}: {err}")
+        await self._finish(cid, final)
+
+    async def _drive(self, handler: Handler, request: CommandRequest) -> CommandResultPayload:
+        output = handler(request)
+        if not hasattr(output, "__aiter__"):
+            value = await output  # type: ignore[misc]
+            return _final(value)
+        stream: AsyncIterator[Any] = output  # type: ignore[assignment]
+        try:
+            async for item in stream:
+                if isinstance(item, CommandResultPayload) and item.final:
+                    return item
+                await self._progress(request.id, item)
+        finally:
+            aclose = getattr(stream, "aclose", None)
+            if aclose is not None:
+                await aclose()
+        return result("succeeded")
+
+    async def _progress(self, cid: uuid.UUID, item: Any) -> None:
+        if isinstance(item, CommandProgress):
+            item = CommandResultPayload(status="in_progress", progress=item)
+        if not isinstance(item, CommandResultPayload):
+            raise TypeError(f"a handler yielded {type(item).__name__}, not a progress or result")
+        await self._outbox.progress_command(str(cid), item.model_dump_json())
+        self._queued()
+
+    async def _finish(self, cid: str, final: CommandResultPayload) -> None:
+        if not final.final:
+            final = result("failed", f"handler ended with non-final status {final.status!r}")
+        if await self._outbox.finish_command(cid, final.model_dump_json()):
+            self._queued()
+
+    async def _requeue(self, cid: str, payload: str) -> None:
+        await self._outbox.append("command_result", payload, re=cid)
+        self._queued()
+
+
+def _final(value: Any) -> CommandResultPayload:
+    if value is None:
+        return result("succeeded")
+    if isinstance(value, CommandResultPayload):
+        return value
+    raise TypeError(f"a handler returned {type(value).__name__}, not a CommandResultPayload")
+
+
+def _still_running() -> CommandResultPayload:
+    return CommandResultPayload(status="in_progress", reason="already running")
