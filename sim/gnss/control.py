@@ -16,8 +16,8 @@ class GnssFaultsPatch(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     streaming: bool | None = None
-    garbage_bytes: int | None = Field(None, ge=0, le=4096)
-    corrupt_fraction: float | None = Field(None, ge=0.0, le=1.0)
+    garbage_bytes: int | None = Field(default=None, ge=0, le=4096)
+    corrupt_fraction: float | None = Field(default=None, ge=0.0, le=1.0)
 
 
 def gnss_router(receiver: GnssReceiver, prefix: str = "/gnss") -> APIRouter:

@@ -26,9 +26,11 @@ class GnssFaults(BaseModel):
     model_config = ConfigDict(frozen=True)
 
     streaming: bool = True
-    garbage_bytes: int = Field(0, ge=0, le=4096, description="random bytes sent before each epoch")
+    garbage_bytes: int = Field(
+        default=0, ge=0, le=4096, description="random bytes sent before each epoch"
+    )
     corrupt_fraction: float = Field(
-        0.0, ge=0.0, le=1.0, description="share of frames with a bit flipped"
+        default=0.0, ge=0.0, le=1.0, description="share of frames with a bit flipped"
     )
 
 

@@ -18,16 +18,16 @@ class GnssConfig(BaseModel):
 
     model_config = ConfigDict(frozen=True)
 
-    station_id: int = Field(1, ge=0, le=4095)
-    latitude: float = Field(41.1780, ge=-90, le=90)
-    longitude: float = Field(-8.5980, ge=-180, le=180)
+    station_id: int = Field(default=1, ge=0, le=4095)
+    latitude: float = Field(default=41.1780, ge=-90, le=90)
+    longitude: float = Field(default=-8.5980, ge=-180, le=180)
     height_m: float = 120.0
     seed: int = 0
     msm: Literal[4, 7] = 7
-    gps_satellites: int = Field(9, ge=1, le=16)
-    galileo_satellites: int = Field(8, ge=1, le=16)
-    reference_every: int = Field(1, ge=1, description="send 1005 and 1230 every N epochs")
-    start_tow_ms: int = Field(345_600_000, ge=0, lt=GPS_WEEK_MS)
+    gps_satellites: int = Field(default=9, ge=1, le=16)
+    galileo_satellites: int = Field(default=8, ge=1, le=16)
+    reference_every: int = Field(default=1, ge=1, description="send 1005 and 1230 every N epochs")
+    start_tow_ms: int = Field(default=345_600_000, ge=0, lt=GPS_WEEK_MS)
     glonass_biases_m: tuple[float | None, float | None, float | None, float | None] = (
         -71.94,
         None,
