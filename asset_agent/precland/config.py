@@ -1,0 +1,177 @@
+"""Every precision-landing parameter, in one pydantic model: `PrecisionLandingConfig`."""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+SOURCES = ("pattern", "aruco", "ir", "frame")
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class PadGeometry(_Model):
+    """The pad marker as built (paper §2.5.1): pad frame x forward (P5 → P1), y right, metres."""
+
+    pattern_radius: float = 0.375  # circle through P1, P2, P3 (75 cm diameter)
+    point_diameter: float = 0.10
+    frame_outer: float = 1.10
+    frame_width: float = 0.05
+    aruco_size: float = 0.10
+    aruco_centre: tuple[float, float] = (0.0, 0.0)
+    aruco_dictionary: str = "DICT_4X4_50"
+    aruco_id: int = 0
+    beacon_xy: tuple[float, float] = (0.0, 0.0)
+
+    def pattern_points(self) -> dict[str, tuple[float, float]]:
+        """P1..P6: triangle vertices on the 75 cm circle and where its incircle touches the sides."""
+        r = self.pattern_radius
+        angles = (0.0, 2 * math.pi / 3, -2 * math.pi / 3)
+        v = {f"P{i + 1}": (r * math.cos(a), r * math.sin(a)) for i, a in enumerate(angles)}
+
+        def mid(a: str, b: str) -> tuple[float, float]:
+            return ((v[a][0] + v[b][0]) / 2, (v[a][1] + v[b][1]) / 2)
+
+        return {**v, "P4": mid("P1", "P2"), "P5": mid("P2", "P3"), "P6": mid("P3", "P1")}
+
+    def aruco_corners(self) -> np.ndarray:
+        """The marker's corners in OpenCV's order (top-left, top-right, ...; top = +x)."""
+        cx, cy = self.aruco_centre
+        h = self.aruco_size / 2
+        return np.array([(cx + h, cy - h), (cx + h, cy + h), (cx - h, cy + h), (cx - h, cy - h)])
+
+
+class CameraModel(_Model):
+    """Downward camera: intrinsics, distortion, and its position on the vehicle (body FRD, m).
+
+    Mounted looking down with the image's top towards the nose: camera x = body y (right),
+    camera y = -body x, camera z = body z (down).
+    """
+
+    width: int = 640
+    height: int = 480
+    fx: float = 460.0
+    fy: float = 460.0
+    cx: float = 319.5
+    cy: float = 239.5
+    dist: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    offset_body: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def matrix(self) -> np.ndarray:
+        """The 3x3 camera matrix K."""
+        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1]], dtype=np.float64)
+
+
+class DetectorConfig(_Model):
+    """Thresholds of the detector; elements can be switched off one by one."""
+
+    use_frame: bool = True
+    use_pattern: bool = True
+    use_aruco: bool = True
+    value_floor: int = 60  # never threshold Value below this
+    value_fraction: float = 0.45  # threshold = fraction x the 99.9th percentile of Value
+    frame_hole_ratio: tuple[float, float] = (0.82, 0.97)  # inner/outer side of the frame ring
+    min_frame_side_px: float = 20.0
+    circle_fill_min: float = 0.72  # blob area / enclosing-circle area
+    min_blob_area_px: float = 3.0
+    max_blob_area_fraction: float = 0.2
+    min_saturation_gap: float = 0.2  # K-means centroids must differ this much in saturation
+    match_tolerance: float = 0.15  # of |P1P5|: predicted-vs-found point distance
+    max_residual: float = 0.05  # of |P1P5|: RMS residual of the six-point fit
+    aruco_max_residual: float = 0.05  # of the marker side
+    aruco_min_side_px: float = 24.0  # smaller markers give centimetre-poor heights: ignore them
+
+
+class SourceConfig(_Model):
+    """A fusion source: its weight and how long a reading counts as new."""
+
+    weight: float = 1.0
+    freshness_s: float = 0.2
+
+
+class FusionConfig(_Model):
+    """Thesis truth table: weighted average of new values, the single new one, the last one while
+    younger than hold_s, else no target."""
+
+    sources: dict[str, SourceConfig] = Field(
+        default_factory=lambda: {
+            "pattern": SourceConfig(weight=1.0, freshness_s=0.2),
+            "aruco": SourceConfig(weight=4.0, freshness_s=0.2),
+            "ir": SourceConfig(weight=1.0, freshness_s=0.1),
+        }
+    )
+    hold_s: float = 1.0
+
+
+class FaultConfig(_Model):
+    """Fault injection for one source; all zero / None disables it."""
+
+    r_drop: float = Field(0.0, ge=0.0, le=1.0)
+    p_keep: float = Field(0.0, ge=0.0)
+    p_drop: float = Field(0.0, ge=0.0)
+    fail_below_m: float | None = None
+    fail_above_m: float | None = None
+
+
+class KalmanConfig(_Model):
+    """Noise of the relative-position filter (metres, radians)."""
+
+    initial_sigma_m: float = 1.5
+    initial_heading_sigma: float = math.pi
+    process_per_metre: float = 0.02  # GNSS delta error per metre moved
+    process_per_second: float = 0.05  # GNSS drift per second
+    heading_process_per_second: float = 0.01
+    vision_sigma_per_metre: float = 0.01  # measurement sigma grows with height (pixel error)
+    vision_sigma_floor: float = 0.003
+    heading_sigma: float = math.radians(1.0)
+
+
+class ControlConfig(_Model):
+    """Companion-mode landing: conical acceptance volume (paper eq. 3, 4), gains and limits."""
+
+    min_pos_error: float = 0.03
+    max_pos_error: float = 0.5
+    kp_xy: float = 0.8
+    kp_z: float = 0.5
+    max_speed_xy: float = 1.5
+    max_descent: float = 1.0
+    max_climb: float = 1.0
+    slow_height: float = 0.5
+    slow_descent: float = 0.1
+    max_heading_error_deg: float = 5.0
+    kp_yaw: float = 1.0
+    max_yaw_rate: float = 0.8
+    heading_offset_deg: float = 0.0  # vehicle yaw - pad yaw when seated on the contacts
+    touchdown_height: float = 0.03
+    landing_target_rate_hz: float = Field(20.0, ge=10.0)
+
+
+class RetryConfig(_Model):
+    """The thesis's cautious landing: pause, climb back, retry, then descend blind."""
+
+    cautious: bool = True
+    pause_s: float = 2.0
+    default_height: float = 5.0
+    climb_speed: float = 0.8
+    reached_tolerance_m: float = 0.2
+    max_attempts: int = 3
+    blind_descent: float = 0.3
+
+
+class PrecisionLandingConfig(_Model):
+    """The whole precision-landing configuration of the agent."""
+
+    mode: Literal["landing_target", "companion"] = "companion"
+    pad: PadGeometry = PadGeometry()
+    camera: CameraModel = CameraModel()
+    detector: DetectorConfig = DetectorConfig()
+    fusion: FusionConfig = FusionConfig()
+    faults: dict[str, FaultConfig] = Field(default_factory=dict)
+    kalman: KalmanConfig = KalmanConfig()
+    control: ControlConfig = ControlConfig()
+    retry: RetryConfig = RetryConfig()

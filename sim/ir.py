@@ -1,0 +1,129 @@
+"""Simulated IR-beacon sensor (like an IRLock / Pixy): angles to the pad's beacon at 50 Hz over UDP.
+
+The sensor looks down with the camera's axes (x right, y towards the tail, z down — image
+convention) and reports the beacon's direction as two angles: angle_x = atan2(x, z) and
+angle_y = atan2(y, z), with Gaussian noise, when the beacon is within the field of view and the
+detection range; otherwise it reports "not detected".
+
+Datagram (one reading, 28 bytes, little-endian), sent to a configured (host, port)::
+
+    struct "<4sBBHIdff": magic b"ABIR", version 1, flags (bit 0: beacon detected), reserved 0,
+                         seq (uint32), capture_ts (float64 seconds on the world's clock),
+                         angle_x, angle_y (float32 radians; 0 when not detected)
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import struct
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.camera.render import CAM_FROM_BODY, Pose, rotation_world_from_body
+
+log = logging.getLogger(__name__)
+
+DATAGRAM = struct.Struct("<4sBBHIdff")
+MAGIC = b"ABIR"
+VERSION = 1
+
+
+@dataclass(frozen=True)
+class IrSensorConfig:
+    """Sensor characteristics: rate, noise, field of view, range, beacon position on the pad."""
+
+    rate_hz: float = 50.0
+    noise_rad: float = 0.002
+    fov_deg: float = 60.0
+    max_range_m: float = 15.0
+    beacon_xy: tuple[float, float] = (0.0, 0.0)
+
+
+def ir_reading(
+    pose: Pose, config: IrSensorConfig, rng: np.random.Generator | None = None
+) -> tuple[bool, float, float]:
+    """(detected, angle_x, angle_y) of the beacon seen from `pose` (noise drawn from `rng`)."""
+    n, e, up, roll, pitch, yaw = pose
+    r_cw = CAM_FROM_BODY @ rotation_world_from_body(roll, pitch, yaw).T
+    rel = np.array([config.beacon_xy[0] - n, config.beacon_xy[1] - e, up])
+    v = r_cw @ rel
+    dist = float(np.linalg.norm(rel))
+    if v[2] <= 0 or dist > config.max_range_m:
+        return False, 0.0, 0.0
+    ax, ay = math.atan2(v[0], v[2]), math.atan2(v[1], v[2])
+    half = math.radians(config.fov_deg) / 2
+    if abs(ax) > half or abs(ay) > half:
+        return False, 0.0, 0.0
+    if rng is not None and config.noise_rad > 0:
+        ax += float(rng.normal(0, config.noise_rad))
+        ay += float(rng.normal(0, config.noise_rad))
+    return True, ax, ay
+
+
+def encode_reading(seq: int, capture_ts: float, detected: bool, ax: float, ay: float) -> bytes:
+    """One datagram."""
+    return DATAGRAM.pack(
+        MAGIC, VERSION, 1 if detected else 0, 0, seq & 0xFFFFFFFF, capture_ts, ax, ay
+    )
+
+
+class IrBeaconSensor:
+    """Sends a reading every 1/rate_hz simulated seconds to `dest` over UDP."""
+
+    def __init__(
+        self,
+        pose_fn: Callable[[], Pose],
+        clock,
+        dest: tuple[str, int],
+        config: IrSensorConfig | None = None,
+        seed: int = 0,
+    ) -> None:
+        self.pose_fn = pose_fn
+        self.clock = clock
+        self.dest = dest
+        self.config = config or IrSensorConfig()
+        self.sent = 0
+        self._rng = np.random.default_rng(seed)
+        self._transport: asyncio.DatagramTransport | None = None
+        self._task: asyncio.Task | None = None
+
+    async def start(self) -> None:
+        """Open the socket and start sending."""
+        loop = asyncio.get_running_loop()
+        self._transport, _ = await loop.create_datagram_endpoint(
+            asyncio.DatagramProtocol, local_addr=("127.0.0.1", 0)
+        )
+        self._task = asyncio.create_task(self._run(), name="ir-sensor")
+
+    async def stop(self) -> None:
+        """Stop sending and close the socket."""
+        if self._task:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+        if self._transport:
+            self._transport.close()
+
+    async def _run(self) -> None:
+        period = 1.0 / self.config.rate_hz
+        next_t = self.clock.now()
+        seq = 0
+        while True:
+            next_t += period
+            await self.clock.sleep(next_t - self.clock.now())
+            if self.clock.now() - next_t > period:
+                next_t = self.clock.now()
+            try:
+                ts = self.clock.now()
+                detected, ax, ay = ir_reading(self.pose_fn(), self.config, self._rng)
+                assert self._transport is not None
+                self._transport.sendto(encode_reading(seq, ts, detected, ax, ay), self.dest)
+                seq += 1
+                self.sent += 1
+            except Exception:
+                log.exception("IR reading failed; skipping")

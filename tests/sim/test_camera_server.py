@@ -1,0 +1,101 @@
+"""The simulated camera end to end: rendered frames over the real TCP transport, with timestamps."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import math
+import time
+
+import numpy as np
+
+from asset_agent.precland.detect import PadDetector
+from asset_agent.precland.transport import (
+    FRAME_HEADER,
+    TransportError,
+    parse_frame_header,
+    stream_frames,
+)
+from sim.camera.render import PadRenderer
+from sim.camera.server import HEADER, CameraServer, encode_frame
+from sim.clock import SimClock
+
+
+async def wait_for(predicate, within: float = 10.0) -> None:
+    """Wait until predicate() holds, failing after `within` wall seconds."""
+    deadline = time.monotonic() + within
+    while not predicate():
+        assert time.monotonic() < deadline, "condition not met in time"
+        await asyncio.sleep(0.005)
+
+
+def scripted_pose(clock: SimClock):
+    """A slow spiral descent, as a function of the world clock."""
+
+    def pose_at(t: float):
+        return (0.2 * math.cos(0.2 * t), 0.2 * math.sin(0.2 * t), 3.0 - 0.05 * t, 0.0, 0.0, 0.1 * t)
+
+    return pose_at, (lambda: pose_at(clock.now()))
+
+
+def test_sim_and_agent_agree_on_the_header():
+    assert HEADER.format == FRAME_HEADER.format and HEADER.size == 28
+    img = np.zeros((4, 5, 3), np.uint8)
+    data = encode_frame(7, 12.5, img)
+    assert parse_frame_header(data[:28]) == (7, 12.5, 5, 4, 0, 60)
+    try:
+        parse_frame_header(b"XXXX" + data[4:28])
+    except TransportError:
+        pass
+    else:
+        raise AssertionError("bad magic accepted")
+
+
+async def test_frames_arrive_with_capture_timestamps_and_match_the_pose_at_that_time():
+    clock = SimClock(speed=2.0)
+    pose_at, pose_fn = scripted_pose(clock)
+    server = CameraServer(pose_fn, clock, PadRenderer(), fps=30.0)
+    port = await server.start()
+    detector = PadDetector()
+    frames = []
+    try:
+        async for frame in stream_frames("127.0.0.1", port):
+            frames.append(frame)
+            if len(frames) == 12:
+                break
+    finally:
+        await server.stop()
+    seqs = [f.seq for f in frames]
+    stamps = [f.capture_ts for f in frames]
+    assert seqs == sorted(seqs) and len(set(seqs)) == len(seqs)
+    assert all(b > a for a, b in itertools.pairwise(stamps))
+    assert stamps[-1] <= clock.now()
+    for f in frames[::4]:
+        assert f.image.shape == (480, 640, 3)
+        n, e, up, _, _, yaw = pose_at(f.capture_ts)
+        p = detector.detect(f.image).pattern
+        assert p is not None
+        assert abs(p.z - up) < 0.02  # the frame shows the pose at its own timestamp
+        c, s = math.cos(yaw), math.sin(yaw)
+        assert math.hypot(p.x - (c * -n + s * -e), p.y - (-s * -n + c * -e)) < 0.02
+
+
+async def test_jpeg_encoding_and_a_late_subscriber():
+    clock = SimClock(speed=1.0)
+    _, pose_fn = scripted_pose(clock)
+    server = CameraServer(pose_fn, clock, fps=30.0, jpeg_quality=90)
+    port = await server.start()
+    try:
+        got = []
+        async for frame in stream_frames("127.0.0.1", port):
+            got.append(frame)
+            if len(got) == 3:
+                break
+        assert got[0].image.shape == (480, 640, 3)
+        # a second subscriber after the first left still gets frames
+        async for frame in stream_frames("127.0.0.1", port):
+            assert frame.seq > got[-1].seq
+            break
+        await wait_for(lambda: server.frames_sent >= 4)
+    finally:
+        await server.stop()
