@@ -20,7 +20,7 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, TypeAdapter, field_validator, model_serializer
 
 from protocol import rtcm
-from protocol.base import PROTOCOL_VERSION, Frozen
+from protocol.base import Frozen
 from protocol.telemetry import LandingBaseTelemetry, TelemetryPayload, UavTelemetry
 
 AgentKind = Literal["base_station", "asset_agent", "operator"]
@@ -162,7 +162,7 @@ class UnsubscribePayload(Frozen):
 class _Envelope(Frozen):
     """Fields every message carries; `re` is left out of the JSON when absent."""
 
-    v: Literal[1] = PROTOCOL_VERSION
+    v: Literal[1] = 1
     id: uuid.UUID = Field(default_factory=uuid.uuid4)
     seq: Seq = 0
     ts: UnixMs = Field(default_factory=now_ms)

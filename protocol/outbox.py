@@ -233,10 +233,10 @@ class Outbox:
         self._count -= n
         return n
 
-    def resume(self, last_acked_seq: int) -> int:
+    def resume(self, last_acked_seq: int) -> tuple[int, int]:
         """Start a session from the server's last ack: drop what it has, renumber the rest.
 
-        Returns how many entries remain to be (re)sent.
+        Returns (entries the server already had, entries left to send).
         """
         with self._tx():
             n = self._db.execute(
@@ -245,7 +245,7 @@ class Outbox:
             self._db.execute("UPDATE outbox SET seq = NULL WHERE seq IS NOT NULL")
             self._set("next_seq", str(last_acked_seq + 1))
         self._count -= n
-        return self._count
+        return n, self._count
 
     def report_drops(self) -> int:
         """Queue one `outbox_overflow` event for unreported drops; returns the count reported."""

@@ -103,7 +103,7 @@ def test_everything_persists_across_reopen(path: Path) -> None:
     assert again.stream_id == stream
     assert len(again) == 2 and again.dropped_total() == 2
     assert again.next_seq == 3
-    assert again.resume(1) == 2
+    assert again.resume(1) == (0, 2)
     assert [e.seq for e in again.take(10)] == [2, 3]
     assert numbers(again.take(10)) == []
 
@@ -125,7 +125,7 @@ def test_resume_deletes_what_the_server_has_and_renumbers_the_rest(path: Path) -
     for i in range(6):
         box.append("event", event(i))
     box.take(6)  # sent 1..6, no ack received before the cut
-    assert box.resume(4) == 2  # the server stored 1..4
+    assert box.resume(4) == (4, 2)  # the server stored 1..4
     replay = box.take(10)
     assert [e.seq for e in replay] == [5, 6]
     assert numbers(replay) == [4, 5]
@@ -138,7 +138,7 @@ def test_resume_after_drops_leaves_no_gap(path: Path) -> None:
     box.take(2)  # 1, 2 in flight; the link dies
     for i in range(4, 9):
         box.append("event", event(i))  # the cut: 0..4 dropped at the bound
-    assert box.resume(0) == 4
+    assert box.resume(0) == (0, 4)
     replay = box.take(10)
     assert [e.seq for e in replay] == [1, 2, 3, 4]  # contiguous for the server's ack
     assert numbers(replay) == [5, 6, 7, 8]
