@@ -1,0 +1,128 @@
+"""Landing control as pure functions: LANDING_TARGET fields for the autopilot, and the companion
+mode's velocity setpoints inside the paper's conical acceptance volume (§2.6, eq. 3 and 4)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from asset_agent.precland.config import ControlConfig
+from asset_agent.precland.geometry import rotation_world_from_body, wrap_angle
+from asset_agent.precland.measure import Attitude
+
+MAV_FRAME_BODY_FRD = 12
+LANDING_TARGET_TYPE_VISION_FIDUCIAL = 2
+
+
+@dataclass(frozen=True)
+class LandingTarget:
+    """The fields of MAVLink LANDING_TARGET (#149), ready for `landing_target_send`.
+
+    Angles per ArduPilot's companion backend: its line of sight is (-tan(angle_y), tan(angle_x), 1)
+    in body FRD, so angle_x is towards the right and angle_y towards the tail. The position
+    (x, y, z) is also filled, in MAV_FRAME_BODY_FRD, with position_valid = 1 and distance > 0.
+    """
+
+    time_usec: int
+    target_num: int
+    frame: int
+    angle_x: float
+    angle_y: float
+    distance: float
+    size_x: float
+    size_y: float
+    x: float
+    y: float
+    z: float
+    q: tuple[float, float, float, float]
+    type: int
+    position_valid: int
+
+
+def landing_target(
+    rel_ned, attitude: Attitude, t: float, target_size_m: float = 0.75
+) -> LandingTarget:
+    """LANDING_TARGET for a pad at `rel_ned` (pad minus vehicle, NED) seen at `attitude`."""
+    body = rotation_world_from_body(*attitude).T @ np.asarray(rel_ned, dtype=np.float64)
+    x, y, z = (float(v) for v in body)
+    dist = float(np.linalg.norm(body))
+    zc = max(z, 1e-3)
+    return LandingTarget(
+        time_usec=round(t * 1e6),
+        target_num=0,
+        frame=MAV_FRAME_BODY_FRD,
+        angle_x=math.atan2(y, zc),
+        angle_y=math.atan2(-x, zc),
+        distance=dist,
+        size_x=2 * math.atan2(target_size_m / 2, max(dist, 1e-3)),
+        size_y=2 * math.atan2(target_size_m / 2, max(dist, 1e-3)),
+        x=x,
+        y=y,
+        z=z,
+        q=(1.0, 0.0, 0.0, 0.0),
+        type=LANDING_TARGET_TYPE_VISION_FIDUCIAL,
+        position_valid=1,
+    )
+
+
+def allowed_pos_error(a: float, cfg: ControlConfig) -> float:
+    """AllowedPosError(a) = minPosError · e^(maxPosError · a) (paper eq. 3)."""
+    return cfg.min_pos_error * math.exp(cfg.max_pos_error * max(a, 0.0))
+
+
+@dataclass(frozen=True)
+class VelocitySetpoint:
+    """A GUIDED velocity setpoint in local NED (m/s), a yaw rate (rad/s), and "land now"."""
+
+    vn: float
+    ve: float
+    vd: float
+    yaw_rate: float = 0.0
+    land: bool = False
+
+
+HOVER = VelocitySetpoint(0.0, 0.0, 0.0)
+
+
+def clip_xy(vn: float, ve: float, limit: float) -> tuple[float, float]:
+    """(vn, ve) scaled down to at most `limit` m/s horizontally."""
+    speed = math.hypot(vn, ve)
+    if speed > limit:
+        return vn * limit / speed, ve * limit / speed
+    return vn, ve
+
+
+def heading_error(pad_heading: float | None, yaw: float, cfg: ControlConfig) -> float | None:
+    """Desired minus current vehicle yaw (rad), or None when the pad's heading is unknown."""
+    if pad_heading is None:
+        return None
+    return wrap_angle(pad_heading + math.radians(cfg.heading_offset_deg) - yaw)
+
+
+def cone_setpoint(
+    rel_ned, pad_heading: float | None, yaw: float, cfg: ControlConfig
+) -> VelocitySetpoint:
+    """Velocity towards the pad: centre always; descend to the pad inside the cone, towards
+    a − AllowedPosError(a) outside it (eq. 4); no descent while the heading error is too big;
+    slow in the final 50 cm; land at touchdown height."""
+    n, e, a = (float(v) for v in rel_ned)
+    vn, ve = clip_xy(cfg.kp_xy * n, cfg.kp_xy * e, cfg.max_speed_xy)
+    err = heading_error(pad_heading, yaw, cfg)
+    yaw_rate = 0.0
+    if err is not None:
+        yaw_rate = max(-cfg.max_yaw_rate, min(cfg.max_yaw_rate, cfg.kp_yaw * err))
+    if a <= cfg.touchdown_height:
+        return VelocitySetpoint(0.0, 0.0, cfg.slow_descent, 0.0, land=True)
+    allowed = allowed_pos_error(a, cfg)
+    if err is not None and abs(err) > math.radians(cfg.max_heading_error_deg):
+        vd = 0.0
+    elif math.hypot(n, e) <= allowed:
+        vd = cfg.kp_z * a  # setpoint on the pad: altitude 0
+    else:
+        vd = cfg.kp_z * min(allowed, a)  # setpoint a - AllowedPosError(a)
+    vd = min(vd, cfg.max_descent)
+    if a < cfg.slow_height:
+        vd = min(vd, cfg.slow_descent)
+    return VelocitySetpoint(vn, ve, vd, yaw_rate)

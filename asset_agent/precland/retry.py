@@ -1,0 +1,141 @@
+"""The landing sequence with the thesis's cautious retries, as a table-driven state machine.
+
+approach ─lost→ pause (cautious) or blind (default)      pause ─target→ approach
+pause ─timeout→ climb (attempts left) or blind             climb ─target→ approach
+climb ─reached→ pause                                      blind ─target→ approach
+any ─touchdown→ landed
+
+Climbing goes back to where the target was last seen (its horizontal position and height), or
+straight up to a default height when it was never seen. Blind descent keeps steering towards the
+Kalman estimate (GNSS-propagated) at the blind descent speed.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+from asset_agent.precland.config import ControlConfig, RetryConfig
+from asset_agent.precland.control import HOVER, VelocitySetpoint, clip_xy, cone_setpoint
+
+log = logging.getLogger(__name__)
+
+TRANSITIONS: dict[tuple[str, str], str] = {
+    ("approach", "lost"): "pause",
+    ("approach", "lost_default"): "blind",
+    ("pause", "target"): "approach",
+    ("pause", "retry"): "climb",
+    ("pause", "give_up"): "blind",
+    ("climb", "target"): "approach",
+    ("climb", "reached"): "pause",
+    ("blind", "target"): "approach",
+    ("approach", "touchdown"): "landed",
+    ("blind", "touchdown"): "landed",
+    ("pause", "touchdown"): "landed",
+    ("climb", "touchdown"): "landed",
+}
+
+
+@dataclass(frozen=True)
+class Command:
+    """What the controller asks for now: its state, the setpoint, and the attempts used."""
+
+    state: str
+    setpoint: VelocitySetpoint
+    attempts: int
+
+
+class LandingSequence:
+    """Feeds on (target seen?, estimate, vehicle position) and returns velocity setpoints."""
+
+    def __init__(
+        self, control: ControlConfig | None = None, retry: RetryConfig | None = None
+    ) -> None:
+        self.control = control or ControlConfig()
+        self.retry = retry or RetryConfig()
+        self.state = "approach"
+        self.attempts = 0
+        self._since = 0.0
+        self._last_seen: tuple[float, float, float] | None = None  # vehicle n, e, height
+        self._goal: tuple[float, float, float] | None = None
+
+    def _fire(self, event: str, now: float) -> None:
+        nxt = TRANSITIONS.get((self.state, event))
+        if nxt is None:
+            return
+        log.info("landing %s -%s-> %s (attempts %d)", self.state, event, nxt, self.attempts)
+        self.state, self._since = nxt, now
+
+    def step(
+        self,
+        now: float,
+        target_seen: bool,
+        rel_ned,
+        pad_heading: float | None,
+        vehicle_ned,
+        yaw: float,
+    ) -> Command:
+        """One control step. `rel_ned` is the filter's estimate (pad minus vehicle, NED),
+        `vehicle_ned` the autopilot's local position."""
+        a = float(rel_ned[2])
+        if self.state == "landed":
+            return Command("landed", VelocitySetpoint(0, 0, 0, land=True), self.attempts)
+        if a <= self.control.touchdown_height:
+            self._fire("touchdown", now)
+            return Command(
+                self.state,
+                VelocitySetpoint(0, 0, self.control.slow_descent, land=True),
+                self.attempts,
+            )
+        if target_seen:
+            self._last_seen = (float(vehicle_ned[0]), float(vehicle_ned[1]), a)
+            if self.state != "approach":
+                self._fire("target", now)
+        elif self.state == "approach":
+            self._fire("lost" if self.retry.cautious else "lost_default", now)
+        elif self.state == "pause" and now - self._since >= self.retry.pause_s:
+            if self.attempts < self.retry.max_attempts:
+                self.attempts += 1
+                self._goal = self._climb_goal(vehicle_ned, a)
+                self._fire("retry", now)
+            else:
+                self._fire("give_up", now)
+        elif self.state == "climb" and self._reached(vehicle_ned, a):
+            self._fire("reached", now)
+        return Command(
+            self.state, self._setpoint(rel_ned, pad_heading, vehicle_ned, yaw), self.attempts
+        )
+
+    def _climb_goal(self, vehicle_ned, a: float) -> tuple[float, float, float]:
+        if self._last_seen is not None:
+            n, e, h = self._last_seen
+            return n, e, max(h, a)
+        return float(vehicle_ned[0]), float(vehicle_ned[1]), max(self.retry.default_height, a)
+
+    def _reached(self, vehicle_ned, a: float) -> bool:
+        assert self._goal is not None
+        n, e, h = self._goal
+        tol = self.retry.reached_tolerance_m
+        return math.hypot(vehicle_ned[0] - n, vehicle_ned[1] - e) <= tol and a >= h - tol
+
+    def _setpoint(self, rel_ned, pad_heading, vehicle_ned, yaw) -> VelocitySetpoint:
+        c = self.control
+        if self.state == "approach":
+            return cone_setpoint(rel_ned, pad_heading, yaw, c)
+        if self.state == "pause":
+            return HOVER
+        if self.state == "climb":
+            assert self._goal is not None
+            n, e, h = self._goal
+            vn, ve = clip_xy(
+                c.kp_xy * (n - vehicle_ned[0]), c.kp_xy * (e - vehicle_ned[1]), c.max_speed_xy
+            )
+            vd = -min(self.retry.climb_speed, c.kp_z * max(h - float(rel_ned[2]), 0.0) + 0.1)
+            return VelocitySetpoint(vn, ve, vd)
+        # blind: steer to the estimate, descend slowly
+        vn, ve = clip_xy(c.kp_xy * float(rel_ned[0]), c.kp_xy * float(rel_ned[1]), c.max_speed_xy)
+        vd = self.retry.blind_descent
+        if float(rel_ned[2]) < c.slow_height:
+            vd = min(vd, c.slow_descent)
+        return VelocitySetpoint(vn, ve, vd)

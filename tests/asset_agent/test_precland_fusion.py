@@ -1,0 +1,192 @@
+"""Fusion truth table, fault-injection semantics (seeded), the Kalman filter, measurements."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from asset_agent.precland.config import (
+    CameraModel,
+    FaultConfig,
+    FusionConfig,
+    KalmanConfig,
+    SourceConfig,
+)
+from asset_agent.precland.faults import FaultInjector
+from asset_agent.precland.fusion import Fusion
+from asset_agent.precland.geometry import ElementPose
+from asset_agent.precland.kalman import TargetKalman
+from asset_agent.precland.measure import Measurement, from_element, from_ir
+from sim.ir import IrSensorConfig, ir_reading
+
+CFG = FusionConfig(
+    sources={
+        "pattern": SourceConfig(weight=1.0, freshness_s=0.2),
+        "aruco": SourceConfig(weight=3.0, freshness_s=0.2),
+        "ir": SourceConfig(weight=1.0, freshness_s=0.1),
+    },
+    hold_s=1.0,
+)
+
+
+def m(source, t, n, e=0.0, d=2.0, heading=None):
+    return Measurement(source, t, (n, e, d), heading)
+
+
+# -- the thesis's truth table --------------------------------------------------------------------
+
+
+def test_several_new_values_give_their_weighted_average():
+    f = Fusion(CFG)
+    f.submit(m("pattern", 10.0, 1.0, heading=0.1))
+    f.submit(m("aruco", 10.0, 2.0, heading=0.3))
+    out = f.step(10.05)
+    assert out is not None and out.kind == "fused" and out.sources == ("aruco", "pattern")
+    assert out.rel_ned[0] == pytest.approx((1.0 * 1 + 3.0 * 2) / 4)
+    assert out.heading == pytest.approx(0.25, abs=1e-3)  # circular weighted mean
+    # headings across ±pi average on the circle, not to zero
+    f.submit(m("pattern", 11.0, 0, heading=math.pi - 0.1))
+    f.submit(m("aruco", 11.0, 0, heading=-math.pi + 0.1))
+    assert abs(abs(f.step(11.0).heading) - math.pi) < 0.1
+    # IR has no heading: position averaged over all three, heading over the two that have one
+    f.submit(m("pattern", 12.0, 1.0, heading=0.2))
+    f.submit(m("aruco", 12.0, 1.0, heading=0.2))
+    f.submit(m("ir", 12.0, 6.0))
+    out = f.step(12.0)
+    assert out.rel_ned[0] == pytest.approx((1 + 3 + 6) / 5) and out.heading == pytest.approx(0.2)
+
+
+def test_a_single_new_value_is_used_alone():
+    f = Fusion(CFG)
+    f.submit(m("ir", 5.0, 0.7))
+    out = f.step(5.02)
+    assert out.kind == "single" and out.sources == ("ir",) and out.rel_ned[0] == 0.7
+
+
+def test_no_new_value_holds_the_last_for_one_second_then_no_target():
+    f = Fusion(CFG)
+    f.submit(m("pattern", 1.0, 0.4))
+    assert f.step(1.0).kind == "single"
+    held = f.step(1.5)
+    assert held.kind == "held" and held.rel_ned[0] == 0.4 and held.t == 1.0
+    assert f.step(1.99).kind == "held"
+    assert f.step(2.0) is None  # no longer younger than 1 s
+    assert f.step(3.0) is None
+
+
+def test_stale_readings_are_not_new_and_unknown_sources_are_ignored():
+    f = Fusion(CFG)
+    f.submit(m("ir", 1.0, 0.4))  # IR freshness 0.1 s
+    f.submit(m("frame", 1.2, 9.0))  # not configured
+    assert f.step(1.2) is None
+    f.submit(m("pattern", 2.0, 0.4))
+    f.submit(m("ir", 1.85, 5.0))  # 0.15 s old: stale, so pattern alone
+    out = f.step(2.0)
+    assert out.kind == "single" and out.sources == ("pattern",)
+    # a value is new only once: the next step without readings holds it
+    assert f.step(2.05).kind == "held"
+
+
+# -- fault injection -------------------------------------------------------------------------------
+
+
+def test_disabled_faults_pass_everything():
+    inj = FaultInjector({"aruco": FaultConfig()}, seed=1)
+    assert all(inj.admit("aruco", t / 30, 2.0) for t in range(300))
+    assert all(inj.admit("pattern", t / 30, 2.0) for t in range(10))
+
+
+def test_random_drop_rate_is_seeded_and_close_to_r_drop():
+    a = FaultInjector({"pattern": FaultConfig(r_drop=0.5)}, seed=42)
+    b = FaultInjector({"pattern": FaultConfig(r_drop=0.5)}, seed=42)
+    ra = [a.admit("pattern", i * 0.01, 3.0) for i in range(4000)]
+    rb = [b.admit("pattern", i * 0.01, 3.0) for i in range(4000)]
+    assert ra == rb
+    assert 0.46 < 1 - np.mean(ra) < 0.54
+    assert a.dropped["pattern"] == ra.count(False)
+
+
+def test_periodic_keep_then_drop_from_the_moment_it_is_set():
+    inj = FaultInjector(seed=0)
+    inj.set("ir", FaultConfig(p_keep=2.0, p_drop=1.0), now=10.0)
+    got = {t: inj.admit("ir", t, 3.0) for t in (10.0, 11.9, 12.0, 12.9, 13.0, 14.99, 15.0, 16.5)}
+    assert got == {
+        10.0: True,
+        11.9: True,
+        12.0: False,
+        12.9: False,
+        13.0: True,
+        14.99: True,
+        15.0: False,
+        16.5: True,
+    }
+    # configured at start: the cycle starts with the first reading
+    inj = FaultInjector({"ir": FaultConfig(p_keep=0.5, p_drop=0.5)})
+    assert [inj.admit("ir", t, 3.0) for t in (7.0, 7.4, 7.6, 8.1)] == [True, True, False, True]
+
+
+def test_failing_below_and_above_a_height_and_run_time_changes():
+    inj = FaultInjector(
+        {"aruco": FaultConfig(fail_below_m=3.0), "pattern": FaultConfig(fail_above_m=3.0)}
+    )
+    assert not inj.admit("aruco", 0, 2.9) and inj.admit("aruco", 0, 3.1)
+    assert inj.admit("pattern", 0, 2.9) and not inj.admit("pattern", 0, 3.1)
+    inj.set("aruco", FaultConfig(), now=0.0)
+    assert inj.admit("aruco", 0, 1.0)
+    inj.clear("pattern")
+    assert inj.admit("pattern", 0, 5.0) and inj.get("pattern") == FaultConfig()
+
+
+# -- Kalman filter -----------------------------------------------------------------------------
+
+
+def test_kalman_converges_from_a_wrong_survey_using_gnss_deltas_and_vision():
+    rng = np.random.default_rng(3)
+    kf = TargetKalman(KalmanConfig())
+    pad = np.array([0.0, 0.0, 0.0])
+    vehicle = np.array([-2.0, 1.5, -8.0])
+    gnss_bias = np.array([0.8, -0.6, 0.3])  # setup error of the surveyed pad position
+    kf.reset(pad - vehicle + gnss_bias)
+    errors = [np.linalg.norm(np.array(kf.estimate().rel_ned) - (pad - vehicle))]
+    for k in range(200):
+        step = np.array([0.02, -0.015, 0.03])  # descending towards the pad
+        vehicle = vehicle + step
+        measured_delta = step + rng.normal(0, 0.005, 3)  # GNSS delta noise
+        kf.predict(measured_delta, 1 / 30)
+        truth = pad - vehicle
+        if k % 3 == 0:
+            h = truth[2]
+            kf.update(truth + rng.normal(0, 0.01 * h + 0.003, 3), heading=0.5 + rng.normal(0, 0.01))
+        errors.append(np.linalg.norm(np.array(kf.estimate().rel_ned) - truth))
+    assert errors[0] > 0.5
+    assert max(errors[-30:]) < 0.05
+    est = kf.estimate()
+    assert est.heading == pytest.approx(0.5, abs=0.02) and est.sigma_m < 0.05
+
+
+def test_kalman_without_vision_follows_gnss_deltas():
+    kf = TargetKalman()
+    kf.reset((1.0, 2.0, 5.0))
+    kf.predict((0.5, 0.5, 1.0), 1.0)
+    assert kf.estimate().rel_ned == pytest.approx((0.5, 1.5, 4.0))
+    assert kf.estimate().heading is None
+
+
+# -- measurements ----------------------------------------------------------------------------------
+
+
+def test_measurements_from_elements_and_ir_agree_with_the_truth():
+    cam = CameraModel()
+    # vehicle at (1, -0.5) north/east, 3 m up, yawed 90° right, slightly tilted
+    pose = (1.0, -0.5, 3.0, 0.05, -0.04, math.pi / 2)
+    truth = (-1.0, 0.5, 3.0)
+    # the element pose in the heading frame: rotate the NED truth by -yaw
+    el = ElementPose("pattern", 0.5, 1.0, 3.0, -math.pi / 2, 0.9)
+    meas = from_element(el, 4.0, pose[3:], cam)
+    assert meas.rel_ned == pytest.approx(truth) and meas.heading == pytest.approx(0.0)
+    ok, ax, ay = ir_reading(pose, IrSensorConfig(noise_rad=0.0))
+    assert ok
+    ir = from_ir(ax, ay, 4.0, pose[3:], 3.0, cam)
+    assert ir.rel_ned == pytest.approx(truth, abs=1e-9) and ir.heading is None
