@@ -173,7 +173,12 @@ class _SerialLink:
 
     @classmethod
     async def open(cls, src: SerialSource) -> _SerialLink:
-        import serial  # pyserial, installed with pymavlink
+        try:
+            import serial  # pyserial: only serial sources need it
+        except ImportError as err:
+            raise ConnectionError(
+                "serial sources need pyserial (pip install 'pyserial>=3.5')"
+            ) from err
 
         def _open() -> object:
             return serial.Serial(src.device, src.baud, timeout=cls.POLL_S)

@@ -99,6 +99,14 @@ class CorrectionsSource(Protocol):
         ...
 
 
+def mountpoint_name(name: str) -> str:
+    """A safe mountpoint name for a base name: letters, digits, '-' and '_' kept, the rest '_'."""
+    cleaned = "".join(
+        c if c.isascii() and (c.isalnum() or c in "-_") else "_" for c in name.strip()
+    )
+    return cleaned or "_"
+
+
 def _clean(value: str) -> str:
     return value.replace(";", ",").replace("\r", " ").replace("\n", " ")
 

@@ -26,6 +26,7 @@ from server.stations.ntrip import (
     LiveCorrections,
     Mountpoint,
     format_details,
+    mountpoint_name,
     ntrip_router,
     parse_basic_auth,
     sourcetable,
@@ -135,6 +136,13 @@ def test_sourcetable_lines_follow_ntrip_v2() -> None:
     assert fields[15:18] == ["B", "N", "4800"]
     body = sourcetable([mp, Mountpoint("X")])
     assert body.endswith("\r\nENDSOURCETABLE\r\n") and body.count("\r\n") == 3
+
+
+def test_mountpoint_names_are_url_safe() -> None:
+    assert mountpoint_name("Porto Base #1") == "Porto_Base__1"
+    assert mountpoint_name("base-02_x") == "base-02_x"
+    assert mountpoint_name("Évora/roof") == "_vora_roof"
+    assert mountpoint_name("  ") == "_"
 
 
 def test_basic_auth_parsing_and_visibility() -> None:
