@@ -241,7 +241,7 @@ class Copter:
         self.wall = wall
         self.t += dt
         self.reading = self.gnss.step(dt, wall)
-        if self.upload is not None:
+        if self.upload is not None and not self.faults.drop_mission:
             action = self.upload.update(wall)
             if action:
                 self._upload_action(action)

@@ -77,7 +77,7 @@ def validate(item: Item) -> int:
     for code, value in zip(
         (INVALID_PARAM1, INVALID_PARAM2, INVALID_PARAM3, INVALID_PARAM4), params, strict=True
     ):
-        if not math.isfinite(value):
+        if math.isinf(value):  # NaN is MAVLink's "unchanged"
             return code
     if not math.isfinite(item.z):
         return INVALID_PARAM7
@@ -85,6 +85,8 @@ def validate(item: Item) -> int:
         if not 0.0 < item.param2 <= MAX_SPEED_MPS:
             return INVALID_PARAM2
         return ACCEPTED
+    if item.command == NAV_RETURN_TO_LAUNCH:
+        return ACCEPTED  # no position: any frame will do
     if item.frame not in GLOBAL_FRAMES:
         return UNSUPPORTED_FRAME
     if not -90e7 <= item.x <= 90e7:

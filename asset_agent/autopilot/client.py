@@ -1,0 +1,414 @@
+"""The autopilot adapter: state, link supervision, commands that await their ACK, flight actions.
+
+Usage::
+
+    ap = Autopilot(AutopilotConfig(url="udpout:127.0.0.1:14550"))
+    await ap.start()
+    await ap.wait_link(10)
+    await ap.upload_mission(items_from_dicts(server_items))   # verified by reading it back
+    await ap.start_mission()                                  # GUIDED, arm, MISSION_START
+    ap.state                                                  # the latest UavState
+    await ap.close()
+
+Commands send COMMAND_LONG, retry with an incremented confirmation on silence, and either
+return or raise an `AutopilotError`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from asset_agent.autopilot import mission, translate
+from asset_agent.autopilot.errors import AutopilotTimeout, CommandRejected, LinkLost
+from asset_agent.autopilot.items import MissionItem
+from asset_agent.autopilot.link import MavlinkLink
+from asset_agent.autopilot.state import MODE_NUMBERS, UavState
+from protocol.rtcm import mavlink_fragments
+
+log = logging.getLogger(__name__)
+
+# MAV_CMD numbers
+CMD_NAV_RETURN_TO_LAUNCH, CMD_NAV_LAND, CMD_NAV_TAKEOFF = 20, 21, 22
+CMD_DO_SET_MODE, CMD_MISSION_START, CMD_COMPONENT_ARM_DISARM = 176, 300, 400
+CMD_SET_MESSAGE_INTERVAL, CMD_REQUEST_MESSAGE = 511, 512
+MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS = 0, 5
+FORCE_MAGIC = 21196
+
+# what the agent asks the autopilot to stream, message id -> Hz
+DEFAULT_STREAMS: dict[int, float] = {
+    1: 2.0,  # SYS_STATUS
+    24: 2.0,  # GPS_RAW_INT
+    30: 5.0,  # ATTITUDE
+    33: 5.0,  # GLOBAL_POSITION_INT
+    42: 2.0,  # MISSION_CURRENT
+    147: 1.0,  # BATTERY_STATUS
+    242: 0.2,  # HOME_POSITION
+    245: 2.0,  # EXTENDED_SYS_STATE
+}
+
+
+@dataclass(frozen=True)
+class AutopilotConfig:
+    """How to reach the autopilot and how patient to be with it."""
+
+    url: str = "udpout:127.0.0.1:14550"
+    target_system: int = 1
+    target_component: int = 1
+    source_system: int = 1
+    source_component: int = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
+    link_timeout_s: float = 3.0  # no HEARTBEAT this long -> link lost
+    command_timeout_s: float = 1.5
+    command_retries: int = 3
+    mission_timeout_s: float = 1.5  # per item, as MAVSDK and QGC use
+    mission_retries: int = 4
+    streams: dict[int, float] = field(default_factory=lambda: dict(DEFAULT_STREAMS))
+
+
+@dataclass(frozen=True)
+class Notification:
+    """Something the autopilot said that is not state: status text, item reached, link change."""
+
+    kind: str  # "statustext" | "item_reached" | "link_lost" | "link_recovered"
+    text: str = ""
+    severity: int = 6
+    index: int | None = None  # item_reached: index in the server's list (seq - 1)
+
+
+class Autopilot:
+    """One autopilot over MAVLink, as seen from the companion computer."""
+
+    def __init__(self, config: AutopilotConfig | None = None) -> None:
+        self.config = config or AutopilotConfig()
+        self.state = UavState()
+        self._link = MavlinkLink(
+            self.config.url,
+            self._on_message,
+            source_system=self.config.source_system,
+            source_component=self.config.source_component,
+        )
+        self._last_heartbeat: float | None = None
+        self._taps: list[tuple[Callable[[Any], bool], asyncio.Queue[Any]]] = []
+        self._subscribers: list[asyncio.Queue[Notification]] = []
+        self._tasks: list[asyncio.Task[None]] = []
+        self._command_lock = asyncio.Lock()
+        self.mission_lock = asyncio.Lock()
+        self._link_event = asyncio.Event()
+        self._rtcm_seq = 0
+        self.statustexts: list[str] = []
+
+    # --- life cycle ------------------------------------------------------------------------
+    async def start(self) -> None:
+        """Open the link, start the heartbeat and the link watchdog."""
+        await self._link.open()
+        self._send_heartbeat()
+        self._tasks = [
+            asyncio.create_task(self._heartbeat_loop(), name="autopilot-heartbeat"),
+            asyncio.create_task(self._watchdog(), name="autopilot-watchdog"),
+        ]
+
+    async def close(self) -> None:
+        """Stop every task and close the link."""
+        for t in self._tasks:
+            t.cancel()
+        for t in self._tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await t
+        await self._link.close()
+
+    async def wait_link(self, within_s: float) -> None:
+        """Wait until the autopilot's HEARTBEAT is seen; AutopilotTimeout otherwise."""
+        try:
+            await asyncio.wait_for(self._link_event.wait(), within_s)
+        except TimeoutError as err:
+            raise AutopilotTimeout(f"no HEARTBEAT from the autopilot within {within_s} s") from err
+
+    @property
+    def link_up(self) -> bool:
+        """True while the autopilot's HEARTBEAT keeps arriving."""
+        return self.state.link_up
+
+    # --- incoming --------------------------------------------------------------------------
+    def _on_message(self, msg: Any) -> None:
+        if msg.get_srcSystem() != self.config.target_system:
+            return
+        kind = msg.get_type()
+        if kind == "HEARTBEAT" and msg.get_srcComponent() == self.config.target_component:
+            self._last_heartbeat = time.monotonic()
+            if not self.state.link_up:
+                self._link_changed(True)
+        self.state = translate.apply(self.state, msg)
+        if kind == "STATUSTEXT":
+            text = msg.text if isinstance(msg.text, str) else msg.text.decode(errors="replace")
+            text = text.rstrip("\x00")
+            self.statustexts.append(text)
+            del self.statustexts[:-200]
+            self._notify(Notification("statustext", text, msg.severity))
+        elif kind == "MISSION_ITEM_REACHED":
+            self._notify(Notification("item_reached", index=msg.seq - 1))
+        for predicate, queue in list(self._taps):
+            try:
+                if predicate(msg):
+                    queue.put_nowait(msg)
+            except Exception:
+                log.exception("message tap failed")
+
+    def _link_changed(self, up: bool) -> None:
+        self.state = replace(self.state, link_up=up)
+        if up:
+            self._link_event.set()
+            log.info("autopilot link up")
+            self._notify(Notification("link_recovered"))
+            task = asyncio.create_task(self.request_streams(), name="autopilot-streams")
+            self._tasks.append(task)
+        else:
+            self._link_event.clear()
+            log.warning("autopilot link lost")
+            self._notify(Notification("link_lost"))
+
+    def _notify(self, note: Notification) -> None:
+        for q in self._subscribers:
+            q.put_nowait(note)
+
+    def subscribe(self) -> asyncio.Queue[Notification]:
+        """A queue receiving every Notification from now on."""
+        q: asyncio.Queue[Notification] = asyncio.Queue()
+        self._subscribers.append(q)
+        return q
+
+    def unsubscribe(self, q: asyncio.Queue[Notification]) -> None:
+        """Stop feeding a queue from `subscribe`."""
+        if q in self._subscribers:
+            self._subscribers.remove(q)
+
+    @contextlib.contextmanager
+    def tap(self, predicate: Callable[[Any], bool]) -> Iterator[asyncio.Queue[Any]]:
+        """A queue of every incoming message matching `predicate`, while the block runs."""
+        entry: tuple[Callable[[Any], bool], asyncio.Queue[Any]] = (predicate, asyncio.Queue())
+        self._taps.append(entry)
+        try:
+            yield entry[1]
+        finally:
+            self._taps.remove(entry)
+
+    async def _heartbeat_loop(self) -> None:
+        while True:
+            await asyncio.sleep(1.0)
+            self._send_heartbeat()
+
+    def _send_heartbeat(self) -> None:
+        try:
+            # MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID, MAV_STATE_ACTIVE
+            self._link.send(lambda mav: mav.heartbeat_send(18, 8, 0, 0, 4))
+        except Exception:
+            log.warning("sending HEARTBEAT failed", exc_info=True)
+
+    async def _watchdog(self) -> None:
+        period = self.config.link_timeout_s / 10
+        while True:
+            await asyncio.sleep(period)
+            last = self._last_heartbeat
+            if self.state.link_up and last is not None:
+                if time.monotonic() - last > self.config.link_timeout_s:
+                    self._link_changed(False)
+
+    # --- sending ---------------------------------------------------------------------------
+    def send(self, build: Callable[[Any], Any]) -> None:
+        """Send a raw message: `build(mav)` calls a pymavlink ``*_send`` method."""
+        self._link.send(build)
+
+    def require_link(self) -> None:
+        """Raise LinkLost unless the autopilot link is up."""
+        if not self.state.link_up:
+            raise LinkLost("no HEARTBEAT from the autopilot")
+
+    async def command(
+        self,
+        command: int,
+        *params: float,
+        ack_timeout_s: float | None = None,
+        retries: int | None = None,
+    ) -> int:
+        """COMMAND_LONG awaiting its COMMAND_ACK; returns ACCEPTED or raises CommandRejected/AutopilotTimeout."""
+        self.require_link()
+        cfg = self.config
+        timeout = cfg.command_timeout_s if ack_timeout_s is None else ack_timeout_s
+        retries = cfg.command_retries if retries is None else retries
+        p = [float(x) for x in params] + [0.0] * (7 - len(params))
+        async with self._command_lock:
+            with self.tap(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command) as acks:
+                for confirmation in range(retries + 1):
+                    self._link.send(
+                        lambda mav, c=confirmation: mav.command_long_send(
+                            cfg.target_system, cfg.target_component, command, c, *p
+                        )
+                    )
+                    deadline = time.monotonic() + timeout
+                    while (left := deadline - time.monotonic()) > 0:
+                        try:
+                            ack = await asyncio.wait_for(acks.get(), left)
+                        except TimeoutError:
+                            break
+                        if ack.result == MAV_RESULT_IN_PROGRESS:
+                            deadline = time.monotonic() + timeout
+                            continue
+                        if ack.result != MAV_RESULT_ACCEPTED:
+                            raise CommandRejected(command, ack.result, self._recent_reason())
+                        return ack.result
+                    if not self.state.link_up:
+                        raise LinkLost(f"autopilot link lost while waiting for command {command}")
+        raise AutopilotTimeout(f"no COMMAND_ACK for command {command} after {retries + 1} tries")
+
+    def _recent_reason(self) -> str:
+        """The autopilot's latest PreArm/failure text, to explain a rejection."""
+        for text in reversed(self.statustexts[-5:]):
+            if text.startswith(("PreArm", "Arm", "Auto:", "Flight mode")):
+                return text
+        return ""
+
+    async def request_streams(self) -> None:
+        """Ask for every configured stream with SET_MESSAGE_INTERVAL (failures are logged)."""
+        for msg_id, hz in self.config.streams.items():
+            try:
+                await self.set_message_interval(msg_id, hz)
+            except Exception as err:
+                log.warning("stream %s at %s Hz not set: %s", msg_id, hz, err)
+
+    async def set_message_interval(self, msg_id: int, hz: float) -> None:
+        """MAV_CMD_SET_MESSAGE_INTERVAL: `hz` > 0 sets the rate, 0 stops the message."""
+        interval_us = 1e6 / hz if hz > 0 else -1
+        await self.command(CMD_SET_MESSAGE_INTERVAL, msg_id, interval_us)
+
+    # --- actions ---------------------------------------------------------------------------
+    async def set_mode(self, mode: str | int) -> None:
+        """Change the flight mode by Copter name ("GUIDED") or number."""
+        number = MODE_NUMBERS[mode.upper()] if isinstance(mode, str) else int(mode)
+        await self.command(CMD_DO_SET_MODE, 1, number)  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+
+    async def arm(self) -> None:
+        """Arm (pre-arm checks apply: a failure raises CommandRejected with the PreArm text)."""
+        await self.command(CMD_COMPONENT_ARM_DISARM, 1)
+
+    async def disarm(self, force: bool = False) -> None:
+        """Disarm; the autopilot refuses in flight unless forced."""
+        await self.command(CMD_COMPONENT_ARM_DISARM, 0, FORCE_MAGIC if force else 0)
+
+    async def takeoff(self, alt_m: float) -> None:
+        """GUIDED takeoff to `alt_m` above home (the vehicle must be armed in GUIDED)."""
+        await self.command(CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, alt_m)
+
+    async def start_mission(self) -> None:
+        """Start the uploaded mission: from the ground GUIDED + arm + MISSION_START; in the air AUTO."""
+        if self.state.armed and self.state.in_air:
+            await self.set_mode("AUTO")
+            return
+        if not self.state.armed:
+            await self.set_mode("GUIDED")
+            await self.arm()
+        await self.command(CMD_MISSION_START, 0, 0)
+
+    async def pause(self, mode: str = "BRAKE") -> None:
+        """Stop and hold position (BRAKE, or LOITER)."""
+        await self.set_mode(mode)
+
+    async def resume(self) -> None:
+        """Resume the mission where it stopped (AUTO)."""
+        await self.set_mode("AUTO")
+
+    async def return_to_base(self) -> None:
+        """Return to launch (the base) and land there."""
+        await self.command(CMD_NAV_RETURN_TO_LAUNCH)
+
+    async def land(self) -> None:
+        """Land where the vehicle is (LAND mode)."""
+        await self.command(CMD_NAV_LAND)
+
+    async def abort(self) -> str:
+        """RTL when flying, disarm when on the ground; returns what was done."""
+        if self.state.armed and self.state.landed_state != "ON_GROUND":
+            await self.return_to_base()
+            return "rtl"
+        await self.disarm()
+        return "disarmed"
+
+    def inject_rtcm(self, frame: bytes) -> int:
+        """Send one RTCM3 frame as GPS_RTCM_DATA fragments; returns the fragment count."""
+        fragments = mavlink_fragments(frame, self._rtcm_seq)
+        self._rtcm_seq = (self._rtcm_seq + 1) % 32
+        for flags, data in fragments:
+            padded = data + bytes(180 - len(data))
+            self._link.send(
+                lambda mav, f=flags, d=data, p=padded: mav.gps_rtcm_data_send(f, len(d), p)
+            )
+        return len(fragments)
+
+    def send_landing_target(
+        self,
+        angle_x: float,
+        angle_y: float,
+        distance: float = 0.0,
+        frame: int = 12,
+        position: tuple[float, float, float] | None = None,
+    ) -> None:
+        """LANDING_TARGET (default MAV_FRAME_BODY_FRD); `position` sets position_valid."""
+        x, y, z = position or (0.0, 0.0, 0.0)
+        usec = int(time.time() * 1e6)
+        self._link.send(
+            lambda mav: mav.landing_target_send(
+                usec, 0, frame, angle_x, angle_y, distance, 0, 0, x, y, z, [1, 0, 0, 0], 2,
+                int(position is not None),
+            )
+        )  # fmt: skip
+
+    def send_velocity_ned(self, vn: float, ve: float, vd: float) -> None:
+        """SET_POSITION_TARGET_LOCAL_NED with a velocity only (GUIDED)."""
+        cfg = self.config
+        mask = 0b0000_1101_1100_0111  # ignore position, acceleration, yaw, yaw rate
+        self._link.send(
+            lambda mav: mav.set_position_target_local_ned_send(
+                0,
+                cfg.target_system,
+                cfg.target_component,
+                1,
+                mask,
+                0,
+                0,
+                0,
+                vn,
+                ve,
+                vd,
+                0,
+                0,
+                0,
+                0,
+                0,
+            )
+        )
+
+    def send_position_ned(self, n: float, e: float, d: float) -> None:
+        """SET_POSITION_TARGET_LOCAL_NED with a position from home (GUIDED)."""
+        cfg = self.config
+        mask = 0b0000_1101_1111_1000  # ignore velocity, acceleration, yaw, yaw rate
+        self._link.send(
+            lambda mav: mav.set_position_target_local_ned_send(
+                0, cfg.target_system, cfg.target_component, 1, mask, n, e, d, 0, 0, 0, 0, 0, 0, 0, 0
+            )
+        )
+
+    # --- missions (see mission.py) ---------------------------------------------------------
+    async def upload_mission(self, items: list[MissionItem], verify: bool = True) -> None:
+        """Upload the mission (server list order, home added), then read it back and compare."""
+        await mission.upload(self, items, verify=verify)
+
+    async def download_mission(self) -> list[MissionItem]:
+        """Read the mission back (home dropped)."""
+        return await mission.download(self)
+
+    async def clear_mission(self) -> None:
+        """MISSION_CLEAR_ALL, awaiting its MISSION_ACK."""
+        await mission.clear(self)

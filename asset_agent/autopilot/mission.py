@@ -1,0 +1,200 @@
+"""The ground side of the MAVLink mission protocol: upload, download, clear, with timeouts and retries.
+
+Upload: MISSION_COUNT, then answer each MISSION_REQUEST_INT (or MISSION_REQUEST) with its
+MISSION_ITEM_INT until the final MISSION_ACK. On silence the last message is re-sent, up to
+`mission_retries` times per step, then MissionError(index, "timeout ..."). A MISSION_ACK with
+an error ends the upload with MissionError naming the item being sent and the
+MAV_MISSION_RESULT. Indices are the caller's (server list) indices: MAVLink seq - 1.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from typing import TYPE_CHECKING, Any
+
+from asset_agent.autopilot.errors import (
+    MAV_MISSION_RESULT_NAMES,
+    MissionError,
+)
+from asset_agent.autopilot.items import FRAME_GLOBAL, MissionItem
+
+if TYPE_CHECKING:
+    from asset_agent.autopilot.client import Autopilot
+
+log = logging.getLogger(__name__)
+
+MAV_MISSION_ACCEPTED = 0
+MAV_MISSION_TYPE_MISSION = 0
+HOME_PLACEHOLDER = MissionItem(command=16, frame=FRAME_GLOBAL)
+
+
+def _result_name(code: int) -> str:
+    return MAV_MISSION_RESULT_NAMES.get(code, f"MAV_MISSION_RESULT {code}")
+
+
+def _index(seq: int | None) -> int | None:
+    return None if seq is None or seq < 1 else seq - 1
+
+
+async def _await(ap: Autopilot, queue: asyncio.Queue[Any], step: str, index: int | None) -> Any:
+    """One message from `queue` within the mission timeout, or None on silence."""
+    try:
+        return await asyncio.wait_for(queue.get(), ap.config.mission_timeout_s)
+    except TimeoutError:
+        if not ap.state.link_up:
+            raise MissionError(index, f"autopilot link lost during {step}") from None
+        return None
+
+
+async def upload(ap: Autopilot, items: list[MissionItem], verify: bool = True) -> None:
+    """Upload `items` (home is prepended) and, with `verify`, read them back and compare."""
+    ap.require_link()
+    cfg = ap.config
+    full = [HOME_PLACEHOLDER, *items]
+    kinds = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK")
+
+    def send_count() -> None:
+        ap.send(
+            lambda mav: mav.mission_count_send(
+                cfg.target_system, cfg.target_component, len(full), 0
+            )
+        )
+
+    def send_item(seq: int) -> None:
+        it = full[seq]
+        ap.send(
+            lambda mav: mav.mission_item_int_send(
+                cfg.target_system, cfg.target_component, seq, it.frame, it.command, int(seq == 0),
+                it.autocontinue, it.param1, it.param2, it.param3, it.param4, it.x, it.y, it.z, 0,
+            )
+        )  # fmt: skip
+
+    async with ap.mission_lock:
+        with ap.tap(lambda m: m.get_type() in kinds and getattr(m, "mission_type", 0) == 0) as q:
+            last_sent: int | None = None  # None: the count
+            highest = -1
+            send_count()
+            tries = 0
+            while True:
+                msg = await _await(ap, q, "upload", _index(last_sent))
+                if msg is None:
+                    tries += 1
+                    if tries > cfg.mission_retries:
+                        where = "MISSION_COUNT" if last_sent is None else f"item seq {last_sent}"
+                        raise MissionError(
+                            _index(last_sent if last_sent is not None else highest + 1),
+                            f"timeout: autopilot silent after {where}, {tries} tries",
+                        )
+                    log.info(
+                        "mission upload: resending %s", "count" if last_sent is None else last_sent
+                    )
+                    if last_sent is None:
+                        send_count()
+                    else:
+                        send_item(last_sent)
+                    continue
+                tries = 0
+                if msg.get_type() == "MISSION_ACK":
+                    if msg.type == MAV_MISSION_ACCEPTED and highest == len(full) - 1:
+                        break
+                    if msg.type == MAV_MISSION_ACCEPTED:
+                        continue  # a stale ACK from an earlier transfer
+                    bad = last_sent if last_sent is not None else None
+                    raise MissionError(
+                        _index(bad), f"rejected by the autopilot: {_result_name(msg.type)}"
+                    )
+                seq = msg.seq
+                if not 0 <= seq < len(full):
+                    raise MissionError(None, f"autopilot requested item seq {seq} of {len(full)}")
+                send_item(seq)
+                last_sent = seq
+                highest = max(highest, seq)
+    log.info("mission uploaded: %d items", len(items))
+    if verify:
+        back = await download(ap)
+        if len(back) != len(items):
+            raise MissionError(
+                None, f"verification failed: sent {len(items)} items, read back {len(back)}"
+            )
+        for i, (sent, got) in enumerate(zip(items, back, strict=True)):
+            field = sent.same_as(got)
+            if field:
+                raise MissionError(i, f"verification failed: {field} differs after read-back")
+
+
+async def download(ap: Autopilot) -> list[MissionItem]:
+    """Read the whole mission (MISSION_REQUEST_LIST, then each item); home is dropped."""
+    ap.require_link()
+    cfg = ap.config
+    async with ap.mission_lock:
+        with ap.tap(
+            lambda m: m.get_type() == "MISSION_COUNT" and getattr(m, "mission_type", 0) == 0
+        ) as q:
+            count = None
+            for _ in range(cfg.mission_retries + 1):
+                ap.send(
+                    lambda mav: mav.mission_request_list_send(
+                        cfg.target_system, cfg.target_component, 0
+                    )
+                )
+                msg = await _await(ap, q, "download", None)
+                if msg is not None:
+                    count = msg.count
+                    break
+            if count is None:
+                raise MissionError(None, "timeout: no MISSION_COUNT for MISSION_REQUEST_LIST")
+        items: list[MissionItem] = []
+        kinds = ("MISSION_ITEM_INT", "MISSION_ACK")
+        with ap.tap(lambda m: m.get_type() in kinds and getattr(m, "mission_type", 0) == 0) as q:
+            for seq in range(count):
+                items.append(await _download_item(ap, q, seq))
+        ap.send(
+            lambda mav: mav.mission_ack_send(
+                cfg.target_system, cfg.target_component, MAV_MISSION_ACCEPTED, 0
+            )
+        )
+    return items[1:]
+
+
+async def _download_item(ap: Autopilot, q: asyncio.Queue[Any], seq: int) -> MissionItem:
+    cfg = ap.config
+    for _ in range(cfg.mission_retries + 1):
+        ap.send(
+            lambda mav: mav.mission_request_int_send(
+                cfg.target_system, cfg.target_component, seq, 0
+            )
+        )
+        while True:
+            msg = await _await(ap, q, "download", _index(seq))
+            if msg is None:
+                break
+            if msg.get_type() == "MISSION_ACK":
+                raise MissionError(_index(seq), f"download refused: {_result_name(msg.type)}")
+            if msg.seq == seq:
+                return MissionItem(
+                    msg.command, msg.frame, msg.param1, msg.param2, msg.param3, msg.param4,
+                    msg.x, msg.y, msg.z, msg.autocontinue,
+                )  # fmt: skip
+    raise MissionError(_index(seq), f"timeout: no MISSION_ITEM_INT for seq {seq}")
+
+
+async def clear(ap: Autopilot) -> None:
+    """MISSION_CLEAR_ALL, retried until its MISSION_ACK."""
+    ap.require_link()
+    cfg = ap.config
+    async with ap.mission_lock:
+        with ap.tap(lambda m: m.get_type() == "MISSION_ACK") as q:
+            for _ in range(cfg.mission_retries + 1):
+                ap.send(
+                    lambda mav: mav.mission_clear_all_send(
+                        cfg.target_system, cfg.target_component, 0
+                    )
+                )
+                msg = await _await(ap, q, "clear", None)
+                if msg is None:
+                    continue
+                if msg.type != MAV_MISSION_ACCEPTED:
+                    raise MissionError(None, f"clear refused: {_result_name(msg.type)}")
+                return
+    raise MissionError(None, "timeout: no MISSION_ACK for MISSION_CLEAR_ALL")

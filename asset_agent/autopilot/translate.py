@@ -1,0 +1,121 @@
+"""Pure translation from MAVLink messages to `UavState`: one function per message type.
+
+The functions read message attributes only (any object with the MAVLink field names works),
+so they are tested without a link.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
+
+from asset_agent.autopilot.state import COPTER_MODES, LANDED_STATES, MISSION_STATES, UavState
+
+MAV_MODE_FLAG_SAFETY_ARMED = 128
+SENSOR_PREARM_CHECK = 0x10000000
+
+
+def _heartbeat(s: UavState, m: Any) -> UavState:
+    return replace(
+        s,
+        mode=COPTER_MODES.get(m.custom_mode, f"MODE_{m.custom_mode}"),
+        custom_mode=m.custom_mode,
+        armed=bool(m.base_mode & MAV_MODE_FLAG_SAFETY_ARMED),
+        system_status=m.system_status,
+    )
+
+
+def _sys_status(s: UavState, m: Any) -> UavState:
+    enabled = m.onboard_control_sensors_enabled
+    healthy = (m.onboard_control_sensors_health & enabled) == enabled
+    return replace(
+        s,
+        sensors_healthy=healthy,
+        voltage_v=m.voltage_battery / 1000.0 if m.voltage_battery != 0xFFFF else s.voltage_v,
+        current_a=m.current_battery / 100.0 if m.current_battery >= 0 else s.current_a,
+        battery_pct=float(m.battery_remaining) if m.battery_remaining >= 0 else s.battery_pct,
+    )
+
+
+def _battery_status(s: UavState, m: Any) -> UavState:
+    cells = [v for v in m.voltages if v != 0xFFFF]
+    return replace(
+        s,
+        voltage_v=sum(cells) / 1000.0 if cells else s.voltage_v,
+        current_a=m.current_battery / 100.0 if m.current_battery >= 0 else s.current_a,
+        battery_pct=float(m.battery_remaining) if m.battery_remaining >= 0 else s.battery_pct,
+    )
+
+
+def _global_position(s: UavState, m: Any) -> UavState:
+    return replace(
+        s,
+        lat=m.lat / 1e7,
+        lon=m.lon / 1e7,
+        alt_msl=m.alt / 1000.0,
+        alt_rel=m.relative_alt / 1000.0,
+        vn=m.vx / 100.0,
+        ve=m.vy / 100.0,
+        vd=m.vz / 100.0,
+        heading_deg=m.hdg / 100.0 if m.hdg != 0xFFFF else s.heading_deg,
+    )
+
+
+def _attitude(s: UavState, m: Any) -> UavState:
+    return replace(
+        s,
+        roll_deg=math.degrees(m.roll),
+        pitch_deg=math.degrees(m.pitch),
+        yaw_deg=math.degrees(m.yaw) % 360.0,
+    )
+
+
+def _gps_raw(s: UavState, m: Any) -> UavState:
+    return replace(
+        s,
+        fix_type=m.fix_type,
+        satellites=m.satellites_visible if m.satellites_visible != 255 else None,
+        hdop=m.eph / 100.0 if m.eph != 0xFFFF else None,
+    )
+
+
+def _extended_sys_state(s: UavState, m: Any) -> UavState:
+    return replace(s, landed_state=LANDED_STATES.get(m.landed_state, "UNDEFINED"))
+
+
+def _mission_current(s: UavState, m: Any) -> UavState:
+    total = getattr(m, "total", 0)
+    state = getattr(m, "mission_state", 0)
+    return replace(
+        s,
+        mission_current=max(m.seq - 1, 0) if total or m.seq else None,
+        mission_total=max(total - 1, 0) if total else s.mission_total,
+        mission_state=MISSION_STATES.get(state, "UNKNOWN"),
+    )
+
+
+def _home(s: UavState, m: Any) -> UavState:
+    return replace(
+        s, home_lat=m.latitude / 1e7, home_lon=m.longitude / 1e7, home_alt_msl=m.altitude / 1000.0
+    )
+
+
+TRANSLATORS: dict[str, Callable[[UavState, Any], UavState]] = {
+    "HEARTBEAT": _heartbeat,
+    "SYS_STATUS": _sys_status,
+    "BATTERY_STATUS": _battery_status,
+    "GLOBAL_POSITION_INT": _global_position,
+    "ATTITUDE": _attitude,
+    "GPS_RAW_INT": _gps_raw,
+    "EXTENDED_SYS_STATE": _extended_sys_state,
+    "MISSION_CURRENT": _mission_current,
+    "HOME_POSITION": _home,
+}
+
+
+def apply(state: UavState, msg: Any) -> UavState:
+    """The state after one message; unknown messages leave it unchanged."""
+    fn = TRANSLATORS.get(msg.get_type())
+    return fn(state, msg) if fn else state
