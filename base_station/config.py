@@ -1,0 +1,148 @@
+"""Configuration of the landing-base daemon: a pydantic model loaded from a TOML file.
+
+Example `base.toml` (every key optional; these are the defaults)::
+
+    telemetry_hz = 2.0
+
+    [plc]
+    host = "127.0.0.1"
+    port = 502            # 5020 for the simulator
+    unit = 1
+    poll_hz = 5.0
+    timeout_s = 1.0
+    watchdog_period_s = 0.25
+    reconnect_s = 0.5
+
+    [motion]
+    panels_travel_s = 12.0
+    lift_travel_s = 8.0
+    timeout_factor = 1.5   # the daemon gives up after travel * factor + margin
+    timeout_margin_s = 2.0
+
+    [weather]
+    max_wind_mps = 8.0
+    max_gust_mps = 12.0
+    max_rain_mm_h = 0.0
+    min_temperature_c = -5.0
+    max_temperature_c = 40.0
+
+    [uav]
+    min_mass_g = 1200.0
+    max_mass_g = 1800.0
+    scale_tare_g = 0.0
+    stable_s = 3.0
+    stable_tolerance_g = 50.0
+
+    [charge]
+    current_limit_ma = 5000
+
+    [server]
+    url = "ws://127.0.0.1:8000/api/v1/ws"
+    config_file = ""      # the encrypted asset configuration file
+
+    [rtk]
+    tcp_host = "127.0.0.1"  # or serial_device = "/dev/ttyACM0"
+    tcp_port = 5021
+    serial_device = ""
+    baudrate = 115200
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class PlcConfig(_Section):
+    """Where the PLC is and how often to talk to it."""
+
+    host: str = "127.0.0.1"
+    port: int = Field(502, ge=0, le=65535)
+    unit: int = Field(1, ge=0, le=255)
+    poll_hz: float = Field(5.0, ge=5.0, le=50.0)
+    timeout_s: float = Field(1.0, gt=0)
+    watchdog_period_s: float = Field(0.25, gt=0, le=0.5)
+    reconnect_s: float = Field(0.5, gt=0)
+
+
+class MotionConfig(_Section):
+    """Travel times of the panels and the lift (wall seconds on the real base)."""
+
+    panels_travel_s: float = Field(12.0, gt=0)
+    lift_travel_s: float = Field(8.0, gt=0)
+    timeout_factor: float = Field(1.5, ge=1.0)
+    timeout_margin_s: float = Field(2.0, ge=0)
+
+
+class WeatherLimits(_Section):
+    """Flight limits checked by `check_availability`."""
+
+    max_wind_mps: float = 8.0
+    max_gust_mps: float = 12.0
+    max_rain_mm_h: float = 0.0
+    min_temperature_c: float = -5.0
+    max_temperature_c: float = 40.0
+
+
+class UavConfig(_Section):
+    """The UAV this base hosts: its mass window on the scale and the stability rule."""
+
+    min_mass_g: float = 1200.0
+    max_mass_g: float = 1800.0
+    scale_tare_g: float = 0.0
+    stable_s: float = Field(3.0, ge=0)
+    stable_tolerance_g: float = Field(50.0, gt=0)
+
+    @model_validator(mode="after")
+    def _window(self) -> UavConfig:
+        if self.min_mass_g >= self.max_mass_g:
+            raise ValueError("uav.min_mass_g must be below uav.max_mass_g")
+        return self
+
+
+class ChargeConfig(_Section):
+    """Default charge current limit."""
+
+    current_limit_ma: int = Field(5000, ge=0, le=65535)
+
+
+class ServerConfig(_Section):
+    """The server link (wired by protocol/link.py)."""
+
+    url: str = "ws://127.0.0.1:8000/api/v1/ws"
+    config_file: str = ""
+
+
+class RtkConfig(_Section):
+    """Where the base GNSS receiver's RTCM3 stream comes from."""
+
+    tcp_host: str = "127.0.0.1"
+    tcp_port: int = Field(5021, ge=0, le=65535)
+    serial_device: str = ""
+    baudrate: int = 115200
+
+
+class StationConfig(_Section):
+    """The whole daemon configuration."""
+
+    telemetry_hz: float = Field(2.0, ge=1.0, le=5.0)
+    plc: PlcConfig = PlcConfig()
+    motion: MotionConfig = MotionConfig()
+    weather: WeatherLimits = WeatherLimits()
+    uav: UavConfig = UavConfig()
+    charge: ChargeConfig = ChargeConfig()
+    server: ServerConfig = ServerConfig()
+    rtk: RtkConfig = RtkConfig()
+
+
+def load_config(path: str | Path) -> StationConfig:
+    """Read and validate a TOML configuration file."""
+    with open(path, "rb") as f:
+        data = tomllib.load(f)
+    return StationConfig.model_validate(data)

@@ -1,0 +1,170 @@
+"""The coordinator: owns the PLC connection, the poll loop and the watchdog writer.
+
+It polls the PLC at `plc.poll_hz`, turns each read into an immutable `Snapshot`, derives
+events from successive snapshots and publishes them on its `EventBus`. It never writes a
+motion coil by itself: on start and on every reconnect it only reads (and feeds the
+watchdog), so a restart or a reconnect cannot start any motion.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+
+from base_station.config import StationConfig
+from base_station.devices.axis import AxisTracker
+from base_station.devices.lift import LIFT
+from base_station.devices.panels import PANELS
+from base_station.devices.scale import LandingDetector
+from base_station.events import Event, EventBus, diff_events
+from base_station.plc import (
+    Coil,
+    HoldingRegister,
+    PlcClient,
+    PlcLinkError,
+    PlcState,
+    WatchdogWriter,
+)
+from base_station.snapshot import Snapshot
+
+log = logging.getLogger(__name__)
+
+
+class Coordinator:
+    """Poll loop + snapshots + events; the only owner of the `PlcClient`."""
+
+    def __init__(self, config: StationConfig, client: PlcClient | None = None) -> None:
+        self.config = config
+        p = config.plc
+        self.client = client or PlcClient(p.host, p.port, p.unit, p.timeout_s)
+        self.watchdog = WatchdogWriter(self.client, p.watchdog_period_s)
+        self.events = EventBus()
+        u = config.uav
+        self.landing = LandingDetector(
+            u.min_mass_g, u.max_mass_g, u.stable_s, u.stable_tolerance_g, u.scale_tare_g
+        )
+        self.trackers = {"panels": AxisTracker(PANELS), "lift": AxisTracker(LIFT)}
+        self.snapshot = Snapshot(0, time.monotonic(), time.time(), False, "not connected yet", None)
+        self._published_any = False
+        self._tick = asyncio.Event()
+        self._tasks: list[asyncio.Task[None]] = []
+        self.polls = 0
+
+    # --- lifecycle -----------------------------------------------------------------------
+
+    async def start(self) -> None:
+        """Start polling and feeding the watchdog (reads only: no command is written)."""
+        self._tasks = [
+            asyncio.ensure_future(self._poll_loop()),
+            asyncio.ensure_future(self.watchdog.run()),
+        ]
+
+    async def stop(self) -> None:
+        """Stop the loops and close the connection."""
+        for task in self._tasks:
+            task.cancel()
+        for task in self._tasks:
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+        self._tasks = []
+        self.client.close()
+
+    # --- polling -------------------------------------------------------------------------
+
+    async def _poll_loop(self) -> None:
+        period = 1.0 / self.config.plc.poll_hz
+        while True:
+            started = time.monotonic()
+            try:
+                await self.poll_once()
+            except Exception:  # a bug in one poll must not end polling
+                log.exception("coordinator: poll failed")
+            if not self.snapshot.link_up:
+                await asyncio.sleep(self.config.plc.reconnect_s)
+            else:
+                await asyncio.sleep(max(0.0, period - (time.monotonic() - started)))
+
+    async def poll_once(self) -> Snapshot:
+        """Connect if needed, read the PLC once, publish the snapshot."""
+        started = time.monotonic()
+        try:
+            if not self.client.connected:
+                await self.client.connect()
+                log.info("coordinator: connected to PLC %s:%s", self.client.host, self.client.port)
+            plc = await self.client.read_state()
+        except PlcLinkError as err:
+            self._publish(started, False, str(err), self.snapshot.plc)
+        else:
+            self._publish(started, True, "", plc)
+        return self.snapshot
+
+    def _publish(self, started: float, link_up: bool, error: str, plc: PlcState | None) -> None:
+        self.polls += 1
+        prev = self.snapshot if self._published_any else None
+        panels = self.trackers["panels"].update(plc) if link_up else None
+        lift = self.trackers["lift"].update(plc) if link_up else None
+        landing = None
+        if plc is not None and link_up:
+            landing, _ = self.landing.update(started, plc.scale_mass_g)
+        elif prev is not None:
+            landing = prev.landing
+        snap = Snapshot(
+            seq=self.snapshot.seq + 1,
+            read_started=started,
+            ts=time.time(),
+            link_up=link_up,
+            link_error=error,
+            plc=plc,
+            panels=panels if link_up else (prev.panels if prev else None),
+            lift=lift if link_up else (prev.lift if prev else None),
+            landing=landing,
+        )
+        self.snapshot = snap
+        self._published_any = True
+        for event in diff_events(prev, snap):
+            log.info("event %s: %s", event.kind, event.message)
+            self.events.publish(event)
+        tick, self._tick = self._tick, asyncio.Event()
+        tick.set()
+
+    async def wait_next(self, after_seq: int, within: float = 1.0) -> Snapshot:
+        """The first snapshot newer than `after_seq`, or the current one after `within` seconds."""
+        deadline = time.monotonic() + within
+        while self.snapshot.seq <= after_seq:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                break
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._tick.wait(), remaining)
+        return self.snapshot
+
+    async def wait_fresh(self, after: float, within: float = 2.0) -> Snapshot:
+        """The first snapshot whose read started after monotonic time `after`."""
+        deadline = time.monotonic() + within
+        snap = self.snapshot
+        while snap.read_started < after and time.monotonic() < deadline:
+            snap = await self.wait_next(snap.seq, max(0.01, deadline - time.monotonic()))
+        return snap
+
+    # --- writes (used by the Station only) -----------------------------------------------
+
+    def emit(self, event: Event) -> None:
+        """Publish an event raised outside the poll loop (refusals, motion failures)."""
+        log.info("event %s: %s", event.kind, event.message)
+        self.events.publish(event)
+
+    async def write_coil(self, coil: Coil, value: bool) -> float:
+        """Write a coil; returns the monotonic time the write was acknowledged."""
+        if not self.snapshot.link_up:
+            raise PlcLinkError("PLC link down")
+        await self.client.write_coil(coil, value)
+        return time.monotonic()
+
+    async def write_register(self, register: HoldingRegister, value: int) -> float:
+        """Write a holding register; returns the monotonic time the write was acknowledged."""
+        if not self.snapshot.link_up:
+            raise PlcLinkError("PLC link down")
+        await self.client.write_register(register, value)
+        return time.monotonic()

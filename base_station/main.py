@@ -1,0 +1,93 @@
+"""`aerobase base-station --config base.toml`: the landing-base daemon (setup / run / main).
+
+The server link plugs in at ONE place: `run(app, link=...)`. A link is any
+`async def link(station: Station, config: StationConfig) -> None` that forwards
+`station.execute(name, params)` results and `station.subscribe()` events (plus
+`station.telemetry()` at `config.telemetry_hz`) to the server; `server_link()` below is
+where protocol/link.py gets wired (it returns None until then).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import logging
+import signal
+from collections.abc import Awaitable, Callable, Sequence
+from dataclasses import dataclass
+
+from base_station.config import StationConfig, load_config
+from base_station.coordinator import Coordinator
+from base_station.station import Station
+
+log = logging.getLogger(__name__)
+
+LinkRunner = Callable[[Station, StationConfig], Awaitable[None]]
+
+
+@dataclass
+class App:
+    """The daemon's parts, built by `setup` and driven by `run`."""
+
+    config: StationConfig
+    coordinator: Coordinator
+    station: Station
+
+
+def setup(config: StationConfig) -> App:
+    """Build the daemon (no I/O yet)."""
+    coordinator = Coordinator(config)
+    return App(config, coordinator, Station(coordinator, config))
+
+
+def server_link() -> LinkRunner | None:
+    """THE place where the server link (protocol/link.py) is wired; None until it exists."""
+    return None
+
+
+async def run(app: App, stop: asyncio.Event | None = None, link: LinkRunner | None = None) -> None:
+    """Run until `stop` is set: poll the PLC, feed its watchdog, serve the link if any.
+
+    Starting never writes a command coil: the daemon reads the PLC's state and carries on.
+    """
+    stop = stop or asyncio.Event()
+    await app.coordinator.start()
+    link_task = asyncio.ensure_future(link(app.station, app.config)) if link else None
+    try:
+        await stop.wait()
+    finally:
+        if link_task is not None:
+            link_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await link_task
+        await app.station.shutdown()
+        await app.coordinator.stop()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of `aerobase base-station`."""
+    ap = argparse.ArgumentParser(prog="aerobase base-station", description=__doc__.splitlines()[0])
+    ap.add_argument("--config", required=True, help="TOML configuration file")
+    ap.add_argument("--log-level", default="INFO")
+    args = ap.parse_args(argv)
+    logging.basicConfig(
+        level=args.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s %(message)s"
+    )
+    try:
+        config = load_config(args.config)
+    except (OSError, ValueError) as err:
+        log.error("cannot load configuration %s: %s", args.config, err)
+        return 2
+    app = setup(config)
+
+    async def _main() -> None:
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            with contextlib.suppress(NotImplementedError):
+                loop.add_signal_handler(sig, stop.set)
+        await run(app, stop, server_link())
+
+    asyncio.run(_main())
+    return 0

@@ -1,0 +1,376 @@
+"""The `Station` facade: the daemon's command entry point and event stream.
+
+`execute(name, params)` is an async iterator of `Progress` values ending in exactly one
+`Result` (succeeded / rejected / failed, with a human-readable reason). Commands: open,
+close, open_panels, close_panels, lift_up, lift_down, start_charging, stop_charging,
+check_availability, stop, reset_faults. `subscribe()` streams `Event`s. These two are all
+a server link needs.
+
+Safety rules enforced here: one motion at a time (a duplicate or replayed motion command
+while one runs is rejected; one whose target is already reached succeeds without writing
+anything); interlocks checked by the daemon before any write, with the reason; `stop` is
+accepted in every state; motion fails (and is reported) on E-stop, stall, link loss or
+travel timeout.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import AsyncIterator, Callable
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any
+
+from base_station.availability import availability
+from base_station.config import StationConfig
+from base_station.coordinator import Coordinator
+from base_station.devices.axis import AxisSpec, Decision, MotionTracker, Outcome
+from base_station.devices.charger import check_start_charging
+from base_station.devices.lift import LIFT, check_lift_down, check_lift_up
+from base_station.devices.panels import PANELS, check_close_panels, check_open_panels
+from base_station.events import Event, EventKind, Subscription
+from base_station.plc import (
+    MOTION_BLOCKING_FAULTS,
+    ChargerState,
+    Coil,
+    HoldingRegister,
+    PlcLinkError,
+    fault_names,
+)
+from base_station.telemetry import StationTelemetry, build_telemetry
+
+log = logging.getLogger(__name__)
+
+
+class Status(StrEnum):
+    """How a command ended."""
+
+    SUCCEEDED = "succeeded"
+    REJECTED = "rejected"
+    FAILED = "failed"
+
+
+@dataclass(frozen=True)
+class Progress:
+    """One progress step of a running command."""
+
+    command: str
+    step: str
+    message: str
+    percent: float | None = None
+
+
+@dataclass(frozen=True)
+class Result:
+    """The end of a command."""
+
+    command: str
+    status: Status
+    reason: str
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+Item = Progress | Result
+MOTION_COMMANDS = ("open", "close", "open_panels", "close_panels", "lift_up", "lift_down")
+
+
+class Station:
+    """Commands and events of the landing base, on top of the coordinator."""
+
+    def __init__(self, coordinator: Coordinator, config: StationConfig) -> None:
+        self.coord = coordinator
+        self.config = config
+        self._motion: str | None = None
+        self._stop_gen = 0
+        self._handlers: dict[str, Callable[[str, dict[str, Any]], AsyncIterator[Item]]] = {
+            "open": self._open,
+            "close": self._close,
+            "open_panels": self._axis_cmd(PANELS, +1, check_open_panels),
+            "close_panels": self._axis_cmd(PANELS, -1, check_close_panels),
+            "lift_up": self._axis_cmd(LIFT, +1, check_lift_up),
+            "lift_down": self._axis_cmd(LIFT, -1, check_lift_down),
+            "start_charging": self._start_charging,
+            "stop_charging": self._stop_charging,
+            "check_availability": self._check_availability,
+            "stop": self._stop,
+            "reset_faults": self._reset_faults,
+        }
+
+    @property
+    def commands(self) -> tuple[str, ...]:
+        """Names `execute` accepts."""
+        return tuple(self._handlers)
+
+    def subscribe(self) -> Subscription:
+        """A stream of every event (refusals, faults, link, E-stop, landing, charge, power)."""
+        return self.coord.events.subscribe()
+
+    def telemetry(self) -> StationTelemetry:
+        """Telemetry of the latest snapshot."""
+        return build_telemetry(self.coord.snapshot)
+
+    async def execute(self, name: str, params: dict[str, Any] | None = None) -> AsyncIterator[Item]:
+        """Run one command: Progress values, then one Result. Never raises for bad input."""
+        handler = self._handlers.get(name)
+        if handler is None:
+            yield self._reject(
+                name, f"unknown command {name!r}; known: {', '.join(self._handlers)}"
+            )
+            return
+        if not isinstance(params, dict | None):
+            yield self._reject(name, "params must be an object")
+            return
+        exclusive = name in MOTION_COMMANDS
+        if exclusive and self._motion is not None:
+            yield self._reject(name, f"busy: {self._motion} in progress (send stop first)")
+            return
+        if exclusive:
+            self._motion = name
+        try:
+            async for item in handler(name, params or {}):
+                yield item
+        except PlcLinkError as err:
+            yield self._fail(name, f"PLC link error: {err}")
+        except Exception as err:
+            log.exception("station: %s failed", name)
+            yield self._fail(name, f"internal error: {err}")
+        finally:
+            if exclusive:
+                self._motion = None
+
+    async def run(self, name: str, params: dict[str, Any] | None = None) -> Result:
+        """Execute a command to its end and return only its Result."""
+        result: Result | None = None
+        async for item in self.execute(name, params):
+            if isinstance(item, Result):
+                result = item
+        assert result is not None
+        return result
+
+    async def shutdown(self) -> None:
+        """Stop any motion this daemon started (called on a clean exit)."""
+        if self._motion is not None and self.coord.snapshot.link_up:
+            self._stop_gen += 1
+            try:
+                await self.coord.write_coil(Coil.MOTION_STOP, True)
+            except PlcLinkError as err:
+                log.warning("station: could not stop motion on shutdown: %s", err)
+
+    # --- helpers -------------------------------------------------------------------------
+
+    def _reject(self, command: str, reason: str) -> Result:
+        self.coord.emit(Event(EventKind.REFUSAL, reason, {"command": command}))
+        return Result(command, Status.REJECTED, reason)
+
+    def _fail(self, command: str, reason: str) -> Result:
+        self.coord.emit(
+            Event(
+                EventKind.MOTION_FAILED if command in MOTION_COMMANDS else EventKind.REFUSAL,
+                reason,
+                {"command": command},
+            )
+        )
+        return Result(command, Status.FAILED, reason)
+
+    def _timeout(self, spec: AxisSpec) -> float:
+        m = self.config.motion
+        travel = m.panels_travel_s if spec is PANELS else m.lift_travel_s
+        return travel * m.timeout_factor + m.timeout_margin_s
+
+    # --- motion --------------------------------------------------------------------------
+
+    def _axis_cmd(self, spec: AxisSpec, direction: int, check: Callable[..., Decision]):  # type: ignore[no-untyped-def]
+        async def handler(name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+            async for item in self._move(name, spec, direction, check):
+                yield item
+
+        return handler
+
+    async def _move(
+        self, command: str, spec: AxisSpec, direction: int, check: Callable[..., Decision]
+    ) -> AsyncIterator[Item]:
+        snap = self.coord.snapshot
+        decision = check(snap.plc, snap.link_up)
+        if not decision.allowed:
+            yield self._reject(command, decision.reason)
+            return
+        if decision.already_there:
+            yield Result(command, Status.SUCCEEDED, decision.reason)
+            return
+        word = spec.open_word if direction > 0 else spec.closed_word
+        gen = self._stop_gen
+        coil = spec.open_coil if direction > 0 else spec.close_coil
+        written = await self.coord.write_coil(coil, True)
+        self.coord.trackers[spec.name].commanded(direction)
+        tracker = MotionTracker(spec, direction, written, self._timeout(spec))
+        yield Progress(
+            command,
+            f"{spec.name}_moving",
+            f"{spec.name} moving {word}",
+            spec.read(snap.plc).position_pct if snap.plc else None,
+        )
+        last_pct = -100.0
+        seq = snap.seq
+        while True:
+            snap = await self.coord.wait_next(seq, 1.0)
+            seq = snap.seq
+            if self._stop_gen != gen:
+                pos = spec.read(snap.plc).position_pct if snap.plc else 0.0
+                yield self._fail(command, f"stopped by operator: {spec.name} at {pos:.0f} %")
+                return
+            outcome, reason = tracker.update(
+                snap.plc, snap.link_up, time.monotonic(), snap.read_started >= written
+            )
+            if outcome is Outcome.SUCCEEDED:
+                yield Result(command, Status.SUCCEEDED, reason)
+                return
+            if outcome is Outcome.FAILED:
+                if reason.startswith("travel timeout") and snap.link_up:
+                    await self.coord.write_coil(Coil.MOTION_STOP, True)
+                yield self._fail(command, reason)
+                return
+            if snap.plc is not None:
+                pct = spec.read(snap.plc).position_pct
+                if abs(pct - last_pct) >= 10.0:
+                    last_pct = pct
+                    yield Progress(
+                        command,
+                        f"{spec.name}_moving",
+                        f"{spec.name} {pct:.0f} % {spec.open_word}",
+                        pct,
+                    )
+
+    async def _sequence(
+        self, command: str, steps: list[tuple[str, AxisSpec, int, Callable[..., Decision]]]
+    ) -> AsyncIterator[Item]:
+        for step, spec, direction, check in steps:
+            yield Progress(command, step, f"{command}: {step.replace('_', ' ')}")
+            result: Result | None = None
+            async for item in self._move(step, spec, direction, check):
+                if isinstance(item, Result):
+                    result = item
+                else:
+                    yield Progress(command, item.step, item.message, item.percent)
+            assert result is not None
+            if result.status is not Status.SUCCEEDED:
+                yield Result(command, result.status, f"{step}: {result.reason}")
+                return
+        yield Result(command, Status.SUCCEEDED, f"base {'open' if command == 'open' else 'closed'}")
+
+    async def _open(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+        steps = [
+            ("open_panels", PANELS, +1, check_open_panels),
+            ("lift_up", LIFT, +1, check_lift_up),
+        ]
+        async for item in self._sequence(name, steps):
+            yield item
+
+    async def _close(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+        steps = [
+            ("lift_down", LIFT, -1, check_lift_down),
+            ("close_panels", PANELS, -1, check_close_panels),
+        ]
+        async for item in self._sequence(name, steps):
+            yield item
+
+    async def _stop(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+        self._stop_gen += 1
+        if not self.coord.snapshot.link_up:
+            yield self._fail(
+                name,
+                "PLC link down: MOTION_STOP not sent (the PLC watchdog stops "
+                "all motion within 2 s of losing its master)",
+            )
+            return
+        written = await self.coord.write_coil(Coil.MOTION_STOP, True)
+        snap = await self.coord.wait_fresh(written)
+        if snap.plc is not None and (snap.plc.panels_moving or snap.plc.lift_moving):
+            yield self._fail(name, "MOTION_STOP written but a motor still reports moving")
+            return
+        yield Result(name, Status.SUCCEEDED, "all motion stopped")
+
+    async def _reset_faults(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+        if not self.coord.snapshot.link_up:
+            yield self._fail(name, "PLC link down")
+            return
+        written = await self.coord.write_coil(Coil.FAULT_RESET, True)
+        snap = await self.coord.wait_fresh(written)
+        plc = snap.plc
+        if plc is None or not snap.link_up:
+            yield self._fail(name, "PLC link lost during reset")
+            return
+        left = plc.fault_bits & MOTION_BLOCKING_FAULTS
+        if plc.estop_active:
+            yield self._fail(name, "E-stop still active: release it, then reset_faults")
+        elif left:
+            yield self._fail(name, f"faults still latched: {', '.join(fault_names(left))}")
+        else:
+            yield Result(
+                name, Status.SUCCEEDED, "faults cleared", {"faults": list(plc.fault_names)}
+            )
+
+    # --- charging and availability -------------------------------------------------------
+
+    async def _start_charging(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+        limit = params.get("current_limit_ma", self.config.charge.current_limit_ma)
+        if isinstance(limit, bool) or not isinstance(limit, int) or not 0 <= limit <= 65535:
+            yield self._reject(name, "current_limit_ma must be an integer in 0..65535")
+            return
+        snap = self.coord.snapshot
+        decision = check_start_charging(snap.plc, snap.link_up)
+        if not decision.allowed:
+            yield self._reject(name, decision.reason)
+            return
+        await self.coord.write_register(HoldingRegister.CHARGE_CURRENT_LIMIT, limit)
+        written = await self.coord.write_coil(Coil.CHARGER_ENABLE, True)
+        yield Progress(name, "charger_enabled", f"charger enabled, limit {limit} mA")
+        deadline = written + 3.0
+        while time.monotonic() < deadline:
+            snap = await self.coord.wait_fresh(written)
+            written = snap.read_started
+            plc = snap.plc
+            if (
+                snap.link_up
+                and plc is not None
+                and plc.charger_state in (ChargerState.CHARGING, ChargerState.COMPLETE)
+            ):
+                yield Result(
+                    name,
+                    Status.SUCCEEDED,
+                    f"charger {plc.charger_state.name.lower()}",
+                    {
+                        "current_ma": plc.charge_current_ma,
+                        "uav_battery_pct": plc.uav_battery_soc_pct,
+                    },
+                )
+                return
+        state = snap.plc.charger_state if snap.plc else None
+        yield self._fail(
+            name, f"charger did not start (state {state.name.lower() if state else '?'})"
+        )
+
+    async def _stop_charging(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+        if not self.coord.snapshot.link_up:
+            yield self._fail(name, "PLC link down")
+            return
+        await self.coord.write_coil(Coil.CHARGER_ENABLE, False)
+        yield Result(name, Status.SUCCEEDED, "charger disabled")
+
+    async def _check_availability(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+        conditions = availability(self.coord.snapshot, self.config)
+        failed = [c for c in conditions if not c.ok]
+        data = {
+            "available": not failed,
+            "failed": [c.__dict__ for c in failed],
+            "conditions": [c.__dict__ for c in conditions],
+        }
+        if failed:
+            yield Result(
+                name,
+                Status.REJECTED,
+                "not available: " + "; ".join(c.message for c in failed),
+                data,
+            )
+        else:
+            yield Result(name, Status.SUCCEEDED, "available", data)
