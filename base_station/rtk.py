@@ -69,6 +69,10 @@ class RtkConfig(BaseModel):
     reconnect_min_s: float = Field(default=0.5, gt=0)
     reconnect_max_s: float = Field(default=10.0, gt=0)
     subscriber_queue: int = Field(default=256, ge=1)
+    connect_timeout_s: float = Field(default=5.0, gt=0)
+    idle_reconnect_s: float | None = Field(
+        default=30.0, gt=0, description="reconnect when the source sends nothing for this long"
+    )
 
     @field_validator("source")
     @classmethod
@@ -289,7 +293,7 @@ class RtkReader:
                 log.warning(
                     "rtk source %s unavailable (%s); retrying in %.1fs",
                     self.config.source,
-                    err,
+                    str(err) or type(err).__name__,
                     delay,
                 )
                 await asyncio.sleep(delay)
@@ -314,13 +318,21 @@ class RtkReader:
             await asyncio.sleep(delay)
 
     async def _open(self) -> _Link:
-        if isinstance(self.source, TcpSource):
-            return await _TcpLink.open(self.source)
-        return await _SerialLink.open(self.source)
+        async with asyncio.timeout(self.config.connect_timeout_s):
+            if isinstance(self.source, TcpSource):
+                return await _TcpLink.open(self.source)
+            return await _SerialLink.open(self.source)
+
+    async def _read(self, link: _Link) -> bytes:
+        try:
+            async with asyncio.timeout(self.config.idle_reconnect_s):
+                return await link.read()
+        except TimeoutError as err:
+            raise ConnectionError(f"no data for {self.config.idle_reconnect_s:g}s") from err
 
     async def _pump(self, link: _Link) -> None:
         reframer = Reframer()  # a new connection starts a new byte stream
-        while data := await link.read():
+        while data := await self._read(link):
             self._bytes += len(data)
             frames = list(reframer.feed(data))
             self._bad += reframer.bad_frames

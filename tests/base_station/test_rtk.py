@@ -176,6 +176,25 @@ async def test_reconnects_after_a_receiver_restart() -> None:
         await rx.stop()
 
 
+async def test_a_silent_source_is_reconnected() -> None:
+    got: list[bytes] = []
+    async with running_receiver(GnssConfig(), SimClock(SPEED)) as rx:
+        cfg = RtkConfig(
+            source=f"tcp://127.0.0.1:{rx.port}",
+            idle_reconnect_s=0.3,
+            reconnect_min_s=0.02,
+            reconnect_max_s=0.05,
+        )
+        async with reading(cfg, got) as reader:
+            await wait_for(lambda: len(got) >= 4)
+            rx.set_faults(streaming=False)  # the connection stays up, but nothing comes
+            await wait_for(lambda: reader.stats().connects >= 2)
+            rx.set_faults(streaming=True)
+            before = len(got)
+            await wait_for(lambda: len(got) >= before + 8)
+        assert reader.stats().bad_frames == 0
+
+
 async def test_unreachable_source_is_retried_without_crashing() -> None:
     async with running_receiver(GnssConfig(), SimClock(SPEED)) as rx:
         port = rx.port
