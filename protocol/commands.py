@@ -65,7 +65,7 @@ class CommandDispatcher:
     def __init__(self, outbox: AsyncOutbox, queued: Callable[[], None] = lambda: None):
         """Record results in `outbox`; call `queued()` after each result is queued."""
         self._outbox = outbox
-        self._queued = queued
+        self.queued = queued
         self._handlers: dict[str, Handler] = {}
         self._tasks: dict[str, asyncio.Task[None]] = {}
         self.stats = CommandStats()
@@ -161,17 +161,17 @@ class CommandDispatcher:
         if not isinstance(item, CommandResultPayload):
             raise TypeError(f"a handler yielded {type(item).__name__}, not a progress or result")
         await self._outbox.progress_command(str(cid), item.model_dump_json())
-        self._queued()
+        self.queued()
 
     async def _finish(self, cid: str, final: CommandResultPayload) -> None:
         if not final.final:
             final = result("failed", f"handler ended with non-final status {final.status!r}")
         if await self._outbox.finish_command(cid, final.model_dump_json()):
-            self._queued()
+            self.queued()
 
     async def _requeue(self, cid: str, payload: str) -> None:
         await self._outbox.append("command_result", payload, re=cid)
-        self._queued()
+        self.queued()
 
 
 def _final(value: Any) -> CommandResultPayload:

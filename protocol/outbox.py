@@ -127,6 +127,15 @@ class Outbox:
     def _bump(self, key: str, by: int) -> None:
         self._set(key, str(int(self._meta(key) or 0) + by))
 
+    def meta(self, key: str) -> str | None:
+        """A free-form value kept in the state file."""
+        return self._meta(key)
+
+    def set_meta(self, key: str, value: str) -> None:
+        """Keep a free-form value in the state file."""
+        with self._tx():
+            self._set(key, value)
+
     def close(self) -> None:
         """Close the database."""
         self._db.close()
