@@ -15,17 +15,33 @@ from server import migrate
 from server.assets.endpoints import router as assets_router
 from server.audit.endpoints import router as audit_router
 from server.auth.endpoints import router as auth_router
+from server.commands.endpoints import router as commands_router
 from server.config import Settings
 from server.health import router as health_router
 from server.kit.db import make_engine, make_sessionmaker
 from server.kit.errors import install_error_handlers
 from server.kit.security import Passwords
 from server.organizations.endpoints import router as organizations_router
+from server.realtime.broker import make_broker
+from server.realtime.endpoints import router as realtime_router
+from server.realtime.hub import Hub
+from server.realtime.ingest import Ingest
+from server.telemetry.endpoints import router as telemetry_router
+from server.telemetry.sql import SqlTelemetryStore
 
 log = logging.getLogger(__name__)
 VERSION = "0.1.0"
 
 SessionEndListener = Callable[[list[Any]], Awaitable[None]]
+
+
+def make_telemetry_store(settings: Settings, sessionmaker, dialect: str):  # type: ignore[no-untyped-def]
+    """InfluxDB when INFLUXDB_URL is set, else the SQL table."""
+    if settings.influxdb_url:
+        from server.telemetry.influx import InfluxTelemetryStore
+
+        return InfluxTelemetryStore(settings.influxdb_url)
+    return SqlTelemetryStore(sessionmaker, dialect)
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -42,10 +58,23 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         engine = make_engine(settings.database_url)
         app.state.engine = engine
         app.state.sessionmaker = make_sessionmaker(engine)
+        app.state.broker = make_broker(settings.redis_url)
+        await app.state.broker.start()
+        app.state.telemetry = make_telemetry_store(settings, app.state.sessionmaker, engine.dialect.name)
+        await app.state.telemetry.start()
+        app.state.ingest = Ingest(app.state.sessionmaker, app.state.telemetry)
+        app.state.ingest.start()
+        app.state.hub = Hub(app.state.broker, app.state.sessionmaker)
+        await app.state.hub.start()
+        app.state.session_end_listeners.append(app.state.hub.sessions_ended)
         log.info("server started", extra={"database": engine.url.render_as_string(hide_password=True)})
         try:
             yield
         finally:
+            await app.state.hub.stop()
+            await app.state.ingest.stop()
+            await app.state.telemetry.close()
+            await app.state.broker.close()
             await engine.dispose()
 
     app = FastAPI(title="Aerobase", version=VERSION, lifespan=lifespan,
@@ -57,6 +86,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.session_end_listeners = []  # async callables given the ids of ended sessions
     app.add_middleware(GZipMiddleware, minimum_size=2048)
     install_error_handlers(app)
-    for router in (health_router, auth_router, organizations_router, assets_router, audit_router):
+    for router in (health_router, auth_router, organizations_router, assets_router, audit_router,
+                   commands_router, telemetry_router, realtime_router):
         app.include_router(router)
     return app

@@ -43,6 +43,11 @@ class Settings(BaseSettings):
     asset_session_ttl_s: int = Field(default=7 * 24 * 3600, ge=60)
     asset_session_idle_s: int = Field(default=60, ge=5)
 
+    # asset WebSocket: messages per second per connection (excess rejected with an error)
+    ws_rate_per_s: float = Field(default=200.0, gt=0)
+    ws_burst: float = Field(default=400.0, ge=1)
+    telemetry_retention_days: float = Field(default=90.0, gt=0)
+
     # failed-login rate limits
     login_window_s: int = Field(default=15 * 60, ge=1)
     login_max_failures_account: int = Field(default=5, ge=1)

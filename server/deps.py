@@ -39,7 +39,8 @@ def get_passwords(request: Request) -> Passwords:
     return request.app.state.passwords  # type: ignore[no-any-return]
 
 
-DB = Annotated[AsyncSession, Depends(get_db)]
+# scope="function": commit before the response is sent, so a client never reads before the write lands
+DB = Annotated[AsyncSession, Depends(get_db, scope="function")]
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 PasswordsDep = Annotated[Passwords, Depends(get_passwords)]
 

@@ -3,8 +3,25 @@
 from server.assets.models import Asset, AssetKind
 from server.audit.models import AuditEvent
 from server.auth.models import AuthSession, LoginFailure
+from server.commands.models import AssetCommand, CommandStatusChange
 from server.kit.db import Base
 from server.organizations.models import Membership, Organization, Role, User
+from server.telemetry.models import AssetEvent, AssetStream, TelemetrySample
 
-__all__ = ["Asset", "AssetKind", "AuditEvent", "AuthSession", "Base", "LoginFailure", "Membership",
-           "Organization", "Role", "User"]
+__all__ = [
+           "Asset",
+           "AssetCommand",
+           "AssetEvent",
+           "AssetKind",
+           "AssetStream",
+           "AuditEvent",
+           "AuthSession",
+           "Base",
+           "CommandStatusChange",
+           "LoginFailure",
+           "Membership",
+           "Organization",
+           "Role",
+           "TelemetrySample",
+           "User",
+]

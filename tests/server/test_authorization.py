@@ -72,8 +72,13 @@ class Victim:
     def __init__(self, tenant: Tenant) -> None:
         self.tenant = tenant
         base = tenant.create_asset("landing_base")
+        uav = tenant.create_asset("uav", base_id=base["id"])["id"]
+        cmd = tenant.api.post(f"/api/v1/assets/{uav}/commands", json={"name": "check_availability"},
+                              headers=tenant.h("operator"))
+        assert cmd.status_code == 202, cmd.text
         self.ids = {
-            "asset_id": tenant.create_asset("uav", base_id=base["id"])["id"],
+            "asset_id": uav,
+            "command_id": cmd.json()["id"],
             "user_id": tenant.user_ids["viewer"],
             "organization_id": tenant.id,
         }

@@ -1,0 +1,71 @@
+"""Decisions about commands: creation, results from assets, deadlines."""
+
+from __future__ import annotations
+
+import uuid
+from datetime import timedelta
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.ext.asyncio import AsyncSession
+
+from server.commands.models import FINAL, AssetCommand, CommandStatusChange
+from server.kit.time import utcnow
+
+
+async def create(db: AsyncSession, *, organization_id: uuid.UUID, asset_id: uuid.UUID, name: str,
+                 params: dict[str, Any], timeout_s: float, created_by: str | None) -> AssetCommand:
+    """A queued command with its deadline."""
+    now = utcnow()
+    cmd = AssetCommand(organization_id=organization_id, asset_id=asset_id, name=name, params=params,
+                       status="queued", deadline=now + timedelta(seconds=timeout_s), created_by=created_by,
+                       created_at=now, updated_at=now)
+    db.add(cmd)
+    await db.flush()
+    db.add(CommandStatusChange(command_id=cmd.id, status="queued", at=now))
+    await db.flush()
+    return cmd
+
+
+async def set_status(db: AsyncSession, cmd: AssetCommand, status: str, reason: str = "",
+                     progress: dict[str, Any] | None = None, result: dict[str, Any] | None = None) -> bool:
+    """Move a command on; a final status is never left. Returns False when nothing changed."""
+    if cmd.status in FINAL:
+        return False
+    now = utcnow()
+    cmd.status, cmd.reason, cmd.updated_at = status, reason[:2000], now
+    if result is not None:
+        cmd.result = result
+    db.add(CommandStatusChange(command_id=cmd.id, status=status, reason=reason[:2000], progress=progress, at=now))
+    await db.flush()
+    return True
+
+
+async def apply_result(db: AsyncSession, command_id: uuid.UUID, asset_id: uuid.UUID,
+                       payload: dict[str, Any]) -> bool:
+    """Record a command_result from the asset the command was for."""
+    cmd = await db.get(AssetCommand, command_id)
+    if cmd is None or cmd.asset_id != asset_id:
+        return False
+    return await set_status(db, cmd, str(payload.get("status", "failed")), str(payload.get("reason", "")),
+                            payload.get("progress"), payload.get("data"))
+
+
+async def due_for_delivery(db: AsyncSession, asset_id: uuid.UUID) -> list[AssetCommand]:
+    """Queued commands of an asset whose deadline has not passed, oldest first."""
+    stmt = (select(AssetCommand).where(  # unscoped: delivery to an authenticated asset's own socket
+        AssetCommand.asset_id == asset_id, AssetCommand.status == "queued", AssetCommand.deadline > utcnow())
+        .order_by(AssetCommand.created_at))
+    return list((await db.execute(stmt)).scalars())
+
+
+async def expire(db: AsyncSession) -> list[AssetCommand]:
+    """Every unfinished command past its deadline becomes timed_out."""
+    stmt = select(AssetCommand).where(  # unscoped: system sweep
+        AssetCommand.status.not_in(list(FINAL)), AssetCommand.deadline <= utcnow())
+    expired = []
+    for cmd in (await db.execute(stmt)).scalars():
+        if await set_status(db, cmd, "timed_out", f"no final answer from the asset within its deadline "
+                                                  f"({cmd.deadline:%H:%M:%S} UTC)"):
+            expired.append(cmd)
+    return expired

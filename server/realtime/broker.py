@@ -1,0 +1,221 @@
+"""Publish/subscribe and presence between server processes: in-process (default) or Redis.
+
+Channels carry JSON-able dicts. Presence (`claim`) is a key with an owner and a time to live, so
+one asset has one live connection across any number of processes.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import logging
+import time
+from collections import defaultdict
+from collections.abc import AsyncIterator, Callable
+from typing import Any, Protocol
+
+log = logging.getLogger(__name__)
+
+Handler = Callable[[dict[str, Any]], None]
+
+
+class Broker(Protocol):
+    """What the hub needs from a broker."""
+
+    async def start(self) -> None:
+        """Connect."""
+
+    async def close(self) -> None:
+        """Disconnect."""
+
+    async def publish(self, channel: str, message: dict[str, Any]) -> None:
+        """Send to every subscriber of `channel`, in every process."""
+
+    def subscribe(self, channel: str, handler: Handler) -> None:
+        """Call `handler` (in the event loop, must not block) for each message on `channel`."""
+
+    def unsubscribe(self, channel: str, handler: Handler) -> None:
+        """Stop calling `handler` for `channel`."""
+
+    async def claim(self, key: str, owner: str, ttl_s: float) -> str | None:
+        """Take `key` for `owner` unless someone else holds it; returns the holder, None when ours."""
+
+    async def refresh(self, key: str, owner: str, ttl_s: float) -> bool:
+        """Extend our claim; False when we no longer hold it."""
+
+    async def release(self, key: str, owner: str) -> None:
+        """Give up our claim."""
+
+
+class _Subscribers:
+    def __init__(self) -> None:
+        self.handlers: dict[str, list[Handler]] = defaultdict(list)
+
+    def add(self, channel: str, handler: Handler) -> bool:
+        first = not self.handlers[channel]
+        self.handlers[channel].append(handler)
+        return first
+
+    def remove(self, channel: str, handler: Handler) -> bool:
+        handlers = self.handlers.get(channel, [])
+        with contextlib.suppress(ValueError):
+            handlers.remove(handler)
+        if not handlers:
+            self.handlers.pop(channel, None)
+            return True
+        return False
+
+    def dispatch(self, channel: str, message: dict[str, Any]) -> None:
+        for handler in list(self.handlers.get(channel, ())):
+            try:
+                handler(message)
+            except Exception:
+                log.exception("broker handler failed on %s", channel)
+
+
+class InProcessBroker:
+    """A broker for one server process."""
+
+    def __init__(self) -> None:
+        self._subs = _Subscribers()
+        self._claims: dict[str, tuple[str, float]] = {}
+
+    async def start(self) -> None:
+        """Nothing to connect."""
+
+    async def close(self) -> None:
+        """Nothing to disconnect."""
+
+    async def publish(self, channel: str, message: dict[str, Any]) -> None:
+        """Deliver in this process."""
+        self._subs.dispatch(channel, message)
+
+    def subscribe(self, channel: str, handler: Handler) -> None:
+        """Register a handler."""
+        self._subs.add(channel, handler)
+
+    def unsubscribe(self, channel: str, handler: Handler) -> None:
+        """Remove a handler."""
+        self._subs.remove(channel, handler)
+
+    async def claim(self, key: str, owner: str, ttl_s: float) -> str | None:
+        """Take the key unless another live owner holds it."""
+        now = time.monotonic()
+        holder = self._claims.get(key)
+        if holder and holder[0] != owner and holder[1] > now:
+            return holder[0]
+        self._claims[key] = (owner, now + ttl_s)
+        return None
+
+    async def refresh(self, key: str, owner: str, ttl_s: float) -> bool:
+        """Extend our claim."""
+        holder = self._claims.get(key)
+        if not holder or holder[0] != owner:
+            return False
+        self._claims[key] = (owner, time.monotonic() + ttl_s)
+        return True
+
+    async def release(self, key: str, owner: str) -> None:
+        """Drop our claim."""
+        if self._claims.get(key, ("",))[0] == owner:
+            del self._claims[key]
+
+
+_RELEASE = "if redis.call('get', KEYS[1]) == ARGV[1] then return redis.call('del', KEYS[1]) else return 0 end"
+_REFRESH = ("if redis.call('get', KEYS[1]) == ARGV[1] then return redis.call('pexpire', KEYS[1], ARGV[2]) "
+            "else return 0 end")
+
+
+class RedisBroker:
+    """A broker shared by every server process through Redis pub/sub and keys."""
+
+    def __init__(self, url: str, prefix: str = "aerobase:") -> None:
+        self.url = url
+        self.prefix = prefix
+        self._subs = _Subscribers()
+        self._redis: Any = None
+        self._pubsub: Any = None
+        self._reader: asyncio.Task[None] | None = None
+
+    async def start(self) -> None:
+        """Connect and start the reader task."""
+        import redis.asyncio as redis
+
+        self._redis = redis.from_url(self.url, decode_responses=True)
+        await self._redis.ping()
+        self._pubsub = self._redis.pubsub(ignore_subscribe_messages=True)
+        await self._pubsub.subscribe(f"{self.prefix}__keepalive")
+        self._reader = asyncio.create_task(self._read(), name="redis-broker")
+
+    async def close(self) -> None:
+        """Stop the reader and disconnect."""
+        if self._reader:
+            self._reader.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await self._reader
+        if self._pubsub:
+            await self._pubsub.aclose()
+        if self._redis:
+            await self._redis.aclose()
+
+    async def _read(self) -> None:
+        while True:
+            try:
+                async for item in self._iter():
+                    channel = item["channel"][len(self.prefix):]
+                    try:
+                        message = json.loads(item["data"])
+                    except ValueError:
+                        continue
+                    self._subs.dispatch(channel, message)
+            except asyncio.CancelledError:
+                raise
+            except Exception:
+                log.exception("redis subscription failed; retrying")
+                await asyncio.sleep(0.5)
+
+    async def _iter(self) -> AsyncIterator[dict[str, Any]]:
+        async for item in self._pubsub.listen():
+            if item.get("type") == "message":
+                yield item
+
+    async def publish(self, channel: str, message: dict[str, Any]) -> None:
+        """Publish to every process."""
+        await self._redis.publish(self.prefix + channel, json.dumps(message, separators=(",", ":")))
+
+    def subscribe(self, channel: str, handler: Handler) -> None:
+        """Register a handler; the first one of a channel subscribes in Redis."""
+        if self._subs.add(channel, handler):
+            asyncio.get_running_loop().create_task(self._pubsub.subscribe(self.prefix + channel))
+
+    def unsubscribe(self, channel: str, handler: Handler) -> None:
+        """Remove a handler; the last one of a channel unsubscribes in Redis."""
+        if self._subs.remove(channel, handler):
+            asyncio.get_running_loop().create_task(self._pubsub.unsubscribe(self.prefix + channel))
+
+    async def claim(self, key: str, owner: str, ttl_s: float) -> str | None:
+        """SET NX PX; the current holder when taken."""
+        full = self.prefix + key
+        if await self._redis.set(full, owner, nx=True, px=int(ttl_s * 1000)):
+            return None
+        holder = await self._redis.get(full)
+        if holder == owner:
+            await self.refresh(key, owner, ttl_s)
+            return None
+        if holder is None:
+            return await self.claim(key, owner, ttl_s)
+        return str(holder)
+
+    async def refresh(self, key: str, owner: str, ttl_s: float) -> bool:
+        """Extend the TTL if we still hold the key."""
+        return bool(await self._redis.eval(_REFRESH, 1, self.prefix + key, owner, int(ttl_s * 1000)))
+
+    async def release(self, key: str, owner: str) -> None:
+        """Delete the key if we hold it."""
+        await self._redis.eval(_RELEASE, 1, self.prefix + key, owner)
+
+
+def make_broker(redis_url: str | None) -> Broker:
+    """Redis when a URL is configured, else in-process."""
+    return RedisBroker(redis_url) if redis_url else InProcessBroker()

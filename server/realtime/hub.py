@@ -1,0 +1,123 @@
+"""The per-process hub: live asset and operator connections, wired to the broker and the ingest.
+
+Channels on the broker:
+  `asset.<id>`        what an asset sent (telemetry, event, command_result), for operators
+  `cmd.<id>`          a nudge: commands are waiting for this asset (delivered from the database)
+  `sessions.ended`    {"ids": [...]}: close those sessions' sockets (code 4001)
+Presence key `conn.asset.<id>`: one live connection per asset across every process.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
+
+from protocol.messages import CommandResultPayload, envelope
+from server.commands import service as commands
+from server.realtime.broker import Broker
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class TokenBucket:
+    """Rate limit: `rate` messages a second with bursts of `burst`."""
+
+    rate: float
+    burst: float
+    tokens: float = 0.0
+    stamp: float = field(default_factory=time.monotonic)
+
+    def __post_init__(self) -> None:
+        self.tokens = self.burst
+
+    def take(self) -> bool:
+        """True when a message may pass."""
+        now = time.monotonic()
+        self.tokens = min(self.burst, self.tokens + (now - self.stamp) * self.rate)
+        self.stamp = now
+        if self.tokens >= 1:
+            self.tokens -= 1
+            return True
+        return False
+
+
+@dataclass
+class Counters:
+    """What the hub has seen, for metrics and tests."""
+
+    received: int = 0
+    duplicates: int = 0
+    malformed: int = 0
+    rate_limited: int = 0
+    operator_dropped: int = 0
+
+
+class Hub:
+    """Connections of this process; everything shared goes through the broker and the database."""
+
+    def __init__(self, broker: Broker, sessionmaker: async_sessionmaker[AsyncSession]) -> None:
+        self.broker = broker
+        self.sessionmaker = sessionmaker
+        self.node = uuid.uuid4().hex[:12]
+        self.counters = Counters()
+        self.closers: dict[uuid.UUID, list[Callable[[int, str], None]]] = {}
+        self._task: asyncio.Task[None] | None = None
+
+    async def start(self) -> None:
+        """Listen for ended sessions and run the command-deadline sweeper."""
+        self.broker.subscribe("sessions.ended", self._on_sessions_ended)
+        self._task = asyncio.create_task(self._sweep(), name="command-sweeper")
+
+    async def stop(self) -> None:
+        """Stop the sweeper."""
+        if self._task:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+
+    async def sessions_ended(self, ids: list[Any]) -> None:
+        """Tell every process to close these sessions' sockets (code 4001)."""
+        if ids:
+            await self.broker.publish("sessions.ended", {"ids": [str(i) for i in ids]})
+
+    def _on_sessions_ended(self, message: dict[str, Any]) -> None:
+        for raw in message.get("ids", ()):
+            with contextlib.suppress(ValueError):
+                for close in self.closers.pop(uuid.UUID(raw), []):
+                    close(4001, "session ended: another login took it over or it was logged out")
+
+    def register_closer(self, session_id: uuid.UUID, close: Callable[[int, str], None]) -> None:
+        """Remember how to close a socket of this session."""
+        self.closers.setdefault(session_id, []).append(close)
+
+    def unregister_closer(self, session_id: uuid.UUID, close: Callable[[int, str], None]) -> None:
+        """Forget a closed socket."""
+        with contextlib.suppress(KeyError, ValueError):
+            self.closers[session_id].remove(close)
+            if not self.closers[session_id]:
+                del self.closers[session_id]
+
+    async def _sweep(self) -> None:
+        while True:
+            await asyncio.sleep(1.0)
+            try:
+                async with self.sessionmaker() as db:
+                    expired = await commands.expire(db)
+                    await db.commit()
+                for cmd in expired:
+                    message = envelope(CommandResultPayload(asset_id=cmd.asset_id, status="timed_out",
+                                                            reason=cmd.reason), re=cmd.id)
+                    await self.broker.publish(f"asset.{cmd.asset_id}", message.model_dump(mode="json"))
+            except asyncio.CancelledError:
+                raise
+            except Exception:
+                log.exception("command sweep failed")

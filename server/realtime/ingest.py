@@ -1,0 +1,135 @@
+"""Durable storage of what assets send, in batches shared by every connection of this process.
+
+A connection hands over (stream, seq, message); the batcher stores telemetry through the telemetry
+store and events, command results and the stream's position in one transaction, then resolves the
+connection's future so it can ack. Writes are idempotent (a replay after a crash stores nothing twice).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import uuid
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
+
+from server.commands.service import apply_result
+from server.telemetry.models import AssetEvent, AssetStream
+from server.telemetry.store import Sample, TelemetryStore, flatten
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Item:
+    """One message to store."""
+
+    stream_id: uuid.UUID
+    asset_id: uuid.UUID
+    organization_id: uuid.UUID
+    seq: int
+    kind: str  # telemetry | event | command_result
+    ts_ms: int
+    payload: dict[str, Any]
+    re: uuid.UUID | None = None
+    done: asyncio.Future[None] = field(default_factory=lambda: asyncio.get_running_loop().create_future())
+
+
+def _ts(ms: int) -> datetime:
+    return datetime.fromtimestamp(ms / 1000, UTC)
+
+
+class Ingest:
+    """The process-wide batcher."""
+
+    def __init__(self, sessionmaker: async_sessionmaker[AsyncSession], store: TelemetryStore,
+                 max_batch: int = 2000, max_delay_s: float = 0.02) -> None:
+        self.sessionmaker = sessionmaker
+        self.store = store
+        self.max_batch = max_batch
+        self.max_delay_s = max_delay_s
+        self.queue: asyncio.Queue[Item] = asyncio.Queue()
+        self._task: asyncio.Task[None] | None = None
+        self.stored = 0
+
+    def start(self) -> None:
+        """Start the batcher task."""
+        self._task = asyncio.create_task(self._run(), name="ingest")
+
+    async def stop(self) -> None:
+        """Store what is queued, then stop."""
+        if self._task:
+            self._task.cancel()
+            try:
+                await self._task
+            except asyncio.CancelledError:
+                pass
+
+    async def last_seq(self, stream_id: uuid.UUID, asset_id: uuid.UUID) -> int:
+        """The highest stored seq of a stream (0 for a new stream)."""
+        async with self.sessionmaker() as db:
+            row = await db.get(AssetStream, stream_id)
+            if row is None:
+                db.add(AssetStream(stream_id=stream_id, asset_id=asset_id, last_seq=0))
+                await db.commit()
+                return 0
+            if row.asset_id != asset_id:
+                raise ValueError("stream belongs to another asset")
+            return int(row.last_seq)
+
+    def submit(self, item: Item) -> asyncio.Future[None]:
+        """Queue an item; the future resolves once it is stored."""
+        self.queue.put_nowait(item)
+        return item.done
+
+    async def _run(self) -> None:
+        while True:
+            batch = [await self.queue.get()]
+            deadline = asyncio.get_running_loop().time() + self.max_delay_s
+            while len(batch) < self.max_batch:
+                timeout = deadline - asyncio.get_running_loop().time()
+                if timeout <= 0:
+                    break
+                try:
+                    batch.append(await asyncio.wait_for(self.queue.get(), timeout))
+                except TimeoutError:
+                    break
+            try:
+                await self._store(batch)
+                for item in batch:
+                    if not item.done.done():
+                        item.done.set_result(None)
+                self.stored += len(batch)
+            except asyncio.CancelledError:
+                raise
+            except Exception as err:
+                log.exception("storing a batch of %d messages failed", len(batch))
+                for item in batch:
+                    if not item.done.done():
+                        item.done.set_exception(err)
+
+    async def _store(self, batch: list[Item]) -> None:
+        samples = [Sample(i.asset_id, _ts(i.ts_ms), i.seq, flatten(i.payload)) for i in batch
+                   if i.kind == "telemetry"]
+        await self.store.write(samples)
+        highest: dict[uuid.UUID, int] = {}
+        async with self.sessionmaker() as db:
+            for item in batch:
+                highest[item.stream_id] = max(highest.get(item.stream_id, 0), item.seq)
+                if item.kind == "event":
+                    p = item.payload
+                    db.add(AssetEvent(organization_id=item.organization_id, asset_id=item.asset_id,
+                                      ts=_ts(item.ts_ms), name=str(p.get("name", ""))[:200],
+                                      severity=str(p.get("severity", "info")), message=str(p.get("message", ""))[:2000],
+                                      data=p.get("data") or {}))
+                elif item.kind == "command_result" and item.re is not None:
+                    await apply_result(db, item.re, item.asset_id, item.payload)
+            rows = (await db.execute(select(AssetStream).where(  # unscoped: streams of connected assets
+                AssetStream.stream_id.in_(list(highest))))).scalars()
+            for row in rows:
+                row.last_seq = max(row.last_seq, highest[row.stream_id])
+            await db.commit()

@@ -1,0 +1,1 @@
+"""Telemetry series and asset events: storage behind one interface, SQL or InfluxDB."""

@@ -1,0 +1,74 @@
+"""The telemetry store interface: append batches, read ranges (raw or downsampled), read the latest.
+
+A sample is one telemetry payload of one asset at one time: a flat mapping of dotted field names
+to numbers, booleans or strings (`flatten` turns a nested payload into it). Two implementations:
+`SqlTelemetryStore` (default, the main database) and `InfluxTelemetryStore` (INFLUXDB_URL).
+"""
+
+from __future__ import annotations
+
+import uuid
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any, Literal, Protocol
+
+Scalar = float | int | bool | str
+Aggregate = Literal["mean", "last"]
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One telemetry sample of one asset."""
+
+    asset_id: uuid.UUID
+    ts: datetime  # aware, UTC
+    seq: int
+    fields: Mapping[str, Scalar] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Query:
+    """A range read: raw samples, or one row per `every_s` bucket aggregated by `agg`."""
+
+    asset_id: uuid.UUID
+    start: datetime
+    end: datetime
+    fields: Sequence[str] | None = None  # None: every field
+    every_s: float | None = None
+    agg: Aggregate = "mean"  # numeric fields; non-numeric fields always take the last value
+    limit: int = 10_000
+
+
+class TelemetryStore(Protocol):
+    """Where telemetry samples live."""
+
+    async def start(self) -> None:
+        """Connect and prepare (create buckets/retention policies where needed)."""
+
+    async def close(self) -> None:
+        """Flush and disconnect."""
+
+    async def write(self, samples: Sequence[Sample]) -> None:
+        """Store a batch durably; returns only when it is stored."""
+
+    async def query(self, q: Query) -> list[dict[str, Any]]:
+        """Rows `{"ts": iso8601, field: value, ...}` in time order."""
+
+    async def latest(self, asset_id: uuid.UUID) -> dict[str, Any] | None:
+        """The newest sample of an asset as a row, or None."""
+
+    async def prune(self, before: datetime) -> int:
+        """Delete samples older than `before` (retention); returns how many, when known."""
+
+
+def flatten(payload: Mapping[str, Any], prefix: str = "") -> dict[str, Scalar]:
+    """Nested telemetry -> flat dotted fields; None values are dropped, lists are skipped."""
+    out: dict[str, Scalar] = {}
+    for key, value in payload.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out.update(flatten(value, name + "."))
+        elif isinstance(value, bool | int | float | str):
+            out[name] = value
+    return out

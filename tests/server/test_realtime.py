@@ -1,0 +1,231 @@
+"""The realtime core over real sockets: the real link (protocol/link.py) against the real server."""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import json
+import time
+
+import httpx
+import pytest
+import websockets
+
+from protocol.configfile import decrypt_config
+from protocol.link import Link
+from protocol.messages import EventPayload
+from protocol.telemetry import Battery, Position, UavTelemetry
+from tests.conftest import LiveServer, Tenant, test_settings
+
+
+def _cfg(asset: dict, password: str = "asset-password-123"):  # type: ignore[no-untyped-def]
+    return decrypt_config(base64.b64decode(asset["config_file"]), password)
+
+
+def _sample(i: int) -> UavTelemetry:
+    return UavTelemetry(position=Position(lat=41.0 + i * 1e-6, lon=-8.6, alt_msl_m=120.0, alt_rel_m=float(i % 50)),
+                        battery=Battery(percent=90.0, voltage_v=16.4, current_a=1.0), armed=False)
+
+
+async def _wait(predicate, timeout: float = 15.0, what: str = "condition"):  # type: ignore[no-untyped-def]
+    deadline = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if asyncio.iscoroutine(value):
+            value = await value
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        await asyncio.sleep(0.02)
+
+
+async def _count(server_url: str, tenant: Tenant, asset_id: str) -> list:
+    async with httpx.AsyncClient(base_url=server_url) as c:
+        r = await c.get(f"/api/v1/assets/{asset_id}/telemetry",
+                        params={"start": "2000-01-01T00:00:00Z", "end": "2100-01-01T00:00:00Z"},
+                        headers=tenant.h("viewer"))
+        assert r.status_code == 200, r.text
+        return list(r.json())
+
+
+async def test_telemetry_is_stored_acked_and_reaches_operators(live_server, tenant: Tenant, tmp_path):
+    asset = tenant.create_asset("uav")
+    cfg = _cfg(asset)
+    url = live_server.url.replace("http", "ws") + f"/ws/operator?token={tenant.tokens['viewer']}"
+    async with websockets.connect(url) as op:
+        await op.send(json.dumps({"v": 1, "type": "subscribe", "id": "6f1c3a3e-58a4-4d1e-9f55-000000000001",
+                                  "seq": 0, "ts": 0, "payload": {"asset_ids": [asset["id"]]}}))
+        link = Link(live_server.url, cfg.name, cfg.secret, tmp_path / "link.db", seed=1)
+        await link.start()
+        try:
+            await link.wait_connected(15)
+            for i in range(20):
+                await link.send_telemetry(_sample(i))
+            await link.send_event(EventPayload(name="armed", message="motors armed"))
+            assert await link.flush(15)
+            got = []
+            while len(got) < 21:
+                got.append(json.loads(await asyncio.wait_for(op.recv(), 10)))
+        finally:
+            await link.stop()
+    kinds = [m["type"] for m in got]
+    assert kinds.count("telemetry") == 20 and kinds.count("event") == 1
+    assert all(m["payload"]["asset_id"] == asset["id"] for m in got)
+    rows = await _count(live_server.url, tenant, asset["id"])
+    assert len(rows) == 20
+    async with httpx.AsyncClient(base_url=live_server.url) as c:
+        latest = (await c.get(f"/api/v1/assets/{asset['id']}/telemetry/latest", headers=tenant.h("viewer"))).json()
+        assert latest["position.alt_rel_m"] == 19.0
+        events = (await c.get(f"/api/v1/assets/{asset['id']}/events", headers=tenant.h("viewer"))).json()
+        assert [e["name"] for e in events] == ["armed"]
+
+
+async def test_operator_cannot_subscribe_to_another_organisation(live_server, tenant: Tenant, api, superuser_email):
+    other = Tenant(api, superuser_email, "other")
+    foreign = other.create_asset("uav")
+    url = live_server.url.replace("http", "ws") + f"/ws/operator?token={tenant.tokens['admin']}"
+    async with websockets.connect(url) as op:
+        await op.send(json.dumps({"v": 1, "type": "subscribe", "id": "6f1c3a3e-58a4-4d1e-9f55-000000000002",
+                                  "seq": 0, "ts": 0, "payload": {"asset_ids": [foreign["id"]]}}))
+        reply = json.loads(await asyncio.wait_for(op.recv(), 10))
+    assert reply["type"] == "error" and reply["payload"]["code"] == "not_found"
+
+
+async def test_command_round_trip_and_status_history(live_server, tenant: Tenant, tmp_path):
+    asset = tenant.create_asset("landing_base")
+    cfg = _cfg(asset)
+    link = Link(live_server.url, cfg.name, cfg.secret, tmp_path / "link.db", agent="base_station", seed=2)
+    calls = []
+
+    async def check(request):  # type: ignore[no-untyped-def]
+        calls.append(request.id)
+        from protocol.commands import result
+        return result("succeeded", "all conditions met", {"wind_mps": 3.0})
+
+    link.on_command("check_availability", check)
+    await link.start()
+    try:
+        await link.wait_connected(15)
+        async with httpx.AsyncClient(base_url=live_server.url) as c:
+            r = await c.post(f"/api/v1/assets/{asset['id']}/commands", json={"name": "check_availability"},
+                             headers=tenant.h("operator"))
+            assert r.status_code == 202
+            cid = r.json()["id"]
+
+            async def final():  # type: ignore[no-untyped-def]
+                body = (await c.get(f"/api/v1/commands/{cid}", headers=tenant.h("viewer"))).json()
+                return body if body["status"] == "succeeded" else None
+
+            body = await _wait(final, what="command result")
+    finally:
+        await link.stop()
+    assert [h["status"] for h in body["history"]] == ["queued", "sent", "succeeded"]
+    assert body["result"] == {"wind_mps": 3.0} and len(calls) == 1
+
+
+async def test_unanswered_command_times_out(live_server, tenant: Tenant):
+    asset = tenant.create_asset("uav")
+    async with httpx.AsyncClient(base_url=live_server.url) as c:
+        cid = (await c.post(f"/api/v1/assets/{asset['id']}/commands", json={"name": "land", "timeout_s": 1},
+                            headers=tenant.h("operator"))).json()["id"]
+
+        async def timed_out():  # type: ignore[no-untyped-def]
+            body = (await c.get(f"/api/v1/commands/{cid}", headers=tenant.h("viewer"))).json()
+            return body if body["status"] == "timed_out" else None
+
+        body = await _wait(timed_out, what="timed_out")
+    assert "deadline" in body["reason"]
+
+
+async def test_duplicate_asset_connection_is_closed_4409(live_server, tenant: Tenant, tmp_path):
+    asset = tenant.create_asset("uav")
+    cfg = _cfg(asset)
+    link = Link(live_server.url, cfg.name, cfg.secret, tmp_path / "link.db", seed=3)
+    await link.start()
+    try:
+        await link.wait_connected(15)
+        async with httpx.AsyncClient(base_url=live_server.url) as c:
+            token = (await c.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret,
+                                                               "force": False})).status_code
+            assert token == 409  # the live link's session blocks a second login
+        # a second socket with the link's own token: refused with 4409
+        own = link._token.access_token  # noqa: SLF001
+        ws_url = live_server.url.replace("http", "ws") + "/ws/asset"
+        async with websockets.connect(ws_url, additional_headers={"Authorization": f"Bearer {own}"}) as ws:
+            with pytest.raises(websockets.ConnectionClosed) as info:
+                await asyncio.wait_for(ws.recv(), 10)
+        assert info.value.rcvd.code == 4409
+    finally:
+        await link.stop()
+
+
+async def test_bad_input_gets_errors_and_oversize_closes_1009(live_server, tenant: Tenant):
+    asset = tenant.create_asset("uav")
+    cfg = _cfg(asset)
+    async with httpx.AsyncClient(base_url=live_server.url) as c:
+        token = (await c.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret})).json()["access_token"]
+    ws_url = live_server.url.replace("http", "ws") + "/ws/asset"
+    async with websockets.connect(ws_url, additional_headers={"Authorization": f"Bearer {token}"},
+                                  max_size=None) as ws:
+        await ws.send(json.dumps({"v": 1, "type": "hello", "id": "6f1c3a3e-58a4-4d1e-9f55-000000000003", "seq": 0,
+                                  "ts": 0, "payload": {"stream": "6f1c3a3e-58a4-4d1e-9f55-0000000000aa",
+                                                       "agent": "asset_agent", "version": "t"}}))
+        assert json.loads(await ws.recv())["type"] == "welcome"
+        for bad in ("{not json", json.dumps({"v": 1, "type": "telemetry", "id": "x", "seq": "a", "ts": 0, "payload": {}}),
+                    json.dumps({"v": 1, "type": "teleport", "id": "6f1c3a3e-58a4-4d1e-9f55-000000000004",
+                                "seq": 1, "ts": 0, "payload": {}})):
+            await ws.send(bad)
+            reply = json.loads(await asyncio.wait_for(ws.recv(), 10))
+            assert reply["type"] == "error", reply
+        await ws.send("x" * (1024 * 1024 + 10))
+        with pytest.raises(websockets.ConnectionClosed) as info:
+            while True:
+                await asyncio.wait_for(ws.recv(), 10)
+        assert info.value.rcvd.code == 1009
+
+
+async def test_link_cut_and_server_restart_lose_nothing_and_duplicate_nothing(database_url, tenant: Tenant,
+                                                                              tmp_path):
+    """10 Hz telemetry; the server is stopped and restarted mid-stream; the store holds each sample once."""
+    asset = tenant.create_asset("uav")
+    cfg = _cfg(asset)
+    server = LiveServer(test_settings(database_url)).start()
+    port = server.port
+    link = Link(server.url, cfg.name, cfg.secret, tmp_path / "link.db", backoff_min=0.05, backoff_max=0.3, seed=4)
+    await link.start()
+    sent = 0
+    try:
+        await link.wait_connected(15)
+        for _ in range(15):
+            await link.send_telemetry(_sample(sent))
+            sent += 1
+            await asyncio.sleep(0.1)  # the 10 Hz rate itself, not synchronisation
+        await asyncio.to_thread(server.stop)
+        for _ in range(15):  # sent while the server is down: queued on disk
+            await link.send_telemetry(_sample(sent))
+            sent += 1
+            await asyncio.sleep(0.1)
+        assert not link.connected
+        settings = test_settings(database_url)
+        restarted = LiveServer.__new__(LiveServer)
+        LiveServer.__init__(restarted, settings)
+        restarted.port, restarted.url = port, f"http://127.0.0.1:{port}"
+        import uvicorn
+        restarted.server = uvicorn.Server(uvicorn.Config(restarted.app, host="127.0.0.1", port=port, log_config=None,
+                                                         ws_max_size=1 << 20, lifespan="on"))
+        import threading
+        restarted.thread = threading.Thread(target=restarted.server.run, daemon=True)
+        settings.port = port
+        restarted.start()
+        try:
+            await link.wait_connected(30)
+            assert await link.flush(30)
+            rows = await _count(restarted.url, tenant, asset["id"])
+        finally:
+            await asyncio.to_thread(restarted.stop)
+    finally:
+        await link.stop()
+    alts = sorted(r["position.alt_rel_m"] for r in rows)
+    assert len(rows) == sent == 30
+    assert alts == sorted(float(i % 50) for i in range(30))
