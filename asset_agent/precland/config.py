@@ -141,13 +141,14 @@ class ControlConfig(_Model):
     max_speed_xy: float = 1.5
     max_descent: float = 1.0
     max_climb: float = 1.0
-    slow_height: float = 0.5
+    slow_height: float = 0.5  # the slow final stretch, above touchdown
     slow_descent: float = 0.1
     max_heading_error_deg: float = 5.0
     kp_yaw: float = 1.0
     max_yaw_rate: float = 0.8
     heading_offset_deg: float = 0.0  # vehicle yaw - pad yaw when seated on the contacts
-    touchdown_height: float = 0.03
+    touchdown_height: float = 0.25  # camera height above the pad when seated on the contacts
+    land_margin: float = 0.02  # hand over to the autopilot's landing this close to touchdown
     landing_target_rate_hz: float = Field(20.0, ge=10.0)
 
 

@@ -106,14 +106,16 @@ def cone_setpoint(
 ) -> VelocitySetpoint:
     """Velocity towards the pad: centre always; descend to the pad inside the cone, towards
     a − AllowedPosError(a) outside it (eq. 4); no descent while the heading error is too big;
-    slow in the final 50 cm; land at touchdown height."""
-    n, e, a = (float(v) for v in rel_ned)
+    slow in the final 50 cm; land at touchdown. `rel_ned[2]` is the camera's height above the
+    pad; the cone's altitude `a` is measured from touchdown."""
+    n, e, height = (float(v) for v in rel_ned)
+    a = height - cfg.touchdown_height  # altitude above touchdown: the cone's apex is the seat
     vn, ve = clip_xy(cfg.kp_xy * n, cfg.kp_xy * e, cfg.max_speed_xy)
     err = heading_error(pad_heading, yaw, cfg)
     yaw_rate = 0.0
     if err is not None:
         yaw_rate = max(-cfg.max_yaw_rate, min(cfg.max_yaw_rate, cfg.kp_yaw * err))
-    if a <= cfg.touchdown_height:
+    if a <= cfg.land_margin:
         return VelocitySetpoint(0.0, 0.0, cfg.slow_descent, 0.0, land=True)
     allowed = allowed_pos_error(a, cfg)
     if err is not None and abs(err) > math.radians(cfg.max_heading_error_deg):

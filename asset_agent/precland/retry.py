@@ -81,7 +81,7 @@ class LandingSequence:
         a = float(rel_ned[2])
         if self.state == "landed":
             return Command("landed", VelocitySetpoint(0, 0, 0, land=True), self.attempts)
-        if a <= self.control.touchdown_height:
+        if a <= self.control.touchdown_height + self.control.land_margin:
             self._fire("touchdown", now)
             return Command(
                 self.state,
@@ -136,6 +136,6 @@ class LandingSequence:
         # blind: steer to the estimate, descend slowly
         vn, ve = clip_xy(c.kp_xy * float(rel_ned[0]), c.kp_xy * float(rel_ned[1]), c.max_speed_xy)
         vd = self.retry.blind_descent
-        if float(rel_ned[2]) < c.slow_height:
+        if float(rel_ned[2]) < c.touchdown_height + c.slow_height:
             vd = min(vd, c.slow_descent)
         return VelocitySetpoint(vn, ve, vd)

@@ -46,11 +46,12 @@ def test_conical_acceptance_function_is_the_papers_equation_3():
 
 
 def test_inside_the_cone_descends_to_the_pad_outside_towards_a_minus_allowed():
-    a = 4.0
+    a = 4.0  # above touchdown
+    h = a + C.touchdown_height
     allowed = allowed_pos_error(a, C)
-    inside = cone_setpoint((0.5 * allowed, 0.0, a), 0.0, 0.0, C)
+    inside = cone_setpoint((0.5 * allowed, 0.0, h), 0.0, 0.0, C)
     assert inside.vd == pytest.approx(min(C.kp_z * a, C.max_descent))
-    outside = cone_setpoint((2 * allowed, 0.0, a), 0.0, 0.0, C)
+    outside = cone_setpoint((2 * allowed, 0.0, h), 0.0, 0.0, C)
     # setpoint altitude a - AllowedPosError(a): the vertical speed shrinks to kp_z * allowed
     assert outside.vd == pytest.approx(C.kp_z * allowed) and outside.vd < inside.vd
     assert outside.vn > 0 and outside.ve == 0  # always centring on the pad
@@ -66,9 +67,11 @@ def test_descent_stops_while_heading_error_exceeds_its_limit():
 
 
 def test_slow_final_half_metre_and_touchdown():
-    assert cone_setpoint((0.0, 0.0, 0.4), 0.0, 0.0, C).vd == pytest.approx(C.slow_descent)
-    assert cone_setpoint((0.0, 0.0, 0.6), 0.0, 0.0, C).vd > C.slow_descent
-    assert cone_setpoint((0.0, 0.0, 0.02), 0.0, 0.0, C).land
+    t = C.touchdown_height
+    assert cone_setpoint((0.0, 0.0, t + 0.4), 0.0, 0.0, C).vd == pytest.approx(C.slow_descent)
+    assert cone_setpoint((0.0, 0.0, t + 0.6), 0.0, 0.0, C).vd > C.slow_descent
+    assert not cone_setpoint((0.0, 0.0, t + 0.1), 0.0, 0.0, C).land
+    assert cone_setpoint((0.0, 0.0, t + 0.01), 0.0, 0.0, C).land
     fast = cone_setpoint((30.0, 40.0, 20.0), 0.0, 0.0, C)
     assert (
         math.hypot(fast.vn, fast.ve) == pytest.approx(C.max_speed_xy) and fast.vd <= C.max_descent
@@ -100,8 +103,8 @@ def test_cautious_retry_pause_climb_back_retry_then_blind():
     assert run(seq, 8.0, False, (0.0, 0.0, 2.5), (5.0, 5.0)).state == "pause"
     cmd = run(seq, 10.1, False, (0.0, 0.0, 2.5), (5.0, 5.0))
     assert cmd.state == "blind" and cmd.setpoint.vd == pytest.approx(0.3)
-    assert run(seq, 11.0, False, (0.0, 0.0, 0.02)).state == "landed"
-    assert run(seq, 12.0, True, (0.0, 0.0, 0.02)).setpoint.land
+    assert run(seq, 11.0, False, (0.0, 0.0, 0.26)).state == "landed"
+    assert run(seq, 12.0, True, (0.0, 0.0, 0.26)).setpoint.land
 
 
 def test_never_seen_climbs_to_the_default_height():

@@ -1,0 +1,172 @@
+"""The precision-landing pipeline without I/O: detections and IR readings in, through fault
+injection, fusion and the Kalman filter, to LANDING_TARGET fields or velocity setpoints out.
+
+`PrecisionLandingLoop` wraps it with threads and timers; the evaluation drives it directly.
+Vision readings are taken at their capture time; before fusion they are moved to "now" by the
+vehicle's own displacement since then (from the autopilot's positions), so a late frame does not
+drag the estimate back.
+"""
+
+from __future__ import annotations
+
+import bisect
+import logging
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from asset_agent.precland.config import FaultConfig, PrecisionLandingConfig
+from asset_agent.precland.control import LandingTarget, landing_target
+from asset_agent.precland.detect import Detections
+from asset_agent.precland.faults import FaultInjector
+from asset_agent.precland.fusion import FusedTarget, Fusion
+from asset_agent.precland.kalman import Estimate, TargetKalman
+from asset_agent.precland.measure import Attitude, Measurement, from_element, from_ir
+from asset_agent.precland.retry import Command, LandingSequence
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class VehicleState:
+    """The autopilot's view at time t: local NED position (m) and attitude (rad)."""
+
+    t: float
+    position_ned: tuple[float, float, float]
+    attitude: Attitude
+
+
+@dataclass(frozen=True)
+class Tick:
+    """The outcome of one control step."""
+
+    t: float
+    target: FusedTarget | None
+    estimate: Estimate
+    command: Command | None
+    landing_target: LandingTarget | None
+
+
+class LandingPipeline:
+    """Fault injection → fusion → Kalman → control, fed by detections, IR and vehicle states."""
+
+    HISTORY_S = 2.0
+
+    def __init__(
+        self, config: PrecisionLandingConfig | None = None, seed: int | None = None
+    ) -> None:
+        self.config = config or PrecisionLandingConfig()
+        self.faults = FaultInjector(self.config.faults, seed=seed)
+        self.fusion = Fusion(self.config.fusion)
+        self.kalman = TargetKalman(self.config.kalman)
+        self.sequence = LandingSequence(self.config.control, self.config.retry)
+        self._states: deque[VehicleState] = deque()
+
+    # -- inputs ------------------------------------------------------------------------------
+
+    def set_pad_prior(self, rel_ned, sigma_m: float | None = None) -> None:
+        """Start the filter from the surveyed pad position minus the vehicle's GNSS position."""
+        self.kalman.reset(rel_ned, sigma_m)
+
+    def set_fault(self, source: str, fault: FaultConfig, now: float) -> None:
+        """Run-time fault injection command for one source."""
+        self.faults.set(source, fault, now)
+
+    def vehicle(self, state: VehicleState) -> None:
+        """A new autopilot state: predicts the filter with the position delta."""
+        if self._states:
+            prev = self._states[-1]
+            if state.t < prev.t:
+                log.warning("vehicle state out of order dropped")
+                return
+            delta = np.subtract(state.position_ned, prev.position_ned)
+            self.kalman.predict(delta, state.t - prev.t)
+        self._states.append(state)
+        while self._states and state.t - self._states[0].t > self.HISTORY_S:
+            self._states.popleft()
+
+    def state_at(self, t: float) -> VehicleState | None:
+        """The recorded vehicle state nearest to time t."""
+        if not self._states:
+            return None
+        times = [s.t for s in self._states]
+        i = bisect.bisect_left(times, t)
+        cands = [self._states[j] for j in (i - 1, i) if 0 <= j < len(times)]
+        return min(cands, key=lambda s: abs(s.t - t))
+
+    def detections(
+        self, t: float, det: Detections, attitude: Attitude | None = None
+    ) -> list[Measurement]:
+        """A frame's detections (captured at t) into fusion; returns the admitted measurements."""
+        state = self.state_at(t)
+        if attitude is None:
+            if state is None:
+                return []
+            attitude = state.attitude
+        out = []
+        for element in (det.pattern, det.aruco):
+            if element is None:
+                continue
+            m = from_element(element, t, attitude, self.config.camera)
+            out += self._admit(m)
+        return out
+
+    def ir(self, t: float, detected: bool, angle_x: float, angle_y: float) -> list[Measurement]:
+        """An IR reading into fusion (scaled by the filter's height); returns what was admitted."""
+        state = self.state_at(t)
+        if not detected or state is None or not self.kalman.initialised:
+            return []
+        height = self.kalman.estimate().rel_ned[2]
+        if height <= 0:
+            return []
+        m = from_ir(
+            angle_x,
+            angle_y,
+            t,
+            state.attitude,
+            height,
+            self.config.camera,
+            self.config.pad,
+            self.kalman.heading,
+        )
+        return self._admit(m)
+
+    def _admit(self, m: Measurement) -> list[Measurement]:
+        if not self.faults.admit(m.source, m.t, m.height):
+            return []
+        self.fusion.submit(m)
+        return [m]
+
+    # -- one control step ----------------------------------------------------------------------
+
+    def tick(self, now: float) -> Tick:
+        """Fuse, update the filter, and compute the command for time `now`."""
+        target = self.fusion.step(now)
+        if target is not None and target.kind != "held":
+            rel = np.asarray(target.rel_ned) - self._moved_since(target.t)
+            self.kalman.update(rel, heading=target.heading)
+        est = self.kalman.estimate()
+        state = self._states[-1] if self._states else None
+        cmd = lt = None
+        if state is not None and self.kalman.initialised:
+            if self.config.mode == "companion":
+                cmd = self.sequence.step(
+                    now,
+                    target is not None,
+                    est.rel_ned,
+                    est.heading,
+                    state.position_ned,
+                    state.attitude[2],
+                )
+            elif target is not None:
+                lt = landing_target(
+                    est.rel_ned, state.attitude, now, 2 * self.config.pad.pattern_radius
+                )
+        return Tick(now, target, est, cmd, lt)
+
+    def _moved_since(self, t: float) -> np.ndarray:
+        then = self.state_at(t)
+        if then is None or not self._states:
+            return np.zeros(3)
+        return np.subtract(self._states[-1].position_ned, then.position_ned)
