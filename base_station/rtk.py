@@ -21,6 +21,7 @@ from urllib.parse import parse_qs, urlsplit
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from protocol.rtcm import Reframer, message_type
+from protocol.telemetry import Rtk
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +58,18 @@ def parse_source(url: str) -> TcpSource | SerialSource:
         baud = parse_qs(parts.query).get("baud", ["115200"])[0]
         return SerialSource(device, int(baud))
     raise ValueError(f"unsupported RTCM source {url!r} (use tcp:// or serial://)")
+
+
+def source_url(
+    tcp_host: str = "127.0.0.1",
+    tcp_port: int = 5021,
+    serial_device: str = "",
+    baudrate: int = 115200,
+) -> str:
+    """A source URL from host/port/device settings (a serial device wins when set)."""
+    if serial_device:
+        return f"serial://{serial_device}?baud={baudrate}"
+    return f"tcp://{tcp_host}:{tcp_port}"
 
 
 class RtkConfig(BaseModel):
@@ -141,6 +154,25 @@ class RtkStats:
     bytes_per_s: float
     last_frame_age_s: float | None
     message_counts: dict[int, int]
+
+
+def rtk_state(stats: RtkStats, stale_after_s: float = 5.0) -> str:
+    """`disconnected`, `waiting` (connected, nothing yet), `stale` (no frame lately) or `streaming`."""
+    if not stats.connected:
+        return "disconnected"
+    if stats.last_frame_age_s is None:
+        return "waiting"
+    return "stale" if stats.last_frame_age_s > stale_after_s else "streaming"
+
+
+def to_telemetry(stats: RtkStats, stale_after_s: float = 5.0) -> Rtk:
+    """The landing-base telemetry block for the corrections link (rate in frames per second)."""
+    return Rtk(
+        state=rtk_state(stats, stale_after_s),
+        corrections_rate=stats.frames_per_s,
+        frames_total=stats.good_frames,
+        bad_frames=stats.bad_frames,
+    )
 
 
 class _Link(Protocol):

@@ -7,6 +7,7 @@ import contextlib
 import os
 import tty
 from collections.abc import Callable
+from dataclasses import replace
 
 import pytest
 from pydantic import ValidationError
@@ -17,9 +18,13 @@ from base_station.rtk import (
     RateMeter,
     RtkConfig,
     RtkReader,
+    RtkStats,
     SerialSource,
     TcpSource,
     parse_source,
+    rtk_state,
+    source_url,
+    to_telemetry,
 )
 from sim.clock import SimClock
 from sim.gnss import GnssConfig, GnssReceiver, running_receiver
@@ -69,6 +74,26 @@ def test_parse_source() -> None:
             parse_source(bad)
     with pytest.raises(ValidationError):
         RtkConfig(source="http://example.com/")
+
+
+def test_source_url_from_host_port_or_device_settings() -> None:
+    assert source_url("10.0.0.2", 2101) == "tcp://10.0.0.2:2101"
+    url = source_url(serial_device="/dev/ttyACM0", baudrate=38400)
+    assert parse_source(url) == SerialSource("/dev/ttyACM0", 38400)
+    assert parse_source(source_url()) == TcpSource("127.0.0.1", 5021)
+
+
+def test_state_and_telemetry_from_stats() -> None:
+    base = RtkStats(source="tcp://h:1", connected=True, connects=1, good_frames=40, bad_frames=2,
+                    bytes_received=9000, good_bytes=8000, skipped_bytes=900, dropped_frames=0,
+                    frames_per_s=4.0, bytes_per_s=515.0, last_frame_age_s=0.4,
+                    message_counts={1005: 10})  # fmt: skip
+    assert rtk_state(base) == "streaming"
+    assert rtk_state(replace(base, last_frame_age_s=9.0)) == "stale"
+    assert rtk_state(replace(base, last_frame_age_s=None)) == "waiting"
+    assert rtk_state(replace(base, connected=False)) == "disconnected"
+    t = to_telemetry(base)
+    assert (t.state, t.corrections_rate, t.frames_total, t.bad_frames) == ("streaming", 4.0, 40, 2)
 
 
 def test_backoff_doubles_to_a_cap_and_resets() -> None:
