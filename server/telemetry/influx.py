@@ -74,8 +74,11 @@ def to_line(sample: Sample) -> str | None:
     """One sample as a line-protocol line, or None when it cannot be stored (logged)."""
     ns = to_ns(sample.ts)
     if not NS_MIN <= ns <= NS_MAX:
-        log.warning("telemetry sample of %s at %s is outside InfluxDB's time range; dropped",
-                    sample.asset_id, sample.ts)
+        log.warning(
+            "telemetry sample of %s at %s is outside InfluxDB's time range; dropped",
+            sample.asset_id,
+            sample.ts,
+        )
         return None
     point = Point(MEASUREMENT).tag("asset_id", str(sample.asset_id)).time(ns, WritePrecision.NS)
     for name, value in sample.fields.items():
@@ -112,8 +115,10 @@ def every_ms(every_s: float) -> int:
 def ql_raw(q: Query, source: str) -> str:
     """InfluxQL for raw rows of one asset in [start, end), oldest first."""
     cols = "*" if q.fields is None else ", ".join(ql_ident(f) for f in ["seq", *q.fields])
-    return (f"SELECT {cols} FROM {source} WHERE {_ql_where(q)} "
-            f"ORDER BY time ASC LIMIT {max(1, q.limit)}")
+    return (
+        f"SELECT {cols} FROM {source} WHERE {_ql_where(q)} "
+        f"ORDER BY time ASC LIMIT {max(1, q.limit)}"
+    )
 
 
 def ql_downsampled(q: Query, source: str, numeric: dict[str, bool]) -> str | None:
@@ -126,13 +131,17 @@ def ql_downsampled(q: Query, source: str, numeric: dict[str, bool]) -> str | Non
         f"{'MEAN' if q.agg == 'mean' and numeric[f] else 'LAST'}({ql_ident(f)}) AS {ql_ident(f)}"
         for f in names
     )
-    return (f"SELECT {aggs} FROM {source} WHERE {_ql_where(q)} "
-            f"GROUP BY time({every_ms(q.every_s or 1)}ms) fill(none) LIMIT {max(1, q.limit)}")
+    return (
+        f"SELECT {aggs} FROM {source} WHERE {_ql_where(q)} "
+        f"GROUP BY time({every_ms(q.every_s or 1)}ms) fill(none) LIMIT {max(1, q.limit)}"
+    )
 
 
 def _ql_where(q: Query) -> str:
-    return (f"asset_id = {ql_string(str(q.asset_id))} AND time >= {clamp_ns(q.start)} "
-            f"AND time < {clamp_ns(q.end)}")
+    return (
+        f"asset_id = {ql_string(str(q.asset_id))} AND time >= {clamp_ns(q.start)} "
+        f"AND time < {clamp_ns(q.end)}"
+    )
 
 
 def rows_of_influxql(body: dict[str, Any], floor_ns: int | None = None) -> list[dict[str, Any]]:
@@ -149,16 +158,20 @@ def rows_of_influxql(body: dict[str, Any], floor_ns: int | None = None) -> list[
                 if floor_ns is not None:
                     ns = max(ns, floor_ns)  # the first bucket may start before the range
                 record.pop("asset_id", None)
-                rows.append({"ts": iso_of_ns(ns), **{k: v for k, v in record.items() if v is not None}})
+                rows.append(
+                    {"ts": iso_of_ns(ns), **{k: v for k, v in record.items() if v is not None}}
+                )
     return rows
 
 
 def flux_base(bucket: str, asset_id: uuid.UUID, start_ns: int, stop_ns: int) -> str:
     """The Flux source of one asset's points in [start, stop)."""
-    return (f"from(bucket: {flux_string(bucket)})\n"
-            f"  |> range(start: {rfc3339(start_ns)}, stop: {rfc3339(stop_ns)})\n"
-            f"  |> filter(fn: (r) => r._measurement == {flux_string(MEASUREMENT)} "
-            f"and r.asset_id == {flux_string(str(asset_id))})\n")
+    return (
+        f"from(bucket: {flux_string(bucket)})\n"
+        f"  |> range(start: {rfc3339(start_ns)}, stop: {rfc3339(stop_ns)})\n"
+        f"  |> filter(fn: (r) => r._measurement == {flux_string(MEASUREMENT)} "
+        f"and r.asset_id == {flux_string(str(asset_id))})\n"
+    )
 
 
 def flux_fields(fields: Sequence[str] | None, *, with_seq: bool) -> str:
@@ -169,28 +182,37 @@ def flux_fields(fields: Sequence[str] | None, *, with_seq: bool) -> str:
     return f"  |> filter(fn: (r) => contains(value: r._field, set: [{', '.join(map(flux_string, wanted))}]))\n"
 
 
-PIVOT = ('  |> pivot(rowKey: ["_time"], columnKey: ["_field"], valueColumn: "_value")\n'
-         '  |> group()\n  |> sort(columns: ["_time"])\n')
+PIVOT = (
+    '  |> pivot(rowKey: ["_time"], columnKey: ["_field"], valueColumn: "_value")\n'
+    '  |> group()\n  |> sort(columns: ["_time"])\n'
+)
 
 
 def flux_raw(q: Query, bucket: str) -> str:
     """Flux for raw rows, oldest first."""
-    return (flux_base(bucket, q.asset_id, clamp_ns(q.start), clamp_ns(q.end))
-            + flux_fields(q.fields, with_seq=True) + PIVOT + f"  |> limit(n: {max(1, q.limit)})\n")
+    return (
+        flux_base(bucket, q.asset_id, clamp_ns(q.start), clamp_ns(q.end))
+        + flux_fields(q.fields, with_seq=True)
+        + PIVOT
+        + f"  |> limit(n: {max(1, q.limit)})\n"
+    )
 
 
 def flux_downsampled(q: Query, bucket: str) -> str:
     """Flux for one row per window (stamped with its start): mean/last of numbers, last of the rest."""
     every = f"{every_ms(q.every_s or 1)}ms"
     fn = "mean" if q.agg == "mean" else "last"
-    return ('import "types"\n'
-            + "data = " + flux_base(bucket, q.asset_id, clamp_ns(q.start), clamp_ns(q.end))
-            + flux_fields(q.fields, with_seq=False)
-            + "num = data |> filter(fn: (r) => types.isNumeric(v: r._value))\n"
-            f"  |> aggregateWindow(every: {every}, fn: {fn}, createEmpty: false, timeSrc: \"_start\")\n"
-            "other = data |> filter(fn: (r) => not types.isNumeric(v: r._value))\n"
-            f"  |> aggregateWindow(every: {every}, fn: last, createEmpty: false, timeSrc: \"_start\")\n"
-            "union(tables: [num, other])\n" + PIVOT + f"  |> limit(n: {max(1, q.limit)})\n")
+    return (
+        'import "types"\n'
+        + "data = "
+        + flux_base(bucket, q.asset_id, clamp_ns(q.start), clamp_ns(q.end))
+        + flux_fields(q.fields, with_seq=False)
+        + "num = data |> filter(fn: (r) => types.isNumeric(v: r._value))\n"
+        f'  |> aggregateWindow(every: {every}, fn: {fn}, createEmpty: false, timeSrc: "_start")\n'
+        "other = data |> filter(fn: (r) => not types.isNumeric(v: r._value))\n"
+        f'  |> aggregateWindow(every: {every}, fn: last, createEmpty: false, timeSrc: "_start")\n'
+        "union(tables: [num, other])\n" + PIVOT + f"  |> limit(n: {max(1, q.limit)})\n"
+    )
 
 
 def rows_of_flux(tables: Any) -> list[dict[str, Any]]:
@@ -228,10 +250,18 @@ class InfluxTelemetryStore:
     thread. Ranges are [start, end); buckets are stamped with their start (never before `start`).
     """
 
-    def __init__(self, url: str, *, org: str = "aerobase", bucket: str = "aerobase",
-                 token: str | None = None, username: str | None = None,
-                 password: str | None = None, retention_s: int | None = None,
-                 timeout_s: float = 10.0) -> None:
+    def __init__(
+        self,
+        url: str,
+        *,
+        org: str = "aerobase",
+        bucket: str = "aerobase",
+        token: str | None = None,
+        username: str | None = None,
+        password: str | None = None,
+        retention_s: int | None = None,
+        timeout_s: float = 10.0,
+    ) -> None:
         self.url = url.rstrip("/")
         self.org, self.bucket, self.token = org, bucket, token
         self.username, self.password = username, password
@@ -254,8 +284,9 @@ class InfluxTelemetryStore:
             auth = httpx.BasicAuth(self.username, self.password or "")
         elif self.token:
             headers["Authorization"] = f"Token {self.token}"
-        self._http = httpx.AsyncClient(base_url=self.url, headers=headers, auth=auth,
-                                       timeout=self.timeout_s)
+        self._http = httpx.AsyncClient(
+            base_url=self.url, headers=headers, auth=auth, timeout=self.timeout_s
+        )
         try:
             r = await self._http.get("/ping")
         except httpx.HTTPError as err:
@@ -266,9 +297,14 @@ class InfluxTelemetryStore:
         if self.major == 1:
             await self._start_v1()
         else:
-            self._client = InfluxDBClient(url=self.url, token=self.token, org=self.org,
-                                          username=self.username, password=self.password,
-                                          timeout=int(self.timeout_s * 1000))
+            self._client = InfluxDBClient(
+                url=self.url,
+                token=self.token or "",
+                org=self.org,
+                username=self.username,
+                password=self.password,
+                timeout=int(self.timeout_s * 1000),
+            )
             if self.major == 2:
                 await asyncio.to_thread(self._ensure_bucket)
 
@@ -282,16 +318,21 @@ class InfluxTelemetryStore:
         names = {row.get("name") for row in _plain_rows(body)}
         verb = "ALTER" if self._rp in names else "CREATE"
         extra = "" if verb == "ALTER" else " REPLICATION 1"
-        await self._ql(f"{verb} RETENTION POLICY {ql_ident(self._rp)} ON {ql_ident(self._db)} "
-                       f"DURATION {seconds}s{extra} DEFAULT")
+        await self._ql(
+            f"{verb} RETENTION POLICY {ql_ident(self._rp)} ON {ql_ident(self._db)} "
+            f"DURATION {seconds}s{extra} DEFAULT"
+        )
 
     def _ensure_bucket(self) -> None:
         assert self._client is not None
         api = self._client.buckets_api()
         if api.find_bucket_by_name(self.bucket) is not None:
             return
-        rules = ([BucketRetentionRules(type="expire", every_seconds=int(self.retention_s))]
-                 if self.retention_s else [])
+        rules = (
+            [BucketRetentionRules(type="expire", every_seconds=int(self.retention_s))]
+            if self.retention_s
+            else []
+        )
         api.create_bucket(bucket_name=self.bucket, retention_rules=rules, org=self.org)
 
     async def close(self) -> None:
@@ -309,7 +350,7 @@ class InfluxTelemetryStore:
         """Store a batch; returns when InfluxDB has acknowledged it (points with bad values logged)."""
         lines = [line for line in map(to_line, samples) if line is not None]
         for i in range(0, len(lines), WRITE_CHUNK):
-            chunk = lines[i:i + WRITE_CHUNK]
+            chunk = lines[i : i + WRITE_CHUNK]
             if self.major == 1:
                 await self._write_v1("\n".join(chunk))
             else:
@@ -336,15 +377,18 @@ class InfluxTelemetryStore:
         """The newest sample of an asset as a row (with `seq`), or None."""
         if self.major == 2:
             base = flux_base(self.bucket, asset_id, NS_MIN, NS_MAX)
-            last = await self._flux(base + '  |> filter(fn: (r) => r._field == "seq")\n  |> last()\n'
-                                    + PIVOT)
+            last = await self._flux(
+                base + '  |> filter(fn: (r) => r._field == "seq")\n  |> last()\n' + PIVOT
+            )
             if not last:
                 return None
             ns = to_ns(datetime.fromisoformat(last[0]["ts"]))
             rows = await self._flux(flux_base(self.bucket, asset_id, ns, ns + 1000) + PIVOT)
             return rows[-1] if rows else None
-        text = (f"SELECT * FROM {self._source()} WHERE asset_id = {ql_string(str(asset_id))} "
-                "ORDER BY time DESC LIMIT 1")
+        text = (
+            f"SELECT * FROM {self._source()} WHERE asset_id = {ql_string(str(asset_id))} "
+            "ORDER BY time DESC LIMIT 1"
+        )
         rows = rows_of_influxql(await self._ql(text))
         return rows[0] if rows else None
 
@@ -356,14 +400,18 @@ class InfluxTelemetryStore:
                 f"from(bucket: {flux_string(self.bucket)})\n"
                 f"  |> range(start: {rfc3339(NS_MIN)}, stop: {rfc3339(cut)})\n"
                 f'  |> filter(fn: (r) => r._measurement == "{MEASUREMENT}" and r._field == "seq")\n'
-                "  |> group()\n  |> count()\n")
+                "  |> group()\n  |> count()\n"
+            )
             await asyncio.to_thread(self._delete_v2, cut - 1)
             return sum(int(record.get_value()) for table in tables for record in table.records)
         if self.major != 1:
-            log.warning("InfluxDB %s: prune is left to the database's retention period", self.version)
+            log.warning(
+                "InfluxDB %s: prune is left to the database's retention period", self.version
+            )
             return 0
-        counted = _plain_rows(await self._ql(
-            f'SELECT COUNT("seq") AS n FROM {self._source()} WHERE time < {cut}'))
+        counted = _plain_rows(
+            await self._ql(f'SELECT COUNT("seq") AS n FROM {self._source()} WHERE time < {cut}')
+        )
         await self._ql(f"DELETE FROM {ql_ident(MEASUREMENT)} WHERE time < {cut}")
         return int(counted[0].get("n") or 0) if counted else 0
 
@@ -382,8 +430,9 @@ class InfluxTelemetryStore:
     async def _ql(self, text: str) -> dict[str, Any]:
         """Run InfluxQL on /query (POST, epoch=ns); raise InfluxStoreError on any error."""
         try:
-            r = await self._need_http().post("/query", data={"q": text, "db": self._db,
-                                                             "epoch": "ns"})
+            r = await self._need_http().post(
+                "/query", data={"q": text, "db": self._db, "epoch": "ns"}
+            )
         except httpx.HTTPError as err:
             raise InfluxStoreError(f"InfluxDB query failed: {err}") from err
         if r.status_code != 200:
@@ -400,7 +449,9 @@ class InfluxTelemetryStore:
             r = await self._need_http().post("/write", params=params, content=body.encode())
         except httpx.HTTPError as err:
             raise InfluxStoreError(f"InfluxDB write failed: {err}") from err
-        if r.status_code == 400:  # bad points (type conflict, parse error); the good ones are stored
+        if (
+            r.status_code == 400
+        ):  # bad points (type conflict, parse error); the good ones are stored
             log.warning("InfluxDB refused some telemetry points: %s", r.text[:500])
         elif r.status_code >= 300:
             raise InfluxStoreError(f"InfluxDB write failed ({r.status_code}): {r.text[:500]}")
@@ -409,8 +460,12 @@ class InfluxTelemetryStore:
         assert self._client is not None
         try:
             with self._client.write_api(write_options=SYNCHRONOUS) as api:
-                api.write(bucket=self.bucket, org=self.org, record=lines,
-                          write_precision=WritePrecision.NS)
+                api.write(
+                    bucket=self.bucket,
+                    org=self.org,
+                    record=lines,
+                    write_precision=WritePrecision.NS,
+                )
         except ApiException as err:
             if err.status in (400, 422):
                 log.warning("InfluxDB refused some telemetry points: %s", err.body)
@@ -435,12 +490,19 @@ class InfluxTelemetryStore:
     def _delete_v2(self, stop_ns: int) -> None:
         assert self._client is not None
         self._client.delete_api().delete(
-            start=rfc3339(NS_MIN), stop=rfc3339(stop_ns), predicate=f'_measurement="{MEASUREMENT}"',
-            bucket=self.bucket, org=self.org)
+            start=rfc3339(NS_MIN),
+            stop=rfc3339(stop_ns),
+            predicate=f'_measurement="{MEASUREMENT}"',
+            bucket=self.bucket,
+            org=self.org,
+        )
 
 
 def _plain_rows(body: dict[str, Any]) -> list[dict[str, Any]]:
     """Every series' rows of an InfluxQL answer as dicts (column -> value), nothing dropped."""
-    return [dict(zip(series["columns"], values, strict=True))
-            for result in body.get("results", []) for series in result.get("series", [])
-            for values in series.get("values", [])]
+    return [
+        dict(zip(series["columns"], values, strict=True))
+        for result in body.get("results", [])
+        for series in result.get("series", [])
+        for values in series.get("values", [])
+    ]

@@ -1,0 +1,225 @@
+"""InfluxTelemetryStore against a real influxd 1.x of the test session's own (free port, temp dirs)."""
+
+from __future__ import annotations
+
+import uuid
+from collections.abc import AsyncIterator
+from datetime import UTC, datetime, timedelta
+from statistics import fmean
+
+import httpx
+import pytest
+
+from server.telemetry.influx import (
+    InfluxTelemetryStore,
+    flux_downsampled,
+    major_version,
+    rfc3339,
+    to_line,
+    to_ns,
+)
+from server.telemetry.store import Query, Sample, flatten
+from tests.server.influx_fixture import influxdb_url  # noqa: F401  (the session's influxd)
+
+T0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)  # a multiple of 5 s since the epoch
+END = T0 + timedelta(hours=1)
+
+
+def sample(asset: uuid.UUID, i: int, **extra: object) -> Sample:
+    """Sample number i of an asset, one second apart, with numeric, text and boolean fields."""
+    payload = {
+        "battery": {"voltage": 12.0 + i / 10, "pct": 100 - i},
+        "mode": f"M{i}",
+        "armed": i % 2 == 0,
+        **extra,
+    }
+    return Sample(asset_id=asset, ts=T0 + timedelta(seconds=i), seq=i + 1, fields=flatten(payload))
+
+
+@pytest.fixture
+async def store(influxdb_url: str) -> AsyncIterator[InfluxTelemetryStore]:  # noqa: F811
+    """A started store on its own database of the session's influxd."""
+    s = InfluxTelemetryStore(influxdb_url, bucket=f"t_{uuid.uuid4().hex}")
+    await s.start()
+    yield s
+    await s.close()
+
+
+async def test_detects_the_1x_server(store: InfluxTelemetryStore) -> None:
+    assert store.major == 1
+    assert store.version.startswith("1.")
+
+
+async def test_write_then_query_raw_rows_in_time_order(store: InfluxTelemetryStore) -> None:
+    asset, other = uuid.uuid4(), uuid.uuid4()
+    await store.write([sample(asset, i) for i in reversed(range(10))])
+    await store.write([sample(other, i, extra_only_here=1.5) for i in range(3)])
+
+    rows = await store.query(Query(asset_id=asset, start=T0, end=END))
+
+    assert len(rows) == 10
+    for i, row in enumerate(rows):
+        assert row == {
+            "ts": (T0 + timedelta(seconds=i)).isoformat(),
+            "seq": i + 1,
+            "battery.voltage": pytest.approx(12.0 + i / 10),
+            "battery.pct": 100 - i,
+            "mode": f"M{i}",
+            "armed": i % 2 == 0,
+        }
+
+
+async def test_query_raw_selects_fields_range_and_limit(store: InfluxTelemetryStore) -> None:
+    asset = uuid.uuid4()
+    await store.write([sample(asset, i) for i in range(10)])
+
+    rows = await store.query(
+        Query(
+            asset_id=asset,
+            start=T0 + timedelta(seconds=2),
+            end=T0 + timedelta(seconds=7),
+            fields=["mode"],
+        )
+    )
+    assert [r["mode"] for r in rows] == ["M2", "M3", "M4", "M5", "M6"]  # [start, end)
+    assert all(set(r) == {"ts", "seq", "mode"} for r in rows)
+
+    limited = await store.query(Query(asset_id=asset, start=T0, end=END, limit=3))
+    assert [r["seq"] for r in limited] == [1, 2, 3]
+    assert await store.query(Query(asset_id=uuid.uuid4(), start=T0, end=END)) == []
+
+
+async def test_query_downsampled_mean_of_numbers_last_of_the_rest(
+    store: InfluxTelemetryStore,
+) -> None:
+    asset = uuid.uuid4()
+    await store.write([sample(asset, i) for i in range(20)])
+
+    rows = await store.query(Query(asset_id=asset, start=T0, end=END, every_s=5, agg="mean"))
+
+    assert [r["ts"] for r in rows] == [
+        (T0 + timedelta(seconds=5 * b)).isoformat() for b in range(4)
+    ]
+    for b, row in enumerate(rows):
+        members = range(5 * b, 5 * b + 5)
+        assert row["battery.voltage"] == pytest.approx(fmean(12.0 + i / 10 for i in members))
+        assert row["battery.pct"] == pytest.approx(fmean(100 - i for i in members))
+        assert row["mode"] == f"M{5 * b + 4}"
+        assert row["armed"] is ((5 * b + 4) % 2 == 0)
+        assert "seq" not in row
+
+
+async def test_query_downsampled_last_and_field_selection(store: InfluxTelemetryStore) -> None:
+    asset = uuid.uuid4()
+    await store.write([sample(asset, i) for i in range(20)])
+
+    rows = await store.query(
+        Query(
+            asset_id=asset,
+            start=T0 + timedelta(seconds=3),
+            end=END,
+            fields=["battery.pct", "mode"],
+            every_s=10,
+            agg="last",
+        )
+    )
+
+    # the first bucket is stamped with the range start, not its aligned start before it
+    assert rows == [
+        {"ts": (T0 + timedelta(seconds=3)).isoformat(), "battery.pct": 91, "mode": "M9"},
+        {"ts": (T0 + timedelta(seconds=10)).isoformat(), "battery.pct": 81, "mode": "M19"},
+    ]
+
+
+async def test_latest(store: InfluxTelemetryStore) -> None:
+    asset = uuid.uuid4()
+    assert await store.latest(asset) is None
+    await store.write([sample(asset, i) for i in (3, 7, 5)])
+
+    latest = await store.latest(asset)
+
+    assert latest is not None
+    assert latest["ts"] == (T0 + timedelta(seconds=7)).isoformat()
+    assert latest["seq"] == 8 and latest["mode"] == "M7"
+    assert "asset_id" not in latest
+
+
+async def test_writing_the_same_batch_twice_stores_one_copy(store: InfluxTelemetryStore) -> None:
+    asset = uuid.uuid4()
+    batch = [sample(asset, i) for i in range(5)]
+    await store.write(batch)
+    await store.write(batch)
+
+    rows = await store.query(Query(asset_id=asset, start=T0, end=END))
+    assert [r["seq"] for r in rows] == [1, 2, 3, 4, 5]
+
+    # the same (asset_id, ts) with other values overwrites in place
+    await store.write([Sample(asset, batch[0].ts, 1, {"mode": "CHANGED"})])
+    rows = await store.query(Query(asset_id=asset, start=T0, end=END))
+    assert len(rows) == 5 and rows[0]["mode"] == "CHANGED"
+
+
+async def test_prune_deletes_older_samples_and_counts_them(store: InfluxTelemetryStore) -> None:
+    a, b = uuid.uuid4(), uuid.uuid4()
+    await store.write([sample(a, i) for i in range(10)] + [sample(b, i) for i in range(4)])
+
+    removed = await store.prune(T0 + timedelta(seconds=6))
+
+    assert removed == 6 + 4
+    assert [r["seq"] for r in await store.query(Query(asset_id=a, start=T0, end=END))] == [
+        7,
+        8,
+        9,
+        10,
+    ]
+    assert await store.latest(b) is None
+    assert await store.prune(T0 + timedelta(seconds=6)) == 0
+
+
+async def test_bad_fields_are_dropped_not_fatal(store: InfluxTelemetryStore) -> None:
+    asset = uuid.uuid4()
+    await store.write([sample(asset, 0, time=5, nan=float("nan"))])
+    # a field that changes type is refused by InfluxDB; the store logs it and carries on
+    await store.write([Sample(asset, T0 + timedelta(seconds=1), 2, {"mode": 3.5})])
+    await store.write([sample(asset, 2)])
+
+    rows = await store.query(Query(asset_id=asset, start=T0, end=END))
+    assert [r["seq"] for r in rows] == [1, 3]
+    assert "time" not in rows[0] and "nan" not in rows[0]
+
+
+async def test_retention_policy_is_created_and_used(influxdb_url: str) -> None:  # noqa: F811
+    db = f"t_{uuid.uuid4().hex}"
+    store = InfluxTelemetryStore(influxdb_url, bucket=db, retention_s=2 * 3600)
+    await store.start()
+    try:
+        now = datetime.now(UTC).replace(microsecond=0)
+        asset = uuid.uuid4()
+        await store.write([Sample(asset, now, 1, {"x": 1.0})])
+        assert await store.latest(asset) == {"ts": now.isoformat(), "seq": 1, "x": 1}
+    finally:
+        await store.close()
+    async with httpx.AsyncClient(base_url=influxdb_url) as http:
+        r = await http.post("/query", data={"q": f'SHOW RETENTION POLICIES ON "{db}"'})
+    policies = {v[0]: v for v in r.json()["results"][0]["series"][0]["values"]}
+    assert policies["aerobase"][1] == "2h0m0s" and policies["aerobase"][4] is True
+
+
+def test_pure_helpers() -> None:
+    assert major_version("1.6.7~rc0") == 1 and major_version("v2.7.1") == 2
+    assert major_version("3.0.1") == 3 and major_version(None) == 2
+    assert to_ns(datetime(1970, 1, 1, 0, 0, 1, 5, tzinfo=UTC)) == 1_000_005_000
+    assert rfc3339(1_000_005_000) == "1970-01-01T00:00:01.000005000Z"
+    line = to_line(
+        Sample(
+            uuid.UUID(int=1),
+            datetime(1970, 1, 1, tzinfo=UTC),
+            7,
+            {"a b": 2, "s": 'q"x', "ok": True},
+        )
+    )
+    assert line == (
+        'telemetry,asset_id=00000000-0000-0000-0000-000000000001 a\\ b=2,ok=true,s="q\\"x",seq=7i 0'
+    )
+    flux = flux_downsampled(Query(uuid.UUID(int=1), T0, END, every_s=1.5, agg="last"), "b")
+    assert "aggregateWindow(every: 1500ms, fn: last" in flux and 'timeSrc: "_start"' in flux
