@@ -8,13 +8,11 @@ from typing import Any
 
 from fastapi import APIRouter, Query, Request
 from pydantic import BaseModel, ConfigDict, Field
-from sqlalchemy import select
 
 from server.assets.repository import AssetRepository
 from server.commands import service
-from server.commands.models import AssetCommand, CommandStatusChange
+from server.commands.repository import CommandRepository
 from server.deps import DB, Operator, Viewer
-from server.kit.scope import ScopedRepository
 from server.kit.types import Name
 
 router = APIRouter(tags=["commands"])
@@ -54,24 +52,6 @@ class CommandOut(BaseModel):
     created_at: datetime
     updated_at: datetime
     history: list[StatusChangeOut] = []
-
-
-class CommandRepository(ScopedRepository[AssetCommand]):
-    """Commands of the caller's organisation."""
-
-    model = AssetCommand
-    noun = "command"
-
-    async def history(self, command_id: uuid.UUID) -> list[CommandStatusChange]:
-        """Status changes of a command already resolved through `get`."""
-        stmt = (select(CommandStatusChange).where(CommandStatusChange.command_id == command_id)  # unscoped: command checked by get()
-                .order_by(CommandStatusChange.at))
-        return list((await self.db.execute(stmt)).scalars())
-
-    async def of_asset(self, asset_id: uuid.UUID, limit: int) -> list[AssetCommand]:
-        """The newest commands of one asset."""
-        stmt = self.select().where(AssetCommand.asset_id == asset_id).order_by(AssetCommand.created_at.desc()).limit(limit)
-        return list((await self.db.execute(stmt)).scalars())
 
 
 @router.post("/api/v1/assets/{asset_id}/commands", status_code=202, response_model=CommandOut)

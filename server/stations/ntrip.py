@@ -23,6 +23,8 @@ from typing import Any, Protocol
 from fastapi import APIRouter, Request, Response
 from fastapi.responses import JSONResponse, StreamingResponse
 
+from protocol.rtcm import frame_ok
+
 log = logging.getLogger(__name__)
 
 NTRIP_VERSION = "Ntrip/2.0"
@@ -60,6 +62,7 @@ class Mountpoint:
     bitrate: int = 0
     misc: str = ""
     organisation_id: Any | None = None
+    asset_id: Any | None = None  # the landing base whose corrections this is (not published)
 
     def str_line(self) -> str:
         """This mountpoint as a sourcetable STR line (without the CRLF)."""
@@ -240,6 +243,45 @@ async def _frames(source: CorrectionsSource, mountpoint: Mountpoint) -> AsyncIte
             with contextlib.suppress(Exception):
                 await aclose()
         log.info("ntrip client left %s", mountpoint.name)
+
+
+class PubSub(Protocol):
+    """The part of the server's realtime broker the caster uses (in-process or Redis)."""
+
+    def subscribe(self, channel: str, handler: Callable[[dict[str, Any]], None]) -> None:
+        """Call `handler` for each message on `channel`."""
+        ...
+
+    def unsubscribe(self, channel: str, handler: Callable[[dict[str, Any]], None]) -> None:
+        """Stop calling `handler`."""
+        ...
+
+
+async def broker_frames(
+    broker: PubSub, channel: str, queue_size: int = 256
+) -> AsyncIterator[bytes]:
+    """Frames published on `channel` as `{"data": <base64 frame>}`; bad ones are logged and skipped."""
+    queue: asyncio.Queue[bytes] = asyncio.Queue(queue_size)
+
+    def handler(message: dict[str, Any]) -> None:
+        try:
+            frame = base64.b64decode(message["data"], validate=True)
+        except (KeyError, TypeError, binascii.Error, ValueError):
+            log.warning("ntrip: malformed corrections message on %s", channel)
+            return
+        if not frame_ok(frame):
+            log.warning("ntrip: dropped a frame with a bad CRC on %s", channel)
+            return
+        if queue.full():
+            queue.get_nowait()  # a slow client loses the oldest frame, never the newest
+        queue.put_nowait(frame)
+
+    broker.subscribe(channel, handler)
+    try:
+        while True:
+            yield await queue.get()
+    finally:
+        broker.unsubscribe(channel, handler)
 
 
 class LiveCorrections:

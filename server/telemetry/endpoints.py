@@ -12,9 +12,8 @@ from pydantic import BaseModel, ConfigDict
 from server.assets.repository import AssetRepository
 from server.deps import DB, Viewer
 from server.kit.errors import NotFound, Unprocessable
-from server.kit.scope import ScopedRepository
 from server.kit.time import utcnow
-from server.telemetry.models import AssetEvent
+from server.telemetry.repository import EventRepository
 from server.telemetry.store import Query as StoreQuery
 
 router = APIRouter(tags=["telemetry"])
@@ -31,19 +30,6 @@ class EventOut(BaseModel):
     severity: str
     message: str
     data: dict[str, Any]
-
-
-class EventRepository(ScopedRepository[AssetEvent]):
-    """Events of the caller's organisation."""
-
-    model = AssetEvent
-    noun = "event"
-
-    async def of_asset(self, asset_id: uuid.UUID, start: datetime, end: datetime, limit: int) -> list[AssetEvent]:
-        """Events of one asset in a time range, oldest first."""
-        stmt = (self.select().where(AssetEvent.asset_id == asset_id, AssetEvent.ts >= start, AssetEvent.ts < end)
-                .order_by(AssetEvent.ts).limit(limit))
-        return list((await self.db.execute(stmt)).scalars())
 
 
 def _range(start: datetime | None, end: datetime | None) -> tuple[datetime, datetime]:

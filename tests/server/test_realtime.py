@@ -27,8 +27,8 @@ def _sample(i: int) -> UavTelemetry:
                         battery=Battery(percent=90.0, voltage_v=16.4, current_a=1.0), armed=False)
 
 
-async def _wait(predicate, timeout: float = 15.0, what: str = "condition"):  # type: ignore[no-untyped-def]
-    deadline = time.monotonic() + timeout
+async def _wait(predicate, limit_s: float = 15.0, what: str = "condition"):  # type: ignore[no-untyped-def]
+    deadline = time.monotonic() + limit_s
     while True:
         value = predicate()
         if asyncio.iscoroutine(value):
@@ -150,7 +150,7 @@ async def test_duplicate_asset_connection_is_closed_4409(live_server, tenant: Te
                                                                "force": False})).status_code
             assert token == 409  # the live link's session blocks a second login
         # a second socket with the link's own token: refused with 4409
-        own = link._token.access_token  # noqa: SLF001
+        own = link._token.access_token
         ws_url = live_server.url.replace("http", "ws") + "/ws/asset"
         async with websockets.connect(ws_url, additional_headers={"Authorization": f"Bearer {own}"}) as ws:
             with pytest.raises(websockets.ConnectionClosed) as info:
