@@ -34,7 +34,7 @@ EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 NS_MIN, NS_MAX = -9_223_372_036_854_775_806, 9_223_372_036_854_775_806  # InfluxDB's time range
 RESERVED = frozenset({"time", "seq", "asset_id", "_time", "_field", "_value", "_measurement"})
 WRITE_CHUNK = 5000
-FLUX_META = frozenset({"result", "table", "asset_id"})
+FLUX_META = frozenset({"result", "table", "asset_id", "seq"})
 
 
 class InfluxStoreError(RuntimeError):
@@ -107,9 +107,10 @@ def flux_string(value: str) -> str:
     return '"' + value.replace("\\", "\\\\").replace('"', '\\"').replace("${", "\\${") + '"'
 
 
-def every_ms(every_s: float) -> int:
-    """A bucket width in whole milliseconds (at least 1)."""
-    return max(1, round(every_s * 1000))
+def window_us(q: Query) -> tuple[int, int]:
+    """Bucket width and offset in microseconds: buckets start at `q.start` + k * `q.every_s`."""
+    every = max(1, round((q.every_s or 1) * 1_000_000))
+    return every, (clamp_ns(q.start) // 1000) % every
 
 
 def ql_raw(q: Query, source: str) -> str:
@@ -127,13 +128,14 @@ def ql_downsampled(q: Query, source: str, numeric: dict[str, bool]) -> str | Non
     names = [f for f in names if f != "seq"]
     if not names:
         return None
+    every, offset = window_us(q)
     aggs = ", ".join(
         f"{'MEAN' if q.agg == 'mean' and numeric[f] else 'LAST'}({ql_ident(f)}) AS {ql_ident(f)}"
         for f in names
     )
     return (
         f"SELECT {aggs} FROM {source} WHERE {_ql_where(q)} "
-        f"GROUP BY time({every_ms(q.every_s or 1)}ms) fill(none) LIMIT {max(1, q.limit)}"
+        f"GROUP BY time({every}u, {offset}u) fill(none) LIMIT {max(1, q.limit)}"
     )
 
 
@@ -158,6 +160,7 @@ def rows_of_influxql(body: dict[str, Any], floor_ns: int | None = None) -> list[
                 if floor_ns is not None:
                     ns = max(ns, floor_ns)  # the first bucket may start before the range
                 record.pop("asset_id", None)
+                record.pop("seq", None)  # stored for the record, not part of a row (as in SQL)
                 rows.append(
                     {"ts": iso_of_ns(ns), **{k: v for k, v in record.items() if v is not None}}
                 )
@@ -200,7 +203,8 @@ def flux_raw(q: Query, bucket: str) -> str:
 
 def flux_downsampled(q: Query, bucket: str) -> str:
     """Flux for one row per window (stamped with its start): mean/last of numbers, last of the rest."""
-    every = f"{every_ms(q.every_s or 1)}ms"
+    every_us, offset_us = window_us(q)
+    window = f"every: {every_us}us, offset: {offset_us}us"
     fn = "mean" if q.agg == "mean" else "last"
     return (
         'import "types"\n'
@@ -208,9 +212,9 @@ def flux_downsampled(q: Query, bucket: str) -> str:
         + flux_base(bucket, q.asset_id, clamp_ns(q.start), clamp_ns(q.end))
         + flux_fields(q.fields, with_seq=False)
         + "num = data |> filter(fn: (r) => types.isNumeric(v: r._value))\n"
-        f'  |> aggregateWindow(every: {every}, fn: {fn}, createEmpty: false, timeSrc: "_start")\n'
+        f'  |> aggregateWindow({window}, fn: {fn}, createEmpty: false, timeSrc: "_start")\n'
         "other = data |> filter(fn: (r) => not types.isNumeric(v: r._value))\n"
-        f'  |> aggregateWindow(every: {every}, fn: last, createEmpty: false, timeSrc: "_start")\n'
+        f'  |> aggregateWindow({window}, fn: last, createEmpty: false, timeSrc: "_start")\n'
         "union(tables: [num, other])\n" + PIVOT + f"  |> limit(n: {max(1, q.limit)})\n"
     )
 
@@ -357,7 +361,7 @@ class InfluxTelemetryStore:
                 await asyncio.to_thread(self._write_v2, chunk)
 
     async def query(self, q: Query) -> list[dict[str, Any]]:
-        """Rows `{"ts": iso8601, field: value, ...}` oldest first; raw rows also carry `seq`."""
+        """Rows `{"ts": iso8601, field: value, ...}` oldest first (the SQL store's shape)."""
         if self.major == 2:
             flux = flux_downsampled(q, self.bucket) if q.every_s else flux_raw(q, self.bucket)
             return await self._flux(flux)
@@ -374,7 +378,7 @@ class InfluxTelemetryStore:
         return rows_of_influxql(await self._ql(text), floor_ns=clamp_ns(q.start))
 
     async def latest(self, asset_id: uuid.UUID) -> dict[str, Any] | None:
-        """The newest sample of an asset as a row (with `seq`), or None."""
+        """The newest sample of an asset as a row, or None."""
         if self.major == 2:
             base = flux_base(self.bucket, asset_id, NS_MIN, NS_MAX)
             last = await self._flux(

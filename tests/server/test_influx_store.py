@@ -18,7 +18,8 @@ from server.telemetry.influx import (
     to_line,
     to_ns,
 )
-from server.telemetry.store import Query, Sample, flatten
+from server.telemetry.sql import downsample
+from server.telemetry.store import Aggregate, Query, Sample, flatten
 from tests.server.influx_fixture import influxdb_url  # noqa: F401  (the session's influxd)
 
 T0 = datetime(2026, 3, 1, 12, 0, 0, tzinfo=UTC)  # a multiple of 5 s since the epoch
@@ -34,6 +35,11 @@ def sample(asset: uuid.UUID, i: int, **extra: object) -> Sample:
         **extra,
     }
     return Sample(asset_id=asset, ts=T0 + timedelta(seconds=i), seq=i + 1, fields=flatten(payload))
+
+
+def modes(rows: list[dict[str, object]]) -> list[object]:
+    """The `mode` field of each row."""
+    return [r["mode"] for r in rows]
 
 
 @pytest.fixture
@@ -61,7 +67,6 @@ async def test_write_then_query_raw_rows_in_time_order(store: InfluxTelemetrySto
     for i, row in enumerate(rows):
         assert row == {
             "ts": (T0 + timedelta(seconds=i)).isoformat(),
-            "seq": i + 1,
             "battery.voltage": pytest.approx(12.0 + i / 10),
             "battery.pct": 100 - i,
             "mode": f"M{i}",
@@ -82,10 +87,10 @@ async def test_query_raw_selects_fields_range_and_limit(store: InfluxTelemetrySt
         )
     )
     assert [r["mode"] for r in rows] == ["M2", "M3", "M4", "M5", "M6"]  # [start, end)
-    assert all(set(r) == {"ts", "seq", "mode"} for r in rows)
+    assert all(set(r) == {"ts", "mode"} for r in rows)
 
     limited = await store.query(Query(asset_id=asset, start=T0, end=END, limit=3))
-    assert [r["seq"] for r in limited] == [1, 2, 3]
+    assert modes(limited) == ["M0", "M1", "M2"]
     assert await store.query(Query(asset_id=uuid.uuid4(), start=T0, end=END)) == []
 
 
@@ -106,7 +111,7 @@ async def test_query_downsampled_mean_of_numbers_last_of_the_rest(
         assert row["battery.pct"] == pytest.approx(fmean(100 - i for i in members))
         assert row["mode"] == f"M{5 * b + 4}"
         assert row["armed"] is ((5 * b + 4) % 2 == 0)
-        assert "seq" not in row
+        assert set(row) == {"ts", "battery.voltage", "battery.pct", "mode", "armed"}
 
 
 async def test_query_downsampled_last_and_field_selection(store: InfluxTelemetryStore) -> None:
@@ -124,11 +129,30 @@ async def test_query_downsampled_last_and_field_selection(store: InfluxTelemetry
         )
     )
 
-    # the first bucket is stamped with the range start, not its aligned start before it
+    # buckets start at the range start (as in the SQL store), not at multiples of every_s
     assert rows == [
-        {"ts": (T0 + timedelta(seconds=3)).isoformat(), "battery.pct": 91, "mode": "M9"},
-        {"ts": (T0 + timedelta(seconds=10)).isoformat(), "battery.pct": 81, "mode": "M19"},
+        {"ts": (T0 + timedelta(seconds=3)).isoformat(), "battery.pct": 88, "mode": "M12"},
+        {"ts": (T0 + timedelta(seconds=13)).isoformat(), "battery.pct": 81, "mode": "M19"},
     ]
+
+
+@pytest.mark.parametrize("agg", ["mean", "last"])
+@pytest.mark.parametrize(("offset_s", "every_s"), [(0, 5), (2.5, 4), (0.25, 1.5)])
+async def test_downsampling_matches_the_sql_store(
+    store: InfluxTelemetryStore, agg: Aggregate, offset_s: float, every_s: float
+) -> None:
+    asset = uuid.uuid4()
+    samples = [sample(asset, i) for i in range(0, 30) if i % 7 != 3]  # with gaps
+    await store.write(samples)
+    q = Query(asset, T0 + timedelta(seconds=offset_s), END, every_s=every_s, agg=agg)
+
+    rows = await store.query(q)
+
+    expected = downsample(
+        [(s.ts, dict(s.fields)) for s in samples if s.ts >= q.start], q.start, every_s, agg
+    )
+    assert [r["ts"] for r in rows] == [r["ts"] for r in expected]
+    assert rows == [{k: pytest.approx(v) for k, v in r.items()} for r in expected]
 
 
 async def test_latest(store: InfluxTelemetryStore) -> None:
@@ -140,7 +164,7 @@ async def test_latest(store: InfluxTelemetryStore) -> None:
 
     assert latest is not None
     assert latest["ts"] == (T0 + timedelta(seconds=7)).isoformat()
-    assert latest["seq"] == 8 and latest["mode"] == "M7"
+    assert latest["mode"] == "M7" and latest["battery.pct"] == 93
     assert "asset_id" not in latest
 
 
@@ -151,7 +175,7 @@ async def test_writing_the_same_batch_twice_stores_one_copy(store: InfluxTelemet
     await store.write(batch)
 
     rows = await store.query(Query(asset_id=asset, start=T0, end=END))
-    assert [r["seq"] for r in rows] == [1, 2, 3, 4, 5]
+    assert modes(rows) == ["M0", "M1", "M2", "M3", "M4"]
 
     # the same (asset_id, ts) with other values overwrites in place
     await store.write([Sample(asset, batch[0].ts, 1, {"mode": "CHANGED"})])
@@ -166,12 +190,8 @@ async def test_prune_deletes_older_samples_and_counts_them(store: InfluxTelemetr
     removed = await store.prune(T0 + timedelta(seconds=6))
 
     assert removed == 6 + 4
-    assert [r["seq"] for r in await store.query(Query(asset_id=a, start=T0, end=END))] == [
-        7,
-        8,
-        9,
-        10,
-    ]
+    rows = await store.query(Query(asset_id=a, start=T0, end=END))
+    assert modes(rows) == ["M6", "M7", "M8", "M9"]
     assert await store.latest(b) is None
     assert await store.prune(T0 + timedelta(seconds=6)) == 0
 
@@ -184,7 +204,7 @@ async def test_bad_fields_are_dropped_not_fatal(store: InfluxTelemetryStore) -> 
     await store.write([sample(asset, 2)])
 
     rows = await store.query(Query(asset_id=asset, start=T0, end=END))
-    assert [r["seq"] for r in rows] == [1, 3]
+    assert modes(rows) == ["M0", "M2"]
     assert "time" not in rows[0] and "nan" not in rows[0]
 
 
@@ -196,7 +216,7 @@ async def test_retention_policy_is_created_and_used(influxdb_url: str) -> None: 
         now = datetime.now(UTC).replace(microsecond=0)
         asset = uuid.uuid4()
         await store.write([Sample(asset, now, 1, {"x": 1.0})])
-        assert await store.latest(asset) == {"ts": now.isoformat(), "seq": 1, "x": 1}
+        assert await store.latest(asset) == {"ts": now.isoformat(), "x": 1}
     finally:
         await store.close()
     async with httpx.AsyncClient(base_url=influxdb_url) as http:
@@ -222,4 +242,7 @@ def test_pure_helpers() -> None:
         'telemetry,asset_id=00000000-0000-0000-0000-000000000001 a\\ b=2,ok=true,s="q\\"x",seq=7i 0'
     )
     flux = flux_downsampled(Query(uuid.UUID(int=1), T0, END, every_s=1.5, agg="last"), "b")
-    assert "aggregateWindow(every: 1500ms, fn: last" in flux and 'timeSrc: "_start"' in flux
+    assert (
+        "aggregateWindow(every: 1500000us, offset: 0us, fn: last" in flux
+        and 'timeSrc: "_start"' in flux
+    )
