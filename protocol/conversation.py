@@ -79,9 +79,11 @@ class Conversation:
         self.welcome_timeout = welcome_timeout
         self.batch = batch
         self.window = window
-        self.acked_seq = 0
+        self.acked_seq = 0  # applied to the outbox
+        self.ack_target = 0  # highest ack received, applied by the acker
         self.sent_seq = 0
         self.replay_mark = 0
+        self._ack_wake = asyncio.Event()
 
     async def run(self, *alongside: Coroutine[Any, Any, None]) -> None:
         """Open the session, then serve until the connection (or one of `alongside`) ends."""
@@ -103,7 +105,7 @@ class Conversation:
         last = welcome.payload.last_acked_seq
         confirmed, backlog = await core.outbox.resume(last)
         core.counts["acked"] += confirmed
-        self.acked_seq = self.sent_seq = last
+        self.acked_seq = self.ack_target = self.sent_seq = last
         self.replay_mark = await core.outbox.last_pos()
         reported = await core.outbox.report_drops()
         if reported:
@@ -117,6 +119,7 @@ class Conversation:
         tasks = [
             asyncio.create_task(self._sender()),
             asyncio.create_task(self._receiver()),
+            asyncio.create_task(self._acker()),
             asyncio.create_task(self._heartbeat(heartbeat)),
             *(asyncio.create_task(coro) for coro in alongside),
         ]
@@ -178,10 +181,9 @@ class Conversation:
             await self.ws.send(encode(envelope(msg.to_payload())))
         elif isinstance(msg, Ack):
             seq = min(msg.payload.seq, self.sent_seq)
-            if seq > self.acked_seq:
-                core.counts["acked"] += await core.outbox.ack(seq)
-                self.acked_seq = seq
-            core.acked.set()
+            if seq > self.ack_target:
+                self.ack_target = seq
+                self._ack_wake.set()
         elif isinstance(msg, Command):
             await core.dispatcher.handle(msg)
         elif isinstance(msg, Rtcm):
@@ -194,6 +196,17 @@ class Conversation:
             log.warning("server error %s: %s", msg.payload.code, msg.payload.message)
         else:
             log.warning("ignoring unexpected %s", msg.type)
+
+    async def _acker(self) -> None:
+        """Apply acks to the outbox, coalescing those that arrive while one is applied."""
+        while True:
+            await self._ack_wake.wait()
+            self._ack_wake.clear()
+            target = self.ack_target
+            if target > self.acked_seq:
+                self.core.counts["acked"] += await self.core.outbox.ack(target)
+                self.acked_seq = target
+                self.core.acked.set()
 
     async def _heartbeat(self, interval: float) -> None:
         while True:
