@@ -22,9 +22,11 @@ from pyrtcm import RTCMReader
 
 from base_station.rtk import RtkConfig, RtkReader
 from protocol.rtcm import Reframer, frame_ok, message_type
+from server.realtime.broker import InProcessBroker
 from server.stations.ntrip import (
     LiveCorrections,
     Mountpoint,
+    broker_frames,
     format_details,
     mountpoint_name,
     ntrip_router,
@@ -33,7 +35,7 @@ from server.stations.ntrip import (
     visible_to,
 )
 from sim.clock import SimClock
-from sim.gnss import GnssConfig, GnssReceiver, running_receiver
+from sim.gnss import BaseStationModel, GnssConfig, GnssReceiver, running_receiver
 
 SPEED = 20.0
 USERS = {"alice": ("s3cret", "org-a"), "bob": ("hunter2", "org-b")}
@@ -57,23 +59,37 @@ async def authenticate(username: str, password: str) -> str | None:
 
 @dataclass
 class Source:
-    """Mountpoints of two organisations' bases, live frames from a fan-out hub."""
+    """Two organisations' bases; live frames from the realtime broker (as the server routes a
+    base's `rtcm` messages) or from the in-process fan-out; counts open subscriptions."""
 
-    hub: LiveCorrections
     items: list[Mountpoint]
+    broker: InProcessBroker | None = None
+    hub: LiveCorrections | None = None
+    open_subscriptions: int = 0
 
     async def mountpoints(self) -> list[Mountpoint]:
         return self.items
 
-    def subscribe(self, mountpoint: Mountpoint) -> AsyncIterator[bytes]:
-        return self.hub.subscribe(mountpoint.name)
+    async def subscribe(self, mountpoint: Mountpoint) -> AsyncIterator[bytes]:
+        if self.broker is not None:
+            frames = broker_frames(self.broker, f"rtcm.{mountpoint.asset_id}")
+        else:
+            assert self.hub is not None
+            frames = self.hub.subscribe(mountpoint.name)
+        self.open_subscriptions += 1
+        try:
+            async for frame in frames:
+                yield frame
+        finally:
+            self.open_subscriptions -= 1
+            await frames.aclose()
 
 
 @dataclass
 class Caster:
     url: str
     port: int
-    hub: LiveCorrections
+    source: Source
     receiver: GnssReceiver
     reader: RtkReader
 
@@ -96,30 +112,39 @@ async def serve(app: FastAPI) -> AsyncIterator[int]:
         sock.close()
 
 
-@pytest.fixture
-async def caster() -> AsyncIterator[Caster]:
-    """receiver (sim) -> RtkReader (base station) -> hub -> NTRIP router on uvicorn."""
-    hub = LiveCorrections()
+@pytest.fixture(params=["broker", "hub"])
+async def caster(request: pytest.FixtureRequest) -> AsyncIterator[Caster]:
+    """receiver (sim) -> RtkReader (base station) -> broker or hub -> NTRIP router on uvicorn."""
     async with running_receiver(GnssConfig(seed=21), SimClock(SPEED)) as rx:
         types = dict.fromkeys(rx.model.message_types, 1.0)
         mps = [
             Mountpoint("BASE1", "Porto base", format_details=format_details(types), country="PRT",
-                       latitude=41.178, longitude=-8.598, organisation_id="org-a"),
-            Mountpoint("BASE2", "Other org", organisation_id="org-b"),
-            Mountpoint("PUBLIC", "Open demo"),
+                       latitude=41.178, longitude=-8.598, organisation_id="org-a", asset_id="b-1"),
+            Mountpoint("BASE2", "Other org", organisation_id="org-b", asset_id="b-2"),
+            Mountpoint("PUBLIC", "Open demo", asset_id="b-3"),
         ]  # fmt: skip
+        if request.param == "broker":
+            broker = InProcessBroker()
+            source = Source(mps, broker=broker)
 
-        async def publish(frame: bytes) -> None:
-            hub.publish("BASE1", frame)
+            async def publish(frame: bytes) -> None:  # what the server does with a base's `rtcm`
+                await broker.publish("rtcm.b-1", {"data": base64.b64encode(frame).decode()})
+
+        else:
+            hub = LiveCorrections()
+            source = Source(mps, hub=hub)
+
+            async def publish(frame: bytes) -> None:
+                hub.publish("BASE1", frame)
 
         reader = RtkReader(RtkConfig(source=f"tcp://127.0.0.1:{rx.port}"), publish)
         reader.start()
         app = FastAPI()
         app.add_middleware(GZipMiddleware, minimum_size=16)  # as the server app has
-        app.include_router(ntrip_router(Source(hub, mps), authenticate))
+        app.include_router(ntrip_router(source, authenticate))
         try:
             async with serve(app) as port:
-                yield Caster(f"http://127.0.0.1:{port}", port, hub, rx, reader)
+                yield Caster(f"http://127.0.0.1:{port}", port, source, rx, reader)
         finally:
             await reader.stop()
 
@@ -191,7 +216,7 @@ async def test_third_party_client_receives_crc_valid_corrections(caster: Caster)
         [f for e in range(caster.receiver.last_epoch + 1) for f in caster.receiver.model.frames(e)]
     )
     assert all(any(f == g for g in model_stream) for f in received)  # intact, in order
-    await wait_for(lambda: caster.hub.subscribers("BASE1") == 0)  # the subscription was released
+    await wait_for(lambda: caster.source.open_subscriptions == 0)  # the subscription was released
 
 
 async def test_third_party_client_reads_the_sourcetable(caster: Caster) -> None:
@@ -240,7 +265,7 @@ async def test_stream_is_chunked_gnss_data_and_uncompressed(caster: Caster) -> N
                     break
         assert reframer.bad_frames == 0 and reframer.skipped_bytes == 0
         assert all(frame_ok(f) for f in frames)
-        await wait_for(lambda: caster.hub.subscribers("BASE1") == 0)
+        await wait_for(lambda: caster.source.open_subscriptions == 0)
 
 
 async def test_errors_401_404_400_and_anonymous_sourcetable(caster: Caster) -> None:
@@ -270,7 +295,7 @@ async def test_errors_401_404_400_and_anonymous_sourcetable(caster: Caster) -> N
         assert r.text.endswith("ENDSOURCETABLE\r\n")
         r = await http.get("/ntrip/", headers=ntrip_headers("bob", "bad"))
         assert r.status_code == 401
-    assert caster.hub.subscribers("BASE1") == 0
+    assert caster.source.open_subscriptions == 0
 
 
 async def test_live_corrections_fan_out_and_drop_oldest() -> None:
@@ -288,3 +313,31 @@ async def test_live_corrections_fan_out_and_drop_oldest() -> None:
     await b.aclose()
     assert hub.subscribers("M") == 0
     hub.publish("M", b"nobody listens")
+
+
+async def test_broker_frames_skip_malformed_and_bad_crc_messages() -> None:
+    broker = InProcessBroker()
+
+    class Watched:  # the real broker, with its subscriptions counted
+        handlers = 0
+
+        def subscribe(self, channel: str, handler: Any) -> None:
+            self.handlers += 1
+            broker.subscribe(channel, handler)
+
+        def unsubscribe(self, channel: str, handler: Any) -> None:
+            self.handlers -= 1
+            broker.unsubscribe(channel, handler)
+
+    watched = Watched()
+    frames = broker_frames(watched, "rtcm.x", queue_size=8)
+    first = asyncio.ensure_future(anext(frames))
+    await wait_for(lambda: watched.handlers == 1)
+    good = BaseStationModel(GnssConfig()).frames(0)[0]
+    bad = good[:-1] + bytes([good[-1] ^ 1])
+    for message in ({}, {"data": "%%%"}, {"data": base64.b64encode(bad).decode()}):
+        await broker.publish("rtcm.x", message)
+    await broker.publish("rtcm.x", {"data": base64.b64encode(good).decode()})
+    assert await first == good
+    await frames.aclose()
+    assert watched.handlers == 0
