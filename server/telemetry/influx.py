@@ -201,6 +201,12 @@ def flux_raw(q: Query, bucket: str) -> str:
     )
 
 
+# types.isType needs Flux 0.141 (InfluxDB 2.2+); types.isNumeric would need 0.187
+FLUX_IS_NUMBER = " or ".join(
+    f'types.isType(v: r._value, type: "{t}")' for t in ("float", "int", "uint")
+)
+
+
 def flux_downsampled(q: Query, bucket: str) -> str:
     """Flux for one row per window (stamped with its start): mean/last of numbers, last of the rest."""
     every_us, offset_us = window_us(q)
@@ -211,9 +217,9 @@ def flux_downsampled(q: Query, bucket: str) -> str:
         + "data = "
         + flux_base(bucket, q.asset_id, clamp_ns(q.start), clamp_ns(q.end))
         + flux_fields(q.fields, with_seq=False)
-        + "num = data |> filter(fn: (r) => types.isNumeric(v: r._value))\n"
+        + f"num = data |> filter(fn: (r) => {FLUX_IS_NUMBER})\n"
         f'  |> aggregateWindow({window}, fn: {fn}, createEmpty: false, timeSrc: "_start")\n'
-        "other = data |> filter(fn: (r) => not types.isNumeric(v: r._value))\n"
+        f"other = data |> filter(fn: (r) => not ({FLUX_IS_NUMBER}))\n"
         f'  |> aggregateWindow({window}, fn: last, createEmpty: false, timeSrc: "_start")\n'
         "union(tables: [num, other])\n" + PIVOT + f"  |> limit(n: {max(1, q.limit)})\n"
     )
