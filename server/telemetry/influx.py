@@ -257,7 +257,8 @@ class InfluxTelemetryStore:
     and Flux query APIs (token or username/password, `org`), the delete API for `prune`. 3.x: the v2
     write API and InfluxQL on /query (database = `bucket`); `prune` is left to the database's own
     retention period. HTTP calls use httpx's async client; influxdb-client calls run in a worker
-    thread. Ranges are [start, end); buckets are stamped with their start (never before `start`).
+    thread. Rows have the SQL store's shape: ranges are [start, end), buckets start at `start`
+    and are `every_s` wide (to the microsecond), `seq` is stored but not returned.
     """
 
     def __init__(
