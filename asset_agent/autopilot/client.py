@@ -99,6 +99,7 @@ class Autopilot:
         self._command_lock = asyncio.Lock()
         self.mission_lock = asyncio.Lock()
         self._link_event = asyncio.Event()
+        self.streams_requested = asyncio.Event()  # set once the stream requests have been sent
         self._rtcm_seq = 0
         self.statustexts: list[str] = []
 
@@ -273,11 +274,13 @@ class Autopilot:
 
     async def request_streams(self) -> None:
         """Ask for every configured stream with SET_MESSAGE_INTERVAL (failures are logged)."""
+        self.streams_requested.clear()
         for msg_id, hz in self.config.streams.items():
             try:
                 await self.set_message_interval(msg_id, hz)
             except Exception as err:
                 log.warning("stream %s at %s Hz not set: %s", msg_id, hz, err)
+        self.streams_requested.set()
 
     async def set_message_interval(self, msg_id: int, hz: float) -> None:
         """MAV_CMD_SET_MESSAGE_INTERVAL: `hz` > 0 sets the rate, 0 stops the message."""

@@ -58,6 +58,7 @@ async def autopilot(vehicle: VehicleServer) -> AsyncIterator[Autopilot]:
     await ap.start()
     try:
         await ap.wait_link(10)
+        await asyncio.wait_for(ap.streams_requested.wait(), 10)
         await wait_for(lambda: ap.state.lat is not None and ap.state.fix_type >= 3, 10, "position")
         yield ap
     finally:
