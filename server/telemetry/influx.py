@@ -460,9 +460,8 @@ class InfluxTelemetryStore:
             r = await self._need_http().post("/write", params=params, content=body.encode())
         except httpx.HTTPError as err:
             raise InfluxStoreError(f"InfluxDB write failed: {err}") from err
-        if (
-            r.status_code == 400
-        ):  # bad points (type conflict, parse error); the good ones are stored
+        if r.status_code == 400:
+            # bad points (a field changing type, a parse error): the good ones are stored
             log.warning("InfluxDB refused some telemetry points: %s", r.text[:500])
         elif r.status_code >= 300:
             raise InfluxStoreError(f"InfluxDB write failed ({r.status_code}): {r.text[:500]}")
