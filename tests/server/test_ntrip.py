@@ -219,6 +219,31 @@ async def test_third_party_client_receives_crc_valid_corrections(caster: Caster)
     await wait_for(lambda: caster.source.open_subscriptions == 0)  # the subscription was released
 
 
+async def test_two_clients_at_once_each_get_the_live_stream(caster: Caster) -> None:
+    clients = [
+        pull_with_pygnssutils(caster.port, "ntrip/BASE1", "alice", "s3cret") for _ in range(2)
+    ]
+    received: list[list[bytes]] = [[], []]
+    try:
+
+        def drain() -> bool:
+            for (_, out), got in zip(clients, received, strict=True):
+                while not out.empty():
+                    got.append(out.get_nowait()[0])
+            return all(len(got) >= 12 for got in received)
+
+        await wait_for(lambda: caster.source.open_subscriptions == 2)
+        await wait_for(drain)
+    finally:
+        for client, _ in clients:
+            client.stop()
+    for got in received:
+        assert all(frame_ok(f) for f in got)
+    common = set(received[0]) & set(received[1])
+    assert any(message_type(f) == 1077 for f in common)  # the same epochs reached both
+    await wait_for(lambda: caster.source.open_subscriptions == 0)
+
+
 async def test_third_party_client_reads_the_sourcetable(caster: Caster) -> None:
     client, out = pull_with_pygnssutils(caster.port, "ntrip/", "alice", "s3cret")
     try:
