@@ -38,11 +38,13 @@ class WatchdogWriter:
     async def run(self) -> None:
         """Feed forever; link errors are ignored here (the coordinator reports them)."""
         while True:
-            if not self.paused and self.client.connected:
-                self.value = (self.value + 1) & 0xFFFF
-                try:
-                    await self.client.write_register(HoldingRegister.WATCHDOG, self.value)
-                    self.writes += 1
-                except PlcLinkError as err:
-                    log.debug("watchdog write failed: %s", err)
+            if self.paused or not self.client.connected:
+                await asyncio.sleep(min(0.05, self.period_s))  # write as soon as connected
+                continue
+            self.value = (self.value + 1) & 0xFFFF
+            try:
+                await self.client.write_register(HoldingRegister.WATCHDOG, self.value)
+                self.writes += 1
+            except PlcLinkError as err:
+                log.debug("watchdog write failed: %s", err)
             await asyncio.sleep(self.period_s)

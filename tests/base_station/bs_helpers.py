@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable
 from dataclasses import dataclass
@@ -111,19 +112,27 @@ async def stop_daemon(app: App) -> None:
     await app.coordinator.stop()
 
 
-@pytest.fixture
-async def rig() -> AsyncIterator[Rig]:
-    """World at SPEED with calm forced weather, a daemon connected to it."""
-    async with World(WorldConfig.for_tests(speed=SPEED, seed=11)) as world:
+@contextlib.asynccontextmanager
+async def rig_at(speed: float = SPEED, seed: int = 11, **uav: Any) -> AsyncIterator[Rig]:
+    """A world at `speed` with calm forced weather, and a daemon connected to it."""
+    async with World(WorldConfig.for_tests(speed=speed, seed=seed)) as world:
         world.weather.force(wind_mps=2.0, gust_mps=3.0, rain_mm_h=0.0, temperature_c=15.0)
-        app = await start_daemon(station_config(world.ports["plc"]))
+        app = await start_daemon(station_config(world.ports["plc"], speed, **uav))
         async with httpx.AsyncClient(base_url=f"http://127.0.0.1:{world.ports['control']}") as c:
             r = Rig(world, app, c)
-            await r.link_up()
             try:
+                await r.link_up()
+                await wait_for(lambda: world.base.watchdog_armed, 5.0, "watchdog armed")
                 yield r
             finally:
-                await stop_daemon(app)
+                await stop_daemon(r.app)
+
+
+@pytest.fixture
+async def rig() -> AsyncIterator[Rig]:
+    """World at SPEED and a daemon connected to it."""
+    async with rig_at(SPEED) as r:
+        yield r
 
 
 async def run(station: Station, name: str, params: dict[str, Any] | None = None) -> Result:

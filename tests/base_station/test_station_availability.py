@@ -1,0 +1,165 @@
+"""Availability (every failed condition listed), landing confirmation, charging to completion."""
+
+from __future__ import annotations
+
+import asyncio
+
+from bs_helpers import Rig, rig_at, run, wait_for
+
+from base_station.events import EventKind
+from base_station.station import Status
+
+
+async def test_available_when_everything_is_fine(rig: Rig) -> None:
+    await rig.inject("/pad", {"mass_g": 1500, "contacts_seated": True})
+    await wait_for(lambda: rig.station.telemetry().uav_present is True, what="UAV on the scale")
+    result = await run(rig.station, "check_availability")
+    assert result.status is Status.SUCCEEDED and result.data["available"], result.reason
+    assert {c["name"] for c in result.data["conditions"]} >= {
+        "plc_link",
+        "wind",
+        "gust",
+        "rain",
+        "temperature_min",
+        "temperature_max",
+        "estop",
+        "faults",
+        "panels_closed",
+        "lift_down",
+        "uav_present",
+    }
+
+
+async def test_every_failed_condition_is_listed_with_measured_value_and_limit(rig: Rig) -> None:
+    await rig.inject(
+        "/weather/force",
+        {"wind_mps": 11.0, "gust_mps": 16.0, "rain_mm_h": 2.5, "temperature_c": -9.0},
+    )
+    await rig.inject("/faults/estop", {"on": True})
+    rig.world.base.panels.position = 0.5
+    rig.world.base.lift.position = 0.25
+    await wait_for(
+        lambda: (
+            rig.app.coordinator.snapshot.plc.estop_active
+            and rig.app.coordinator.snapshot.plc.wind_speed_mps == 11.0
+            and rig.app.coordinator.snapshot.plc.lift_position_pct == 25.0
+        )
+    )
+    result = await run(rig.station, "check_availability")
+    assert result.status is Status.REJECTED and not result.data["available"]
+    failed = {c["name"]: c for c in result.data["failed"]}
+    assert set(failed) == {
+        "wind",
+        "gust",
+        "rain",
+        "temperature_min",
+        "estop",
+        "faults",
+        "panels_closed",
+        "lift_down",
+        "uav_present",
+    }
+    assert (failed["wind"]["measured"], failed["wind"]["limit"]) == (11.0, 8.0)
+    assert (failed["gust"]["measured"], failed["gust"]["limit"]) == (16.0, 12.0)
+    assert (failed["rain"]["measured"], failed["rain"]["limit"]) == (2.5, 0.0)
+    assert (failed["temperature_min"]["measured"], failed["temperature_min"]["limit"]) == (
+        -9.0,
+        -5.0,
+    )
+    assert failed["faults"]["measured"] == "ESTOP"
+    assert failed["panels_closed"]["measured"] == 50.0 and failed["lift_down"]["measured"] == 25.0
+    assert failed["uav_present"]["limit"] == "1200..1800 g"
+    for text in (
+        "wind 11.0 m/s (max 8.0)",
+        "gust 16.0 m/s",
+        "rain 2.5 mm/h",
+        "-9.0 °C",
+        "E-stop active",
+        "panels 50 % open",
+        "lift 25 % up",
+        "outside UAV window",
+    ):
+        assert text in result.reason
+
+
+async def test_weather_sensor_fault_fails_availability(rig: Rig) -> None:
+    await rig.inject("/pad", {"mass_g": 1500})
+    await rig.inject("/faults/weather_sensor", {"on": True})
+    await wait_for(lambda: "WEATHER_SENSOR" in rig.station.telemetry().faults)
+    result = await run(rig.station, "check_availability")
+    names = {c["name"] for c in result.data["failed"]}
+    assert names == {"weather_sensor", "faults"}
+    assert rig.station.telemetry().weather.sensor_ok is False
+    # a dead anemometer does not stop the base from closing
+    assert (await run(rig.station, "open_panels")).status is Status.SUCCEEDED
+
+
+async def test_landing_confirmed_only_after_stable_window(rig: Rig) -> None:
+    async with rig.station.subscribe() as events:
+        await rig.inject("/pad", {"mass_g": 1500, "contacts_seated": True})
+        await wait_for(lambda: rig.station.telemetry().uav_present is True, what="present")
+        seen_present = asyncio.get_running_loop().time()
+        event = await asyncio.wait_for(_first(events, EventKind.LANDING_CONFIRMED), 5)
+        # confirmation needs the mass to stay in the window for stable_s (0.5 s)
+        assert asyncio.get_running_loop().time() - seen_present >= 0.4
+        assert 1480 <= event.data["mass_g"] <= 1520
+    tel = rig.station.telemetry()
+    assert tel.landing_confirmed and 1480 <= tel.scale_mass_g <= 1520
+    await rig.inject("/pad", {"mass_g": 0})
+    await wait_for(lambda: rig.station.telemetry().landing_confirmed is False, what="gone")
+
+
+async def test_mass_outside_the_window_is_never_confirmed(rig: Rig) -> None:
+    await rig.inject("/pad", {"mass_g": 2600})
+    await wait_for(lambda: rig.app.coordinator.polls >= 30, what="30 polls (1.5 s)")
+    tel = rig.station.telemetry()
+    assert tel.uav_present is False and tel.landing_confirmed is False
+    assert EventKind.LANDING_CONFIRMED not in [e.kind for e in rig.app.coordinator.events.history]
+
+
+async def _first(events, kind):  # type: ignore[no-untyped-def]
+    async for e in events:
+        if e.kind is kind:
+            return e
+    return None
+
+
+async def test_start_charging_refused_without_contacts_or_with_lift_up(rig: Rig) -> None:
+    result = await run(rig.station, "start_charging")
+    assert result.status is Status.REJECTED and "UAV contacts not seated" in result.reason
+    await rig.inject("/pad", {"mass_g": 1500, "contacts_seated": True, "uav_soc": 0.5})
+    assert (await run(rig.station, "open")).status is Status.SUCCEEDED
+    result = await run(rig.station, "start_charging")
+    assert (
+        result.status is Status.REJECTED and "lift is 100 % up, must be fully down" in result.reason
+    )
+
+
+async def test_charging_cc_cv_to_completion_with_limit_and_power_source() -> None:
+    async with rig_at(speed=400.0) as rig:
+        await rig.inject("/weather/force", {"rain_mm_h": 2.0})  # clouds: solar cannot cover it
+        await rig.inject("/pad", {"mass_g": 1500, "contacts_seated": True, "uav_soc": 0.88})
+        samples: list[tuple[str | None, int, float | None]] = []
+        async with rig.station.subscribe() as events:
+            result = await run(rig.station, "start_charging", {"current_limit_ma": 4000})
+            assert result.status is Status.SUCCEEDED, result.reason
+            done = asyncio.ensure_future(_first(events, EventKind.CHARGE_COMPLETE))
+            while not done.done():
+                c = rig.station.telemetry().charger
+                samples.append((c.state, c.current_ma, c.uav_battery_pct))
+                await asyncio.wait([done], timeout=0.05)
+            event = done.result()
+        assert event.data["uav_battery_pct"] >= 99.0
+        charging = [s for s in samples if s[0] == "charging"]
+        assert charging[0][1] == 4000  # constant current at the limit
+        cv = [i for _, i, _ in charging if i < 4000]
+        assert cv and cv == sorted(cv, reverse=True) and cv[-1] < 1000  # tapering in CV
+        assert rig.station.telemetry().charger.state == "complete"
+        sources = [
+            e.data["source"]
+            for e in rig.app.coordinator.events.history
+            if e.kind is EventKind.POWER_SOURCE_CHANGED
+        ]
+        assert "grid" in sources
+        assert (await run(rig.station, "stop_charging")).status is Status.SUCCEEDED
+        await wait_for(lambda: rig.station.telemetry().charger.state == "idle")
