@@ -152,3 +152,15 @@ def test_reference_messages_every_n_epochs() -> None:
     reframer = Reframer()
     assert len(list(reframer.feed(stream))) == 4 + 4 * 2 + 4
     assert reframer.bad_frames == 0 and reframer.skipped_bytes == 0
+
+
+@pytest.mark.parametrize(("msm", "per_sat", "per_cell"), [(4, 18, 48), (7, 36, 80)])
+def test_msm_payload_sizes_match_the_standard(msm: int, per_sat: int, per_cell: int) -> None:
+    """Header 169 bits + cell mask + per-satellite and per-cell fields, padded to a byte."""
+    model = BaseStationModel(GnssConfig(msm=msm, gps_satellites=12, galileo_satellites=5))
+    for frame, nsat in ((model.frames(3)[1], 12), (model.frames(3)[2], 5)):
+        nsig, ncell = 2, 2 * nsat
+        bits = 169 + nsat * nsig + per_sat * nsat + per_cell * ncell
+        assert len(frame) - 6 == math.ceil(bits / 8)
+    assert len(model.frames(0)[0]) - 6 == 152 // 8  # 1005: 152 bits
+    assert len(model.frames(0)[3]) - 6 == math.ceil((32 + 2 * 16) / 8)  # 1230 with two biases
