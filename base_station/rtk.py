@@ -25,7 +25,7 @@ from protocol.telemetry import Rtk
 
 log = logging.getLogger(__name__)
 
-FrameCallback = Callable[[bytes], Awaitable[None]]
+FrameCallback = Callable[[bytes], Awaitable[object]]
 
 
 @dataclass(frozen=True)
