@@ -19,7 +19,7 @@ from server.commands.endpoints import router as commands_router
 from server.config import Settings
 from server.health import router as health_router
 from server.kit.db import make_engine, make_sessionmaker
-from server.kit.errors import install_error_handlers
+from server.kit.errors import RejectNulBytes, install_error_handlers
 from server.kit.security import Passwords
 from server.organizations.endpoints import router as organizations_router
 from server.realtime.broker import make_broker
@@ -85,6 +85,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                                     settings.argon2_parallelism)
     app.state.session_end_listeners = []  # async callables given the ids of ended sessions
     app.add_middleware(GZipMiddleware, minimum_size=2048)
+    app.add_middleware(RejectNulBytes)
     install_error_handlers(app)
     for router in (health_router, auth_router, organizations_router, assets_router, audit_router,
                    commands_router, telemetry_router, realtime_router):

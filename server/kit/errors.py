@@ -133,3 +133,28 @@ def install_error_handlers(app: FastAPI) -> None:
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
         log.exception("unhandled error on %s %s", request.method, request.url.path)
         return JSONResponse(error_body("internal_error", "internal server error"), status_code=500)
+
+
+class RejectNulBytes:
+    """ASGI middleware: a NUL byte in the path or query string is a client error, answered with 422.
+
+    Databases refuse NUL in text (PostgreSQL raises), so it is refused once, here, for every route.
+    """
+
+    def __init__(self, app: Any) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        if scope["type"] in ("http", "websocket"):
+            from urllib.parse import unquote_to_bytes
+
+            raw = scope.get("query_string", b"") + scope.get("path", "").encode("utf-8", "surrogateescape")
+            if b"\x00" in unquote_to_bytes(raw) or b"\x00" in raw:
+                if scope["type"] == "websocket":
+                    await send({"type": "websocket.close", "code": 1008})
+                    return
+                response = JSONResponse(error_body("validation_error", "NUL characters are not allowed in a URL"),
+                                        status_code=422)
+                await response(scope, receive, send)
+                return
+        await self.app(scope, receive, send)

@@ -18,3 +18,8 @@ def test_tenant_bootstrap(tenant, api):
     assert r.status_code == 200, r.text
     assert r.json()["role"] == "operator"
     assert r.json()["organization_id"] == tenant.id
+
+
+def test_nul_bytes_in_urls_are_a_client_error(api, tenant):
+    r = api.get("/api/v1/audit", params={"action": "\x00x"}, headers=tenant.h("admin"))
+    assert r.status_code == 422 and r.json()["error"]["code"] == "validation_error"
