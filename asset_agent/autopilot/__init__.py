@@ -6,7 +6,7 @@ converters (`MissionItem`, `items_from_dicts`, `items_to_dicts`) and the error t
 `InvalidMissionItem`).
 """
 
-from asset_agent.autopilot.client import Autopilot, AutopilotConfig, Notification
+from asset_agent.autopilot.client import Autopilot, AutopilotConfig
 from asset_agent.autopilot.errors import (
     AutopilotError,
     AutopilotTimeout,
@@ -16,7 +16,7 @@ from asset_agent.autopilot.errors import (
     MissionError,
 )
 from asset_agent.autopilot.items import MissionItem, items_from_dicts, items_to_dicts
-from asset_agent.autopilot.state import UavState
+from asset_agent.autopilot.state import Notification, UavState
 
 __all__ = [
     "Autopilot",

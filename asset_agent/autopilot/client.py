@@ -28,7 +28,7 @@ from asset_agent.autopilot import mission, translate
 from asset_agent.autopilot.errors import AutopilotTimeout, CommandRejected, LinkLost
 from asset_agent.autopilot.items import MissionItem
 from asset_agent.autopilot.link import MavlinkLink
-from asset_agent.autopilot.state import MODE_NUMBERS, UavState
+from asset_agent.autopilot.state import MODE_NUMBERS, Notification, UavState
 from protocol.rtcm import mavlink_fragments
 
 log = logging.getLogger(__name__)
@@ -68,16 +68,6 @@ class AutopilotConfig:
     mission_timeout_s: float = 1.5  # per item, as MAVSDK and QGC use
     mission_retries: int = 4
     streams: dict[int, float] = field(default_factory=lambda: dict(DEFAULT_STREAMS))
-
-
-@dataclass(frozen=True)
-class Notification:
-    """Something the autopilot said that is not state: status text, item reached, link change."""
-
-    kind: str  # "statustext" | "item_reached" | "link_lost" | "link_recovered"
-    text: str = ""
-    severity: int = 6
-    index: int | None = None  # item_reached: index in the server's list (seq - 1)
 
 
 class Autopilot:

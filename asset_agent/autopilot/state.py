@@ -76,3 +76,13 @@ class UavState:
     def failsafe(self) -> bool:
         """True when the autopilot reports MAV_STATE_CRITICAL or EMERGENCY."""
         return self.system_status in (5, 6)
+
+
+@dataclass(frozen=True)
+class Notification:
+    """Something the autopilot said that is not state: status text, item reached, link change."""
+
+    kind: str  # "statustext" | "item_reached" | "link_lost" | "link_recovered"
+    text: str = ""
+    severity: int = 6  # MAV_SEVERITY
+    index: int | None = None  # item_reached: index in the server's list (seq - 1)

@@ -172,17 +172,17 @@ class Copter:
         self.send(mavlink.MAVLink_statustext_message(severity, text[:50].encode()))
 
     # --- arming and modes -------------------------------------------------------------------
-    def prearm_failure(self) -> str | None:
-        """Why the vehicle may not arm now, or None."""
+    def prearm_failure(self, arming: bool = True) -> str | None:
+        """Why the vehicle may not arm now, or None; `arming=False` leaves out base and mode (health)."""
         if self.faults.prearm_failure:
             return self.faults.prearm_failure
         if self.reading.fix_type < FIX_3D:
             return "GPS 1: Bad fix"
         if self.dyn.state.battery_pct < self.config.arm_min_battery_pct:
             return "Battery 1 below minimum arming capacity"
-        if self.on_pad() and not self.base.can_vehicle_leave():
+        if arming and self.on_pad() and not self.base.can_vehicle_leave():
             return "Base closed"
-        if self.mode in NOT_ARMABLE:
+        if arming and self.mode in NOT_ARMABLE:
             return "Mode not armable"
         return None
 

@@ -36,7 +36,7 @@ def _heartbeat(c: Copter) -> Any:
 def _sys_status(c: Copter) -> Any:
     s = c.dyn.state
     health = SENSORS
-    if c.prearm_failure() is not None and not c.armed:
+    if c.prearm_failure(arming=False) is not None and not c.armed:
         health &= ~PREARM_BIT
     if c.reading.fix_type < 3:
         health &= ~GPS_BIT

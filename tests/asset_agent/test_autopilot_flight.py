@@ -10,7 +10,7 @@ from collections.abc import AsyncIterator
 import pytest
 
 from asset_agent.autopilot import Autopilot, CommandRejected, items_from_dicts
-from asset_agent.autopilot.client import Notification
+from asset_agent.autopilot.state import Notification
 from protocol.rtcm import build_frame
 from sim.vehicle.geo import GeoOrigin
 from sim.vehicle.server import VehicleServer

@@ -1,0 +1,97 @@
+"""Pure derivation of the agent's events from successive UavState values and notifications.
+
+Kinds: armed, took_off, waypoint_reached, mission_finished, landing, landed, disarmed,
+failsafe, low_battery, autopilot_lost, autopilot_recovered.
+
+    tracker = EventTracker(EventLimits(low_battery_pct=30))
+    events = tracker.update(autopilot.state)          # on every telemetry tick
+    events += tracker.notification(note)              # for each Notification
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+from asset_agent.autopilot.state import Notification, UavState
+
+EVENT_KINDS = (
+    "armed", "took_off", "waypoint_reached", "mission_finished", "landing", "landed",
+    "disarmed", "failsafe", "low_battery", "autopilot_lost", "autopilot_recovered",
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Event:
+    """One event: its kind and a read-only detail mapping."""
+
+    kind: str
+    detail: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+
+
+@dataclass(frozen=True)
+class EventLimits:
+    """Thresholds for derived events."""
+
+    low_battery_pct: float = 30.0
+
+
+def _event(kind: str, **detail: Any) -> Event:
+    return Event(kind, MappingProxyType(detail))
+
+
+def derive_events(prev: UavState, cur: UavState, limits: EventLimits | None = None) -> list[Event]:
+    """The events implied by going from `prev` to `cur`, in a stable order."""
+    limits = limits or EventLimits()
+    out: list[Event] = []
+    if not prev.link_up and cur.link_up and prev.custom_mode is not None:
+        out.append(_event("autopilot_recovered"))
+    if prev.link_up and not cur.link_up:
+        out.append(_event("autopilot_lost"))
+    if not prev.armed and cur.armed:
+        out.append(_event("armed", mode=cur.mode))
+    took_off = not prev.in_air and cur.in_air and cur.landed_state != "LANDING"
+    if took_off:
+        out.append(_event("took_off", mode=cur.mode))
+    if prev.landed_state != "LANDING" and cur.landed_state == "LANDING":
+        out.append(_event("landing", mode=cur.mode))
+    if prev.in_air and cur.landed_state == "ON_GROUND":
+        out.append(_event("landed", lat=cur.lat, lon=cur.lon))
+    if prev.mission_state != "COMPLETE" and cur.mission_state == "COMPLETE":
+        out.append(_event("mission_finished", total=cur.mission_total))
+    if not prev.failsafe and cur.failsafe:
+        out.append(_event("failsafe", mode=cur.mode, system_status=cur.system_status))
+    thr = limits.low_battery_pct
+    was_ok = prev.battery_pct is None or prev.battery_pct >= thr
+    if was_ok and cur.battery_pct is not None and cur.battery_pct < thr:
+        out.append(_event("low_battery", battery_pct=cur.battery_pct, threshold_pct=thr))
+    if prev.armed and not cur.armed:
+        out.append(_event("disarmed"))
+    return out
+
+
+def events_from_notification(note: Notification) -> list[Event]:
+    """Events carried by a notification (link changes come from the state instead)."""
+    if note.kind == "item_reached":
+        return [_event("waypoint_reached", index=note.index)]
+    return []
+
+
+class EventTracker:
+    """Keeps the previous state so callers just feed states and notifications."""
+
+    def __init__(self, limits: EventLimits | None = None) -> None:
+        self.limits = limits or EventLimits()
+        self.prev = UavState()
+
+    def update(self, state: UavState) -> list[Event]:
+        """Events since the last state fed in."""
+        events = derive_events(self.prev, state, self.limits)
+        self.prev = state
+        return events
+
+    def notification(self, note: Notification) -> list[Event]:
+        """Events from one notification."""
+        return events_from_notification(note)

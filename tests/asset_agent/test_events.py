@@ -1,0 +1,59 @@
+"""Pure event derivation from successive UavState values."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from asset_agent.autopilot.state import Notification, UavState
+from asset_agent.events import EventLimits, EventTracker, derive_events, events_from_notification
+
+GROUND = UavState(
+    link_up=True, custom_mode=4, mode="GUIDED", landed_state="ON_GROUND", battery_pct=95
+)
+
+
+def kinds(prev: UavState, cur: UavState) -> list[str]:
+    return [e.kind for e in derive_events(prev, cur)]
+
+
+def test_a_whole_flight_gives_each_event_once() -> None:
+    armed = replace(GROUND, armed=True, system_status=4)
+    takeoff = replace(armed, landed_state="TAKEOFF", mode="AUTO", mission_state="ACTIVE")
+    flying = replace(takeoff, landed_state="IN_AIR")
+    landing = replace(flying, landed_state="LANDING", mode="RTL", mission_state="ACTIVE")
+    down = replace(landing, landed_state="ON_GROUND", mission_state="COMPLETE")
+    disarmed = replace(down, armed=False, system_status=3)
+    tracker = EventTracker()
+    seen = []
+    for s in (GROUND, armed, takeoff, flying, landing, down, disarmed, disarmed):
+        seen += [e.kind for e in tracker.update(s)]
+    assert seen == [
+        "armed", "took_off", "landing", "landed",
+        "mission_finished", "disarmed",
+    ]  # fmt: skip
+
+
+def test_first_link_is_not_a_recovery_but_a_later_one_is() -> None:
+    assert kinds(UavState(), GROUND) == []
+    lost = replace(GROUND, link_up=False)
+    assert kinds(GROUND, lost) == ["autopilot_lost"]
+    assert kinds(lost, GROUND) == ["autopilot_recovered"]
+
+
+def test_low_battery_fires_once_when_crossing_the_threshold() -> None:
+    limits = EventLimits(low_battery_pct=30)
+    a, b, c = (replace(GROUND, battery_pct=p) for p in (31, 29, 20))
+    assert [e.kind for e in derive_events(a, b, limits)] == ["low_battery"]
+    assert derive_events(a, b, limits)[0].detail["battery_pct"] == 29
+    assert derive_events(b, c, limits) == []
+
+
+def test_failsafe_from_critical_status() -> None:
+    critical = replace(GROUND, armed=True, system_status=5)
+    assert "failsafe" in kinds(replace(GROUND, armed=True, system_status=4), critical)
+
+
+def test_waypoint_reached_from_notification() -> None:
+    events = events_from_notification(Notification("item_reached", index=3))
+    assert [(e.kind, e.detail["index"]) for e in events] == [("waypoint_reached", 3)]
+    assert events_from_notification(Notification("statustext", "hello")) == []
