@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import inspect
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable
 from dataclasses import dataclass
@@ -27,7 +28,7 @@ async def wait_for(
     deadline = time.monotonic() + within
     while True:
         value = predicate()
-        if not isinstance(value, bool):
+        if inspect.isawaitable(value):
             value = await value
         if value:
             return
