@@ -1,0 +1,123 @@
+"""Two `aerobase server` processes sharing the database and Redis act as one."""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import json
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+
+import httpx
+import pytest
+import websockets
+
+from protocol.commands import result
+from protocol.configfile import decrypt_config
+from protocol.link import Link
+from protocol.telemetry import Position, UavTelemetry
+from tests.conftest import Tenant, free_port, need_service
+
+REDIS_URL = os.environ.get("REDIS_TEST_URL", "redis://127.0.0.1:6379/0")
+
+
+def _start(database_url: str, port: int, log) -> subprocess.Popen:  # type: ignore[no-untyped-def]
+    env = {**os.environ, "DATABASE_URL": database_url, "REDIS_URL": REDIS_URL, "AEROBASE_PORT": str(port),
+           "AEROBASE_ARGON2_MEMORY_KIB": "8192", "AEROBASE_ARGON2_TIME_COST": "1",
+           "AEROBASE_ARGON2_PARALLELISM": "1", "AEROBASE_CONFIG_SCRYPT_LOG_N": "12",
+           "AEROBASE_LOGIN_MAX_FAILURES_ADDRESS": "10000", "AEROBASE_LOG_FORMAT": "json"}
+    proc = subprocess.Popen([sys.executable, "-m", "aerobase.cli", "server", "--port", str(port)], env=env,
+                            stdout=log, stderr=subprocess.STDOUT)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise AssertionError(f"server on {port} exited with {proc.returncode}")
+        try:
+            if httpx.get(f"http://127.0.0.1:{port}/api/health", timeout=1).status_code == 200:
+                return proc
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.1)
+    proc.kill()
+    raise AssertionError(f"server on {port} did not start")
+
+
+@pytest.fixture
+def two_servers(database_url: str, tmp_path) -> Iterator[tuple[str, str]]:  # type: ignore[no-untyped-def]
+    need_service("Redis", "127.0.0.1", 6379)
+    ports = free_port(), free_port()
+    procs = []
+    with open(tmp_path / "servers.log", "wb") as log:
+        try:
+            for port in ports:
+                procs.append(_start(database_url, port, log))
+            yield f"http://127.0.0.1:{ports[0]}", f"http://127.0.0.1:{ports[1]}"
+        finally:
+            for p in procs:
+                p.terminate()
+            for p in procs:
+                try:
+                    p.wait(15)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+
+
+async def test_two_processes_act_as_one(two_servers, api, superuser_email, tmp_path):
+    url_a, url_b = two_servers
+    tenant = Tenant(api, superuser_email, "scale")  # built through the session's server: same database
+    asset = tenant.create_asset("uav")
+    cfg = decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
+    link = Link(url_b, cfg.name, cfg.secret, tmp_path / "link.db", seed=7)
+    executed = []
+
+    async def check(request):  # type: ignore[no-untyped-def]
+        executed.append(request.id)
+        return result("succeeded", "ready")
+
+    link.on_command("check_availability", check)
+    await link.start()
+    try:
+        await link.wait_connected(20)
+        # a second login of that asset on A is refused while it is connected to B
+        async with httpx.AsyncClient(base_url=url_a) as a:
+            r = await a.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret})
+            assert r.status_code == 409 and r.json()["error"]["code"] == "session_active"
+        # an operator on A receives live telemetry of the asset connected to B
+        ws_a = url_a.replace("http", "ws") + f"/ws/operator?token={tenant.tokens['viewer']}"
+        async with websockets.connect(ws_a) as op:
+            await op.send(json.dumps({"v": 1, "type": "subscribe", "id": "1b7e1b2e-0000-4000-8000-000000000001",
+                                      "seq": 0, "ts": 0, "payload": {"asset_ids": [asset["id"]]}}))
+            got = None
+            for i in range(100):  # keep sending until the subscription (async in Redis) is in place
+                await link.send_telemetry(UavTelemetry(position=Position(lat=41.0, lon=-8.6, alt_msl_m=120,
+                                                                         alt_rel_m=float(i))))
+                try:
+                    got = json.loads(await asyncio.wait_for(op.recv(), 0.2))
+                    break
+                except TimeoutError:
+                    continue
+            assert got is not None and got["type"] == "telemetry" and got["payload"]["asset_id"] == asset["id"]
+            # a command posted to A reaches the asset on B and its result comes back (to A's operator too)
+            async with httpx.AsyncClient(base_url=url_a) as a:
+                r = await a.post(f"/api/v1/assets/{asset['id']}/commands", json={"name": "check_availability"},
+                                 headers=tenant.h("operator"))
+                assert r.status_code == 202, r.text
+                cid = r.json()["id"]
+                deadline = time.monotonic() + 20
+                status = None
+                while time.monotonic() < deadline:
+                    status = (await a.get(f"/api/v1/commands/{cid}", headers=tenant.h("viewer"))).json()["status"]
+                    if status == "succeeded":
+                        break
+                    await asyncio.sleep(0.05)
+                assert status == "succeeded"
+            while True:
+                msg = json.loads(await asyncio.wait_for(op.recv(), 10))
+                if msg["type"] == "command_result" and msg.get("re") == cid:
+                    break
+        assert executed and len(executed) == 1
+    finally:
+        await link.stop()
