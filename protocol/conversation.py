@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import inspect
 import logging
+import time
 from collections import Counter
 from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass, field
@@ -42,6 +43,36 @@ class LinkClosed(Exception):
         self.reason = reason
 
 
+class TokenBucket:
+    """Paces sends: `rate` per second on average, at most `burst` at once."""
+
+    def __init__(self, rate: float, burst: float, clock: Callable[[], float] = time.monotonic):
+        """Start full."""
+        if rate <= 0 or burst < 1:
+            raise ValueError("rate must be positive and burst at least 1")
+        self.rate = rate
+        self.burst = burst
+        self._clock = clock
+        self._tokens = burst
+        self._at = clock()
+
+    def delay(self) -> float:
+        """Take a token and return 0, or return how long to wait before one is available."""
+        now = self._clock()
+        self._tokens = min(self.burst, self._tokens + (now - self._at) * self.rate)
+        self._at = now
+        if self._tokens >= 1:
+            self._tokens -= 1
+            return 0.0
+        return (1 - self._tokens) / self.rate
+
+    async def acquire(self) -> None:
+        """Wait until a token is available and take it."""
+        # Pacing by the clock, not waiting for another task: nothing to signal an Event.
+        while (wait := self.delay()) > 0:  # noqa: ASYNC110
+            await asyncio.sleep(wait)
+
+
 @dataclass
 class LinkCore:
     """What a link shares with its successive connections."""
@@ -54,6 +85,7 @@ class LinkCore:
     counts: Counter[str] = field(default_factory=Counter)
     rtcm_callback: RtcmCallback | None = None
     ws: ClientConnection | None = None
+    bucket: TokenBucket | None = None
     sessions: int = 0
 
 
@@ -70,8 +102,14 @@ class Conversation:
         welcome_timeout: float,
         batch: int,
         window: int,
+        max_rate: float,
+        burst: float,
     ):
-        """Talk over `ws`; `heartbeat_s` None means the interval the server's welcome names."""
+        """Talk over `ws`; `heartbeat_s` None means the interval the server's welcome names.
+
+        Sends are paced to `max_rate` per second (bursts of `burst`): the server rejects,
+        and never stores, what exceeds its per-socket rate limit.
+        """
         self.core = core
         self.ws = ws
         self.hello = hello
@@ -79,6 +117,7 @@ class Conversation:
         self.welcome_timeout = welcome_timeout
         self.batch = batch
         self.window = window
+        self.bucket = TokenBucket(max_rate, burst)
         self.acked_seq = 0  # applied to the outbox
         self.ack_target = 0  # highest ack received, applied by the acker
         self.sent_seq = 0
@@ -97,6 +136,7 @@ class Conversation:
                 coro.close()  # never started when the session did not open
             self.core.connected.clear()
             self.core.ws = None
+            self.core.bucket = None
 
     async def _run(self, alongside: tuple[Coroutine[Any, Any, None], ...]) -> None:
         core, ws = self.core, self.ws
@@ -112,6 +152,7 @@ class Conversation:
             log.warning("reporting %d dropped messages to the server", reported)
         log.info("welcomed: the server has seq %d; %d queued to send", last, backlog)
         core.ws = ws
+        core.bucket = self.bucket
         core.sessions += 1
         core.connected.set()
         core.wake.set()
@@ -157,6 +198,7 @@ class Conversation:
                 continue
             for entry in pending:
                 # Before the send: its ack may be handled while the send still drains.
+                await self.bucket.acquire()
                 self.sent_seq = entry.seq
                 await self.ws.send(entry.text)
                 core.counts["sent"] += 1
@@ -178,6 +220,7 @@ class Conversation:
         if isinstance(msg, DecodeError):
             core.counts["bad"] += 1
             log.warning("bad message from the server: %s: %s", msg.code, msg.message)
+            await self.bucket.acquire()
             await self.ws.send(encode(envelope(msg.to_payload())))
         elif isinstance(msg, Ack):
             seq = min(msg.payload.seq, self.sent_seq)

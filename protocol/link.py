@@ -104,6 +104,8 @@ class Link:
         connect_timeout: float = 10.0,
         batch: int = 256,
         window: int = 4096,
+        max_rate: float = 150.0,
+        burst: float = 300.0,
         force_login: bool = False,
         command_memory_s: float = 7 * 86400,
         seed: int | None = None,
@@ -112,6 +114,8 @@ class Link:
 
         `heartbeat_s` overrides the server's ping interval (a pong missing for that long
         closes the connection); `window` bounds messages sent and not yet acked;
+        `max_rate`/`burst` pace every send and must stay under the server's per-socket
+        limit (ws_rate_per_s 200 / ws_burst 400 by default), since it drops the excess;
         `command_memory_s` is how long finished command ids are remembered.
         """
         self.server_url = server_url
@@ -127,6 +131,8 @@ class Link:
         self.connect_timeout = connect_timeout
         self.batch = batch
         self.window = window
+        self.max_rate = max_rate
+        self.burst = burst
         self.force_login = force_login
         self.command_memory_s = command_memory_s
         self._rng = random.Random(seed)
@@ -260,11 +266,12 @@ class Link:
     async def send_rtcm(self, frame: bytes) -> bool:
         """Send one RTCM3 frame now if connected (corrections are not queued); False if not."""
         core = self._require_core()
-        ws = core.ws
-        if ws is None or not core.connected.is_set():
+        ws, bucket = core.ws, core.bucket
+        if ws is None or bucket is None or not core.connected.is_set():
             core.counts["rtcm_dropped"] += 1
             return False
         try:
+            await bucket.acquire()
             await ws.send(encode(envelope(RtcmPayload.from_frame(frame))))
         except ConnectionClosed:
             core.counts["rtcm_dropped"] += 1
@@ -383,6 +390,8 @@ class Link:
             welcome_timeout=self.connect_timeout,
             batch=self.batch,
             window=self.window,
+            max_rate=self.max_rate,
+            burst=self.burst,
         )
         try:
             await conversation.run(self._renewer())

@@ -14,6 +14,7 @@ import pytest
 from protocol import rtcm
 from protocol import telemetry as t
 from protocol.auth import parse_expiry
+from protocol.conversation import TokenBucket
 from protocol.link import Link, backoff_delay, renew_at, ws_url
 from protocol.messages import EventPayload
 from protocol.outbox import Outbox, Token
@@ -84,3 +85,31 @@ async def test_offline_link_queues_durably_and_keeps_its_stream(tmp_path: Path) 
     box = Outbox(state)
     assert box.dropped_unreported() == 3
     assert [e.type for e in box.take(10)] == ["telemetry"] * 4 + ["event"]
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_token_bucket_allows_a_burst_then_paces_to_the_rate() -> None:
+    clock = FakeClock()
+    bucket = TokenBucket(rate=150, burst=300, clock=clock)
+    assert all(bucket.delay() == 0 for _ in range(300))
+    wait = bucket.delay()
+    assert wait == pytest.approx(1 / 150)
+    clock.now += 1.0
+    assert sum(1 for _ in range(1000) if bucket.delay() == 0) == 150
+    clock.now += 1000.0
+    assert sum(1 for _ in range(1000) if bucket.delay() == 0) == 300  # never above the burst
+
+
+def test_link_pacing_stays_under_the_servers_default_limit() -> None:
+    """Over any span t, the link sends at most burst + rate*t, the server accepts 400 + 200*t."""
+    link = Link("http://127.0.0.1:1", "uav-1", "secret", "unused.sqlite")
+    assert link.burst <= 400 and link.max_rate <= 200
+    with pytest.raises(ValueError):
+        TokenBucket(rate=0, burst=10)
