@@ -28,6 +28,7 @@ from server.realtime.hub import Hub
 from server.realtime.ingest import Ingest
 from server.telemetry.endpoints import router as telemetry_router
 from server.telemetry.sql import SqlTelemetryStore
+from server.telemetry.store import retention_loop
 
 log = logging.getLogger(__name__)
 VERSION = "0.1.0"
@@ -67,10 +68,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.state.hub = Hub(app.state.broker, app.state.sessionmaker)
         await app.state.hub.start()
         app.state.session_end_listeners.append(app.state.hub.sessions_ended)
+        retention = asyncio.create_task(retention_loop(app.state.telemetry, settings.telemetry_retention_days))
         log.info("server started", extra={"database": engine.url.render_as_string(hide_password=True)})
         try:
             yield
         finally:
+            retention.cancel()
             await app.state.hub.stop()
             await app.state.ingest.stop()
             await app.state.telemetry.close()

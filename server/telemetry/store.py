@@ -72,3 +72,23 @@ def flatten(payload: Mapping[str, Any], prefix: str = "") -> dict[str, Scalar]:
         elif isinstance(value, bool | int | float | str):
             out[name] = value
     return out
+
+
+async def retention_loop(store: TelemetryStore, keep_days: float, every_s: float = 3600.0) -> None:
+    """Delete samples older than `keep_days`, now and then every `every_s` seconds."""
+    import asyncio
+    import logging
+    from datetime import UTC, timedelta
+    from datetime import datetime as _dt
+
+    log = logging.getLogger(__name__)
+    while True:
+        try:
+            removed = await store.prune(_dt.now(UTC) - timedelta(days=keep_days))
+            if removed:
+                log.info("telemetry retention removed %d samples older than %.1f days", removed, keep_days)
+        except asyncio.CancelledError:
+            raise
+        except Exception:
+            log.exception("telemetry retention failed")
+        await asyncio.sleep(every_s)
