@@ -61,7 +61,7 @@ def diff_events(prev: Snapshot | None, new: Snapshot) -> list[Event]:
         out.append(Event(EventKind.PLC_LINK_RESTORED, "PLC link restored"))
     if not new.link_up or new.plc is None:
         return out
-    p = prev.plc if prev is not None and prev.link_up else None
+    p = prev.plc if prev is not None else None  # last known, also across an outage
     s = new.plc
     old_bits = int(p.fault_bits) if p is not None else 0
     raised, cleared = int(s.fault_bits) & ~old_bits, old_bits & ~int(s.fault_bits)
