@@ -75,6 +75,8 @@ class CopterConfig:
     arm_min_battery_pct: float = 30.0  # BATT_ARM_MAH as a percentage
     failsafe_battery_pct: float = 15.0  # BATT_LOW as a percentage -> RTL
     guided_timeout_s: float = 3.0  # GUID_TIMEOUT for velocity targets
+    mission_resend_s: float = 1.0  # re-request a missing mission item (wall seconds)
+    mission_timeout_s: float = 8.0  # cancel an upload after this much silence (wall seconds)
     pad_radius_m: float = 0.6  # landing inside this radius puts the mass on the scale
     contacts_tolerance_m: float = 0.05  # charging contacts seat inside this radius
     dynamics: DynamicsParams = field(default_factory=DynamicsParams)
@@ -352,7 +354,8 @@ class Copter:
         ):
             self._upload_action(self.upload.on_count_again(self.wall))
             return
-        self.upload = ms.Upload(msg.count, self.wall)
+        cfg = self.config
+        self.upload = ms.Upload(msg.count, self.wall, cfg.mission_resend_s, cfg.mission_timeout_s)
         self.upload_link = link
         self._upload_action(self.upload.start())
 

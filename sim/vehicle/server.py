@@ -92,12 +92,14 @@ class VehicleServer:
         udp_port: int = 0,
         wind_ne: WindFn = _no_wind,
         step_s: float = 0.01,
+        own_loop: bool = True,
     ) -> None:
         self.copter = copter
         self.clock = clock
         self.host = host
         self.wind_ne = wind_ne
         self.step_s = step_s
+        self.own_loop = own_loop  # False: the world calls `step(dt_sim)` from its loop
         self.streams = StreamScheduler(time.monotonic())
         copter.streams = self.streams
         self._want_tcp, self._want_udp = tcp_port, udp_port
@@ -125,7 +127,8 @@ class VehicleServer:
         self.udp_port = transport.get_extra_info("sockname")[1]
         self._tcp_server = await asyncio.start_server(self._tcp_client, self.host, self._want_tcp)
         self.tcp_port = self._tcp_server.sockets[0].getsockname()[1]
-        self._task = asyncio.create_task(self._run(), name="sim-vehicle")
+        if self.own_loop:
+            self._task = asyncio.create_task(self._run(), name="sim-vehicle")
         log.info("simulated autopilot: MAVLink TCP %s, UDP %s", self.tcp_port, self.udp_port)
 
     async def close(self) -> None:
@@ -196,19 +199,20 @@ class VehicleServer:
         last_sim = self.clock.now()
         while True:
             await asyncio.sleep(self.step_s)
+            now_sim = self.clock.now()
             try:
-                self._step(last_sim)
+                self.step(now_sim - last_sim)
             except Exception:
                 log.exception("simulation step failed")
-            last_sim = self.clock.now()
+            last_sim = now_sim
 
-    def _step(self, last_sim: float) -> None:
-        now_sim, wall = self.clock.now(), time.monotonic()
-        dt = now_sim - last_sim
-        n = max(1, math.ceil(dt / MAX_SUBSTEP_S))
-        for i in range(n):
-            t = last_sim + dt * (i + 1) / n
-            self.copter.tick(dt / n, wall, self.wind_ne(t))
+    def step(self, dt_sim: float) -> None:
+        """Advance the vehicle `dt_sim` simulated seconds (in small sub-steps), send due streams."""
+        wall = time.monotonic()
+        n = max(1, math.ceil(dt_sim / MAX_SUBSTEP_S))
+        for _ in range(n):
+            t = self.copter.t + dt_sim / n
+            self.copter.tick(dt_sim / n, wall, self.wind_ne(t))
         for msg_id in self.streams.due(wall):
             self.copter.send(build(self.copter, msg_id))
         self._flush()

@@ -1,0 +1,211 @@
+"""The simulated autopilot seen by a raw MAVLink peer (pymavlink over UDP/TCP), its control routes and its place in the world."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import AsyncIterator
+from typing import Any
+
+import httpx
+import pytest
+from fastapi import FastAPI
+from pymavlink import mavutil
+
+from sim.vehicle.control import vehicle_router
+from sim.vehicle.copter import CopterConfig
+from sim.vehicle.part import VehiclePart
+from sim.vehicle.server import VehicleServer, run_vehicle
+from sim.world import World, WorldConfig
+
+
+class Peer:
+    """A raw pymavlink peer; blocking reads run in a thread."""
+
+    def __init__(self, url: str) -> None:
+        self.conn = mavutil.mavlink_connection(url, source_system=255, dialect="ardupilotmega")
+
+    async def recv(self, kind: str, within: float = 5.0, **match: Any) -> Any:
+        """The next `kind` message whose fields equal `match`, or fail after `within` s."""
+        deadline = time.monotonic() + within
+
+        def read() -> Any:
+            while time.monotonic() < deadline:
+                msg = self.conn.recv_match(type=kind, blocking=True, timeout=0.2)
+                if msg is not None and all(getattr(msg, k) == v for k, v in match.items()):
+                    return msg
+            return None
+
+        msg = await asyncio.to_thread(read)
+        assert msg is not None, f"no {kind} {match} within {within} s"
+        return msg
+
+    async def ack_and_text(self, command: int) -> tuple[Any, str]:
+        """The COMMAND_ACK for `command` and the STATUSTEXT sent just before it."""
+        text = ""
+
+        def read() -> Any:
+            nonlocal text
+            deadline = time.monotonic() + 5
+            while time.monotonic() < deadline:
+                msg = self.conn.recv_match(
+                    type=["COMMAND_ACK", "STATUSTEXT"], blocking=True, timeout=0.2
+                )
+                if msg is None:
+                    continue
+                if msg.get_type() == "STATUSTEXT":
+                    text = msg.text
+                elif msg.command == command:
+                    return msg
+            return None
+
+        ack = await asyncio.to_thread(read)
+        assert ack is not None, f"no COMMAND_ACK for {command}"
+        return ack, text
+
+    async def count(self, kinds: tuple[str, ...], until: str, n: int) -> dict[str, int]:
+        """Count messages of `kinds` until `n` messages of type `until` have arrived."""
+        counts = dict.fromkeys((*kinds, until), 0)
+
+        def read() -> None:
+            deadline = time.monotonic() + 15
+            while counts[until] < n and time.monotonic() < deadline:
+                msg = self.conn.recv_match(type=[*kinds, until], blocking=True, timeout=0.2)
+                if msg is not None:
+                    counts[msg.get_type()] += 1
+
+        await asyncio.to_thread(read)
+        assert counts[until] >= n
+        return counts
+
+    def close(self) -> None:
+        """Close the connection."""
+        self.conn.close()
+
+
+@pytest.fixture
+async def sim() -> AsyncIterator[VehicleServer]:
+    """A vehicle at 10x on free ports (mission upload cancelled after 3 s of silence, not 8)."""
+    config = CopterConfig(seed=3, mission_timeout_s=3.0)
+    async with run_vehicle(speed=10.0, config=config) as server:
+        yield server
+
+
+@pytest.fixture
+async def peer(sim: VehicleServer) -> AsyncIterator[Peer]:
+    """A raw peer on the vehicle's UDP port that has announced itself."""
+    p = Peer(f"udpout:127.0.0.1:{sim.udp_port}")
+    p.conn.mav.heartbeat_send(6, 8, 0, 0, 0)
+    await p.recv("HEARTBEAT")
+    yield p
+    p.close()
+
+
+async def test_identity_and_mode_numbers(peer: Peer) -> None:
+    hb = await peer.recv("HEARTBEAT")
+    assert (hb.type, hb.autopilot, hb.custom_mode) == (
+        2,
+        3,
+        0,
+    )  # QUADROTOR, ARDUPILOTMEGA, STABILIZE
+    assert hb.get_srcSystem() == 1 and hb.get_srcComponent() == 1
+    peer.conn.mav.set_mode_send(1, 1, 5)  # SET_MODE LOITER
+    assert (await peer.recv("COMMAND_ACK", command=11)).result == 0
+    await peer.recv("HEARTBEAT", custom_mode=5)
+    peer.conn.mav.command_long_send(1, 1, 176, 0, 1, 99, 0, 0, 0, 0, 0)  # unknown mode number
+    assert (await peer.recv("COMMAND_ACK", command=176)).result == 4  # FAILED
+    peer.conn.mav.command_int_send(1, 1, 0, 42, 0, 0, 0, 0, 0, 0, 0, 0, 0)  # unknown command
+    assert (await peer.recv("COMMAND_ACK", command=42)).result == 3  # UNSUPPORTED
+
+
+async def test_request_data_stream_and_request_message(peer: Peer) -> None:
+    peer.conn.mav.request_data_stream_send(1, 1, 6, 0, 0)  # stop POSITION
+    await peer.recv("HEARTBEAT")  # let in-flight messages pass
+    counts = await peer.count(("GLOBAL_POSITION_INT",), "HEARTBEAT", 2)
+    assert counts["GLOBAL_POSITION_INT"] <= 1
+    peer.conn.mav.request_data_stream_send(1, 1, 6, 20, 1)  # POSITION at 20 Hz
+    await peer.recv("GLOBAL_POSITION_INT")
+    peer.conn.mav.command_long_send(1, 1, 512, 0, 242, 0, 0, 0, 0, 0, 0)  # REQUEST_MESSAGE HOME
+    assert (await peer.recv("COMMAND_ACK", command=512)).result == 0
+    home = await peer.recv("HOME_POSITION")
+    assert (home.latitude, home.longitude) == (411780000, -85960000)
+
+
+async def test_mission_download_starts_with_home_and_clear_all(peer: Peer) -> None:
+    peer.conn.mav.mission_request_list_send(1, 1, 0)
+    assert (await peer.recv("MISSION_COUNT")).count == 1
+    peer.conn.mav.mission_request_int_send(1, 1, 0, 0)
+    home = await peer.recv("MISSION_ITEM_INT", seq=0)
+    assert (home.x, home.y, home.command) == (411780000, -85960000, 16)
+    peer.conn.mav.mission_request_int_send(1, 1, 5, 0)
+    assert (await peer.recv("MISSION_ACK")).type == 13  # INVALID_SEQUENCE
+    peer.conn.mav.mission_clear_all_send(1, 1, 0)
+    assert (await peer.recv("MISSION_ACK")).type == 0
+
+
+async def test_autopilot_re_requests_then_cancels_an_abandoned_upload(peer: Peer) -> None:
+    peer.conn.mav.mission_count_send(1, 1, 3, 0)
+    assert (await peer.recv("MISSION_REQUEST_INT")).seq == 0
+    again = await peer.recv("MISSION_REQUEST_INT", within=3)  # re-requested after 1 s of silence
+    assert again.seq == 0
+    ack = await peer.recv("MISSION_ACK", within=8)
+    assert ack.type == 15  # MAV_MISSION_OPERATION_CANCELLED after the upload timeout
+
+
+async def test_tcp_clients_get_streams_and_replies(sim: VehicleServer) -> None:
+    p = Peer(f"tcp:127.0.0.1:{sim.tcp_port}")
+    try:
+        await p.recv("HEARTBEAT")
+        p.conn.mav.command_long_send(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
+        assert (await p.recv("COMMAND_ACK", command=400)).result == 0
+        await p.recv("HEARTBEAT", base_mode=1 | 16 | 128)
+    finally:
+        p.close()
+
+
+async def test_control_routes_truth_and_faults(sim: VehicleServer, peer: Peer) -> None:
+    app = FastAPI()
+    app.include_router(vehicle_router(sim))
+    async with httpx.AsyncClient(
+        transport=httpx.ASGITransport(app=app), base_url="http://sim"
+    ) as http:
+        truth = (await http.get("/vehicle/truth")).json()
+        assert truth["landed"] is True and truth["distance_to_pad_m"] == 0.0
+        assert truth["gnss"]["fix_type"] == 3
+        r = await http.post("/vehicle/faults/prearm", json={"reason": "Injected failure"})
+        assert r.json()["prearm_failure"] == "Injected failure"
+        peer.conn.mav.command_long_send(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
+        ack, text = await peer.ack_and_text(400)
+        assert (ack.result, text) == (4, "PreArm: Injected failure")
+        assert (await http.post("/vehicle/battery", json={"percent": 42})).json()[
+            "battery_pct"
+        ] == 42
+        assert (await peer.recv("SYS_STATUS", battery_remaining=42)).battery_remaining == 42
+        assert (await http.post("/vehicle/faults/mute", json={"seconds": 30})).json()["muted"]
+        assert sim.muted()
+        assert (await http.post("/vehicle/battery", json={"percent": 142})).status_code == 422
+        cleared = (await http.post("/vehicle/faults/clear")).json()
+        assert cleared == {
+            "prearm_failure": None, "muted": False, "mute_remaining_s": 0.0,
+            "drop_mission": False, "no_gnss_fix": False,
+        }  # fmt: skip
+        await peer.recv("HEARTBEAT")
+
+
+async def test_vehicle_in_the_world_sits_on_the_closed_base() -> None:
+    world = World(WorldConfig.for_tests(speed=20.0, seed=5))
+    world.add_part(VehiclePart())
+    async with world:
+        assert world.base.pad_mass_g > 0 and world.base.contacts_seated
+        peer = Peer(f"udpout:127.0.0.1:{world.ports['mavlink_udp']}")
+        try:
+            peer.conn.mav.heartbeat_send(6, 8, 0, 0, 0)
+            await peer.recv("HEARTBEAT")
+            peer.conn.mav.command_long_send(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
+            ack, text = await peer.ack_and_text(400)
+            assert (ack.result, text) == (4, "PreArm: Base closed")
+        finally:
+            peer.close()
+        async with httpx.AsyncClient(base_url=f"http://127.0.0.1:{world.ports['control']}") as http:
+            truth = (await http.get("/vehicle/truth")).json()
+        assert truth["landed"] and truth["ports"]["mavlink_tcp"] == world.ports["mavlink_tcp"]

@@ -1,0 +1,158 @@
+"""Pure parts of the simulated autopilot: dynamics, GNSS/RTK model, precision landing, mission upload."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+from sim.vehicle import mission as ms
+from sim.vehicle.dynamics import Dynamics, DynamicsParams, Phase
+from sim.vehicle.geo import GeoOrigin
+from sim.vehicle.gnss import FIX_3D, FIX_RTK_FIXED, FIX_RTK_FLOAT, GnssModel
+from sim.vehicle.precland import MAV_FRAME_BODY_FRD, PrecisionLanding, TargetReading
+
+
+def fly(dyn: Dynamics, seconds: float, dt: float = 0.05, wind=(0.0, 0.0)) -> list:
+    states = []
+    for _ in range(round(seconds / dt)):
+        states.append(dyn.step(dt, wind))
+    return states
+
+
+def test_position_target_reached_and_held_within_limits() -> None:
+    p = DynamicsParams(max_speed_h=8.0, max_accel=2.0)
+    dyn = Dynamics(p)
+    dyn.motors_on = True
+    dyn.set_position_target((50.0, -20.0, -10.0))
+    states = fly(dyn, 40)
+    n, e, d = dyn.state.position
+    assert math.dist((n, e, d), (50.0, -20.0, -10.0)) < 0.05
+    assert max(math.hypot(s.velocity[0], s.velocity[1]) for s in states) <= 8.0 + 1e-9
+    assert min(s.velocity[2] for s in states) >= -p.max_speed_up - 1e-9
+    accel = max(math.dist(a.velocity, b.velocity) / 0.05 for a, b in itertools.pairwise(states))
+    assert accel <= p.max_accel * math.sqrt(3) + 1e-6
+    assert not dyn.state.landed
+
+
+def test_velocity_target_wind_and_landing() -> None:
+    dyn = Dynamics()
+    dyn.motors_on = True
+    dyn.set_velocity_target((0.0, 0.0, -2.0))
+    fly(dyn, 5)
+    assert dyn.state.altitude > 5 and not dyn.state.landed
+    dyn.hold()
+    east0 = dyn.state.position[1]
+    fly(dyn, 2, wind=(0.0, 10.0))
+    assert dyn.state.position[1] > east0  # wind leaks through a little
+    dyn.set_position_target((dyn.state.position[0], dyn.state.position[1], 1.0), speed_down=1.0)
+    fly(dyn, 20)
+    assert dyn.state.landed and dyn.state.position[2] == 0.0 and dyn.state.velocity == (0, 0, 0)
+
+
+def test_battery_drains_faster_in_flight_than_on_the_ground() -> None:
+    ground = Dynamics()
+    ground.motors_on = True
+    fly(ground, 60)
+    air = Dynamics()
+    air.motors_on = True
+    air.set_velocity_target((8.0, 0.0, -0.5))
+    fly(air, 60)
+    assert air.state.phase in (Phase.CRUISE, Phase.CLIMB)
+    assert 100 - air.state.battery_pct > 5 * (100 - ground.state.battery_pct)
+    assert ground.state.voltage > air.state.voltage
+
+
+def test_geo_round_trip() -> None:
+    o = GeoOrigin(41.178, -8.596, 120.0)
+    lat, lon, alt = o.to_geodetic(100.0, -50.0, -20.0)
+    assert alt == 140.0
+    n, e, d = o.to_ned(lat, lon, alt)
+    assert (round(n, 6), round(e, 6), round(d, 6)) == (100.0, -50.0, -20.0)
+
+
+def test_gnss_rtk_float_then_fixed_then_back_to_3d() -> None:
+    g = GnssModel(seed=1)
+    assert g.fix_type(0.0) == FIX_3D
+    assert g.reading(0.0).h_acc_m > 0.5
+    for i in range(10):
+        g.correction(i * 0.5, valid=True)
+        if i == 0:
+            assert g.fix_type(0.0) == FIX_RTK_FLOAT
+    assert g.fix_type(4.5) == FIX_RTK_FIXED
+    r = g.step(0.1, 4.5)
+    assert max(abs(x) for x in r.error_ned[:2]) < 0.1 and r.satellites > 14
+    assert g.fix_type(4.5 + 3.1) == FIX_3D  # corrections stopped more than 3 s ago
+
+
+def test_gnss_bad_frames_do_not_help() -> None:
+    g = GnssModel(seed=1)
+    for i in range(10):
+        g.correction(i * 0.1, valid=False)
+    assert g.fix_type(1.0) == FIX_3D and g.bad_frames == 10
+
+
+def test_gnss_error_is_a_bounded_random_walk() -> None:
+    g = GnssModel(seed=3)
+    errs = [g.step(0.1, 0.0).error_ned[0] for _ in range(20000)]
+    assert 0.3 < max(abs(e) for e in errs) < 6.0
+    assert max(abs(a - b) for a, b in itertools.pairwise(errs)) < 0.05
+
+
+def test_precland_frames_angles_and_timeouts() -> None:
+    pl = PrecisionLanding()
+    level = (0.0, 0.0, 0.0)
+    assert "Frame not supported" in (pl.handle(TargetReading(1), 0.0, (0, 0), 10, level) or "")
+    assert pl.handle(TargetReading(MAV_FRAME_BODY_FRD, position_valid=True), 0.0, (0, 0), 10, level)
+    # 45 degrees right of nadir at 10 m, vehicle facing north: target 10 m east
+    assert (
+        pl.handle(TargetReading(MAV_FRAME_BODY_FRD, angle_x=math.pi / 4), 0.0, (0, 0), 10, level)
+        is None
+    )
+    n, e = pl.target_ne(0.5) or (None, None)
+    assert abs(n) < 1e-9 and abs(e - 10.0) < 1e-9
+    # facing east, a position 3 m forward at distance 5: direction only, scaled by height
+    pos = TargetReading(12, distance=5.0, x=3.0, y=0.0, z=4.0, position_valid=True)
+    assert pl.handle(pos, 1.0, (0, 0), 8, (0.0, 0.0, math.pi / 2)) is None
+    n, e = pl.target_ne(1.5) or (None, None)
+    assert abs(n) < 1e-9 and abs(e - 6.0) < 1e-9
+    assert pl.fresh(1.9) and not pl.fresh(2.1)
+    assert pl.target_ne(2.9) is not None and pl.target_ne(3.1) is None and pl.lost(3.1)
+
+
+def test_mission_item_validation() -> None:
+    wp = ms.Item(1, 6, ms.NAV_WAYPOINT, x=411780000, y=-85960000, z=20)
+    assert ms.validate(wp) == ms.ACCEPTED
+    assert ms.validate(ms.Item(1, 6, 183)) == ms.UNSUPPORTED
+    assert ms.validate(ms.Item(1, 1, ms.NAV_WAYPOINT)) == ms.UNSUPPORTED_FRAME
+    assert ms.validate(ms.Item(1, 6, ms.NAV_WAYPOINT, x=int(91e7))) == ms.INVALID_PARAM5_X
+    assert ms.validate(ms.Item(1, 6, ms.NAV_WAYPOINT, y=int(-181e7))) == ms.INVALID_PARAM6_Y
+    assert ms.validate(ms.Item(1, 6, ms.NAV_WAYPOINT, z=20000)) == ms.INVALID_PARAM7
+    assert ms.validate(ms.Item(1, 6, ms.NAV_LOITER_TIME, param1=-1)) == ms.INVALID_PARAM1
+    assert ms.validate(ms.Item(1, 2, ms.DO_CHANGE_SPEED, param2=0)) == ms.INVALID_PARAM2
+    assert ms.validate(ms.Item(1, 2, ms.NAV_RETURN_TO_LAUNCH)) == ms.ACCEPTED
+    assert ms.validate(ms.Item(1, 3, ms.NAV_TAKEOFF, param4=math.nan, z=10)) == ms.ACCEPTED
+
+
+def test_upload_state_machine_requests_resends_and_cancels() -> None:
+    up = ms.Upload(3, now=0.0)
+    assert up.start() == ("request", 0)
+    assert up.on_item(ms.Item(0, 0, 16), 0.1) == ("request", 1)
+    assert up.on_item(ms.Item(0, 0, 16), 0.2) is None  # duplicate ignored
+    assert up.on_item(ms.Item(2, 3, 16), 0.2) == ("request", 1)  # out of order
+    assert up.update(0.5) is None
+    assert up.update(1.3) == ("request", 1)  # re-request after 1 s
+    assert up.update(9.0) == ("ack", ms.OPERATION_CANCELLED)  # 8 s of silence
+    assert up.done
+
+
+def test_upload_rejects_bad_item_and_too_many() -> None:
+    up = ms.Upload(2, now=0.0)
+    up.start()
+    up.on_item(ms.Item(0, 0, 16), 0.0)
+    assert up.on_item(ms.Item(1, 6, 16, x=int(95e7)), 0.0) == ("ack", ms.INVALID_PARAM5_X)
+    assert ms.Upload(ms.MAX_ITEMS + 1, 0.0).start() == ("ack", ms.NO_SPACE)
+    ok = ms.Upload(2, 0.0)
+    ok.start()
+    ok.on_item(ms.Item(0, 0, 16), 0.0)
+    assert ok.on_item(ms.Item(1, 3, 22, z=10), 0.0) == ("ack", ms.ACCEPTED)
+    assert ms.starts_with_takeoff([ms.Item(0, 0, 16), *ok.items[1:]])
