@@ -26,6 +26,8 @@ from server.realtime.broker import make_broker
 from server.realtime.endpoints import router as realtime_router
 from server.realtime.hub import Hub
 from server.realtime.ingest import Ingest
+from server.stations.ntrip import ntrip_router
+from server.stations.service import BaseCorrections, caster_authenticator
 from server.telemetry.endpoints import router as telemetry_router
 from server.telemetry.sql import SqlTelemetryStore
 from server.telemetry.store import retention_loop
@@ -93,4 +95,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     for router in (health_router, auth_router, organizations_router, assets_router, audit_router,
                    commands_router, telemetry_router, realtime_router):
         app.include_router(router)
+    # NTRIP is its own protocol (basic auth, gnss/* content types): served beside the REST API
+    app.include_router(ntrip_router(BaseCorrections(app.state), caster_authenticator(app.state, settings)),
+                       include_in_schema=False)
     return app

@@ -20,11 +20,13 @@ from protocol.messages import (
     CommandPayload,
     ErrorPayload,
     Hello,
+    RtcmPayload,
     Subscribe,
     Unsubscribe,
     WelcomePayload,
     envelope,
 )
+from server.assets.models import Asset
 from server.assets.repository import AssetRepository
 from server.commands import service as commands
 from server.deps import principal_of
@@ -114,6 +116,17 @@ async def asset_socket(ws: WebSocket) -> None:
     tasks: list[asyncio.Task[Any]] = []
     nudge = lambda _m: wake.set()  # noqa: E731
     broker.subscribe(f"cmd.{asset_id}", nudge)
+    # a UAV bound to a landing base receives that base's RTK corrections
+    async with app.state.sessionmaker() as db:
+        asset = await db.get(Asset, asset_id)
+    rtcm_channel = f"rtcm.{asset.base_id}" if asset is not None and asset.base_id else None
+
+    def forward_rtcm(message: dict[str, Any]) -> None:
+        if sender.send_text(encode(envelope(RtcmPayload(data=message["data"])))):
+            hub.counters.rtcm_forwarded += 1
+
+    if rtcm_channel:
+        broker.subscribe(rtcm_channel, forward_rtcm)
     try:
         raw = await asyncio.wait_for(ws.receive_text(), 15)
         hello = decode(raw, "asset_to_server")
@@ -145,6 +158,8 @@ async def asset_socket(ws: WebSocket) -> None:
         for t in tasks:
             t.cancel()
         broker.unsubscribe(f"cmd.{asset_id}", nudge)
+        if rtcm_channel:
+            broker.unsubscribe(rtcm_channel, forward_rtcm)
         hub.unregister_closer(principal.session_id, sender.close)
         with contextlib.suppress(Exception):
             await broker.release(key, owner)

@@ -59,6 +59,7 @@ class Counters:
     malformed: int = 0
     rate_limited: int = 0
     operator_dropped: int = 0
+    rtcm_forwarded: int = 0
 
 
 class Hub:

@@ -1,0 +1,69 @@
+"""The RTK chain through the real server: simulated GNSS receiver -> base-station RTCM reader ->
+base link -> server -> (a) the UAV bound to that base, (b) a third-party NTRIP client on the caster."""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import queue
+import time
+
+from pygnssutils import GNSSNTRIPClient
+
+from base_station.rtk import RtkConfig, RtkReader
+from protocol.configfile import decrypt_config
+from protocol.link import Link
+from protocol.rtcm import frame_ok, message_type
+from sim.clock import SimClock
+from sim.gnss.receiver import running_receiver
+from tests.conftest import Tenant
+
+
+def _cfg(asset: dict):  # type: ignore[no-untyped-def]
+    return decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
+
+
+async def _until(predicate, limit_s: float = 20.0, what: str = "condition") -> None:  # type: ignore[no-untyped-def]
+    deadline = time.monotonic() + limit_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        await asyncio.sleep(0.02)
+
+
+async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(live_server, tenant: Tenant, tmp_path):
+    base = tenant.create_asset("landing_base")
+    uav = tenant.create_asset("uav", base_id=base["id"])
+    bcfg, ucfg = _cfg(base), _cfg(uav)
+    base_link = Link(live_server.url, bcfg.name, bcfg.secret, tmp_path / "base.db", agent="base_station", seed=1)
+    uav_link = Link(live_server.url, ucfg.name, ucfg.secret, tmp_path / "uav.db", seed=2)
+    at_uav: list[bytes] = []
+    uav_link.on_rtcm(at_uav.append)
+    await base_link.start()
+    await uav_link.start()
+    ntrip_out: queue.Queue = queue.Queue()
+    client = None
+    try:
+        await base_link.wait_connected(15)
+        await uav_link.wait_connected(15)
+        async with running_receiver(clock=SimClock(5.0)) as receiver:
+            reader = RtkReader(RtkConfig(source=f"tcp://127.0.0.1:{receiver.port}"), on_frame=base_link.send_rtcm)
+            reader.start()
+            try:
+                await _until(lambda: len(at_uav) >= 8, what="corrections at the UAV")
+                client = GNSSNTRIPClient(retries=0, timeout=5, verbosity=0)
+                client.run(server="127.0.0.1", port=live_server.port, mountpoint=f"ntrip/{base['name']}",
+                           ntripuser=tenant.emails["viewer"], ntrippassword=Tenant.PASSWORD, version="2.0",
+                           output=ntrip_out)
+                await _until(lambda: ntrip_out.qsize() >= 8, what="corrections at the NTRIP client")
+            finally:
+                await reader.stop()
+    finally:
+        if client is not None:
+            client.stop()
+        await uav_link.stop()
+        await base_link.stop()
+    assert all(frame_ok(f) for f in at_uav)
+    assert {message_type(f) for f in at_uav} >= {1005, 1077, 1097}
+    pulled = [ntrip_out.get_nowait()[0] for _ in range(ntrip_out.qsize())]
+    assert pulled and all(frame_ok(f) for f in pulled)
