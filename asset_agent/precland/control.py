@@ -122,6 +122,8 @@ def cone_setpoint(
         vd = 0.0
     elif math.hypot(n, e) <= allowed:
         vd = cfg.kp_z * a  # setpoint on the pad: altitude 0
+    elif a < cfg.slow_height and cfg.final_inside_cone_only:
+        vd = 0.0  # never finish the slow final stretch off-centre: wait to be inside the cone
     else:
         vd = cfg.kp_z * min(allowed, a)  # setpoint a - AllowedPosError(a)
     vd = min(vd, cfg.max_descent)

@@ -189,9 +189,20 @@ class PadRenderer:
             mx, my = self._distortion_maps(margin)
             img = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         if fx.noise_sigma > 0:
-            noise = self._rng.normal(0.0, fx.noise_sigma, img.shape)
-            img = np.clip(img.astype(np.float32) + noise, 0, 255).astype(np.uint8)
+            bank = self._noise_bank(img.shape)
+            img = cv2.add(img, bank[int(self._rng.integers(len(bank)))], dtype=cv2.CV_8U)
         return img
+
+    def _noise_bank(self, shape) -> list[np.ndarray]:
+        """A few seeded Gaussian noise frames, drawn from at random (fast per-frame noise)."""
+        key = (shape, self.effects.noise_sigma)
+        if getattr(self, "_bank_key", None) != key:
+            sigma = self.effects.noise_sigma
+            self._bank = [
+                np.round(self._rng.normal(0.0, sigma, shape)).astype(np.int16) for _ in range(6)
+            ]
+            self._bank_key = key
+        return self._bank
 
     def _glare(self, shape, margin: int) -> np.ndarray:
         if self._glare_img is None or self._glare_img.shape != shape:
