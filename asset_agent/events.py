@@ -42,6 +42,10 @@ def _event(kind: str, **detail: Any) -> Event:
     return Event(kind, MappingProxyType(detail))
 
 
+def _flying(s: UavState) -> bool:
+    return s.armed and s.in_air
+
+
 def derive_events(prev: UavState, cur: UavState, limits: EventLimits | None = None) -> list[Event]:
     """The events implied by going from `prev` to `cur`, in a stable order."""
     limits = limits or EventLimits()
@@ -52,12 +56,14 @@ def derive_events(prev: UavState, cur: UavState, limits: EventLimits | None = No
         out.append(_event("autopilot_lost"))
     if not prev.armed and cur.armed:
         out.append(_event("armed", mode=cur.mode))
-    took_off = not prev.in_air and cur.in_air and cur.landed_state != "LANDING"
-    if took_off:
+    # HEARTBEAT (armed) and EXTENDED_SYS_STATE (landed state) arrive independently, so the
+    # flight phases combine both: airborne means armed and in the air; a disarm while the
+    # landed state still says "in the air" is a landing whose ON_GROUND report is late.
+    if not _flying(prev) and _flying(cur) and cur.landed_state != "LANDING":
         out.append(_event("took_off", mode=cur.mode))
     if prev.landed_state != "LANDING" and cur.landed_state == "LANDING":
         out.append(_event("landing", mode=cur.mode))
-    if prev.in_air and cur.landed_state == "ON_GROUND":
+    if _flying(prev) and (cur.landed_state == "ON_GROUND" or not cur.armed):
         out.append(_event("landed", lat=cur.lat, lon=cur.lon))
     if prev.mission_state != "COMPLETE" and cur.mission_state == "COMPLETE":
         out.append(_event("mission_finished", total=cur.mission_total))

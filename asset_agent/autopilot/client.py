@@ -126,10 +126,15 @@ class Autopilot:
 
     # --- incoming --------------------------------------------------------------------------
     def _on_message(self, msg: Any) -> None:
-        if msg.get_srcSystem() != self.config.target_system:
+        # only the autopilot itself: a gimbal, camera or another companion on the same
+        # system id must not overwrite its mode, armed state or mission progress
+        if (msg.get_srcSystem(), msg.get_srcComponent()) != (
+            self.config.target_system,
+            self.config.target_component,
+        ):
             return
         kind = msg.get_type()
-        if kind == "HEARTBEAT" and msg.get_srcComponent() == self.config.target_component:
+        if kind == "HEARTBEAT":
             self._last_heartbeat = time.monotonic()
             if not self.state.link_up:
                 self._link_changed(True)

@@ -10,7 +10,8 @@ from collections.abc import AsyncIterator
 import pytest
 
 from asset_agent.autopilot import Autopilot, CommandRejected, items_from_dicts
-from asset_agent.autopilot.state import Notification
+from asset_agent.autopilot.state import Notification, UavState
+from asset_agent.events import EventTracker
 from protocol.rtcm import build_frame
 from sim.vehicle.geo import GeoOrigin
 from sim.vehicle.server import VehicleServer
@@ -73,6 +74,15 @@ async def test_fly_mission_rtl_and_land_on_the_pad(
         {"command": 20, "frame": 2, "params": [0, 0, 0, 0], "lat": 0, "lon": 0, "alt": 0},
     ]
     notes = autopilot.subscribe()
+    tracker = EventTracker()
+    events: list[str] = []
+
+    async def watch() -> None:
+        while True:
+            events.extend(e.kind for e in tracker.update(autopilot.state))
+            await asyncio.sleep(0.01)
+
+    watcher = asyncio.create_task(watch())
     async with corrections(autopilot):
         await wait_for(lambda: autopilot.state.fix_type == 6, 15, "RTK fixed")
         await autopilot.upload_mission(items_from_dicts(mission))
@@ -85,7 +95,8 @@ async def test_fly_mission_rtl_and_land_on_the_pad(
         await wait_for(lambda: not autopilot.state.armed, 60, "landed and disarmed")
     truth = vehicle.copter.dyn.state
     assert truth.landed
-    reached = [n.index for n in drain(notes) if n.kind == "item_reached"]
+    notifications = drain(notes)
+    reached = [n.index for n in notifications if n.kind == "item_reached"]
     assert reached[:4] == [0, 2, 3, 4]  # takeoff, two waypoints, RTL (change speed is not nav)
     dist = vehicle.copter.pad_distance()
     sigma = vehicle.copter.gnss.params.sigma_fixed_m
@@ -95,6 +106,14 @@ async def test_fly_mission_rtl_and_land_on_the_pad(
     await wait_for(lambda: autopilot.state.landed_state == "ON_GROUND", 5, "ON_GROUND")
     assert autopilot.state.mission_state == "COMPLETE"
     assert autopilot.state.battery_pct is not None and autopilot.state.battery_pct < 100
+    await wait_for(lambda: "mission_finished" in events, 5, "mission_finished event")
+    watcher.cancel()
+    for kind in ("armed", "took_off", "landing", "landed", "mission_finished", "disarmed"):
+        assert events.count(kind) == 1, (kind, events)
+    assert events.index("armed") < events.index("took_off") < events.index("landing")
+    assert events.index("landing") < events.index("landed") <= events.index("disarmed")
+    waypoint_events = [e for n in notifications for e in tracker.notification(n)]
+    assert [e.detail["index"] for e in waypoint_events][:4] == [0, 2, 3, 4]
 
 
 async def test_guided_takeoff_velocity_and_abort_over_tcp(vehicle: VehicleServer) -> None:
@@ -120,6 +139,9 @@ async def test_guided_takeoff_velocity_and_abort_over_tcp(vehicle: VehicleServer
         await wait_for(lambda: ap.state.mode == "RTL", 5, "RTL")
         await wait_for(lambda: not ap.state.armed, 60, "landed and disarmed")
         assert await ap.abort() == "disarmed"
+        # without corrections the landing is only as good as a 3D fix
+        sigma = vehicle.copter.gnss.params.sigma_3d_m
+        assert vehicle.copter.pad_distance() <= 4 * sigma
     finally:
         await ap.close()
 
@@ -292,3 +314,26 @@ async def test_set_message_interval_is_honoured(
     await autopilot.set_message_interval(30, 10.0)
     with autopilot.tap(lambda m: m.get_type() == "ATTITUDE") as q:
         await asyncio.wait_for(q.get(), 5)
+
+
+async def test_battery_failsafe_returns_home(autopilot: Autopilot, vehicle: VehicleServer) -> None:
+    tracker = EventTracker()
+    tracker.update(autopilot.state)
+    await autopilot.set_mode("GUIDED")
+    await autopilot.arm()
+    await autopilot.takeoff(5)
+    await wait_for(lambda: autopilot.state.in_air and autopilot.state.armed, 10, "flying")
+    events = [e.kind for e in tracker.update(autopilot.state)]
+    vehicle.copter.dyn.set_battery(14.0)
+    await wait_for(
+        lambda: autopilot.state.mode == "RTL" and autopilot.state.failsafe, 10, "failsafe RTL"
+    )
+    await wait_for(
+        lambda: autopilot.state.battery_pct is not None and autopilot.state.battery_pct < 15, 5
+    )
+    events += [e.kind for e in tracker.update(autopilot.state)]
+    assert {"armed", "took_off", "failsafe", "low_battery"} <= set(events)
+    assert "Battery Failsafe" in autopilot.statustexts
+    await wait_for(lambda: not autopilot.state.armed, 60, "landed at home")
+    assert vehicle.copter.pad_distance() <= 4 * vehicle.copter.gnss.params.sigma_3d_m
+    assert isinstance(tracker.prev, UavState)

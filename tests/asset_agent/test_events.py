@@ -57,3 +57,15 @@ def test_waypoint_reached_from_notification() -> None:
     events = events_from_notification(Notification("item_reached", index=3))
     assert [(e.kind, e.detail["index"]) for e in events] == [("waypoint_reached", 3)]
     assert events_from_notification(Notification("statustext", "hello")) == []
+
+
+def test_out_of_order_streams_keep_the_logical_order() -> None:
+    # EXTENDED_SYS_STATE says TAKEOFF before the HEARTBEAT says armed
+    climbing = replace(GROUND, landed_state="TAKEOFF")
+    assert kinds(GROUND, climbing) == []
+    assert kinds(climbing, replace(climbing, armed=True)) == ["armed", "took_off"]
+    # the HEARTBEAT says disarmed before EXTENDED_SYS_STATE says ON_GROUND
+    landing = replace(GROUND, armed=True, landed_state="LANDING")
+    disarmed = replace(landing, armed=False)
+    assert kinds(landing, disarmed) == ["landed", "disarmed"]
+    assert kinds(disarmed, replace(disarmed, landed_state="ON_GROUND")) == []
