@@ -111,9 +111,9 @@ class FusionConfig(_Model):
 class FaultConfig(_Model):
     """Fault injection for one source; all zero / None disables it."""
 
-    r_drop: float = Field(0.0, ge=0.0, le=1.0)
-    p_keep: float = Field(0.0, ge=0.0)
-    p_drop: float = Field(0.0, ge=0.0)
+    r_drop: float = Field(default=0.0, ge=0.0, le=1.0)
+    p_keep: float = Field(default=0.0, ge=0.0)
+    p_drop: float = Field(default=0.0, ge=0.0)
     fail_below_m: float | None = None
     fail_above_m: float | None = None
 
@@ -150,7 +150,7 @@ class ControlConfig(_Model):
     heading_offset_deg: float = 0.0  # vehicle yaw - pad yaw when seated on the contacts
     touchdown_height: float = 0.25  # camera height above the pad when seated on the contacts
     land_margin: float = 0.02  # hand over to the autopilot's landing this close to touchdown
-    landing_target_rate_hz: float = Field(20.0, ge=10.0)
+    landing_target_rate_hz: float = Field(default=20.0, ge=10.0)
 
 
 class RetryConfig(_Model):

@@ -150,3 +150,16 @@ class IrReceiver(asyncio.DatagramProtocol):
         """Release the socket."""
         if self._transport:
             self._transport.close()
+
+
+async def frames_forever(host: str, port: int, retry_s: float = 1.0) -> AsyncIterator[Frame]:
+    """Frames from the camera, reconnecting (after `retry_s`) when the stream ends, breaks or
+    sends something malformed — logged, never raised."""
+    while True:
+        try:
+            async for frame in stream_frames(host, port):
+                yield frame
+            log.warning("camera stream %s:%d ended; reconnecting", host, port)
+        except (OSError, TransportError, asyncio.IncompleteReadError) as err:
+            log.warning("camera stream %s:%d failed (%s); reconnecting", host, port, err)
+        await asyncio.sleep(retry_s)

@@ -24,6 +24,7 @@ import logging
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -67,12 +68,16 @@ def encode_frame(seq: int, capture_ts: float, image: np.ndarray, jpeg_quality: i
     )
 
 
-class _Clock:
+class _Clock(Protocol):
     """The part of sim.clock.SimClock the server needs."""
 
-    def now(self) -> float: ...  # pragma: no cover
+    def now(self) -> float:
+        """Simulated seconds."""
+        ...
 
-    async def sleep(self, sim_seconds: float) -> None: ...  # pragma: no cover
+    async def sleep(self, sim_seconds: float) -> None:
+        """Sleep in simulated seconds."""
+        ...
 
 
 class CameraServer:
@@ -170,10 +175,12 @@ class _Slot:
         self._ready = asyncio.Event()
 
     def offer(self, data: bytes) -> None:
+        """Replace the waiting frame with a newer one."""
         self._data = data
         self._ready.set()
 
     async def take(self) -> bytes:
+        """Wait for a frame and take it."""
         await self._ready.wait()
         self._ready.clear()
         data, self._data = self._data, None

@@ -11,6 +11,7 @@ from asset_agent.precland.config import CameraModel, PadGeometry
 from asset_agent.precland.detect import PadDetector
 from sim.camera import pad as sim_pad
 from sim.camera.render import CameraEffects, CameraIntrinsics, Glare, PadRenderer, project_ground
+from sim.ir import IrSensorConfig
 
 # bounds per element (metres, degrees), stated as a + b * height
 BOUNDS = {
@@ -76,6 +77,7 @@ def test_pad_geometry_agrees_with_what_the_simulator_renders():
     for name in ("P1", "P2", "P3", "P4", "P5", "P6"):
         assert np.allclose(ours[name], theirs[name])
     assert np.allclose(pad.aruco_corners(), sim_pad.aruco_corners())
+    assert tuple(pad.beacon_xy) == IrSensorConfig().beacon_xy
     cam, intr = CameraModel(), CameraIntrinsics()
     assert (cam.fx, cam.fy, cam.cx, cam.cy) == (intr.fx, intr.fy, intr.cx, intr.cy)
     # and the rendered colours sit where the agent's geometry says: P1/P5 white, others red

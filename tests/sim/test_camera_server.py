@@ -99,3 +99,30 @@ async def test_jpeg_encoding_and_a_late_subscriber():
         await wait_for(lambda: server.frames_sent >= 4)
     finally:
         await server.stop()
+
+
+async def test_the_client_survives_a_malformed_stream_and_reconnects():
+    from asset_agent.precland.transport import frames_forever
+
+    served = []
+
+    async def bad_then_good(reader, writer):
+        if not served:
+            writer.write(b"NOPE" + bytes(24))  # a malformed header
+        else:
+            writer.write(encode_frame(5, 1.25, np.zeros((2, 3, 3), np.uint8)))
+        served.append(1)
+        await writer.drain()
+        writer.close()
+
+    server = await asyncio.start_server(bad_then_good, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    try:
+        stream = frames_forever("127.0.0.1", port, retry_s=0.01)
+        frame = await asyncio.wait_for(anext(stream), 10.0)
+        await stream.aclose()
+    finally:
+        server.close()
+        await server.wait_closed()
+    assert (frame.seq, frame.capture_ts, frame.image.shape) == (5, 1.25, (2, 3, 3))
+    assert len(served) >= 2
