@@ -157,3 +157,13 @@ def test_degraded_images_exposure_glare_blur_noise_distortion():
         assert got, (h, pose)
         for element in got:
             check(element, pose)
+
+
+@pytest.mark.parametrize("exposure", [0.4, 2.0])
+def test_under_and_over_exposure(detector, exposure):
+    renderer = PadRenderer(effects=CameraEffects(exposure=exposure, noise_sigma=3, blur_px=2))
+    for h, element in ((0.5, "aruco"), (1.5, "pattern"), (1.5, "aruco"), (5.0, "pattern")):
+        pose = (0.1, 0.05, h, 0.05, 0.02, 0.4)
+        found = getattr(detector.detect(renderer.render(pose), pose[3], pose[4]), element)
+        assert found is not None, (exposure, h, element)
+        check(found, pose)
