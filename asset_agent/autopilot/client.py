@@ -22,14 +22,15 @@ import logging
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import Any
 
 from asset_agent.autopilot import mission, translate
 from asset_agent.autopilot.errors import AutopilotTimeout, CommandRejected, LinkLost
 from asset_agent.autopilot.items import MissionItem
 from asset_agent.autopilot.link import MavlinkLink
+from asset_agent.autopilot.setpoints import SetpointsMixin
 from asset_agent.autopilot.state import MODE_NUMBERS, Notification, UavState
-from protocol.rtcm import mavlink_fragments
 
 log = logging.getLogger(__name__)
 
@@ -70,7 +71,7 @@ class AutopilotConfig:
     streams: dict[int, float] = field(default_factory=lambda: dict(DEFAULT_STREAMS))
 
 
-class Autopilot:
+class Autopilot(SetpointsMixin):
     """One autopilot over MAVLink, as seen from the companion computer."""
 
     def __init__(self, config: AutopilotConfig | None = None) -> None:
@@ -239,11 +240,7 @@ class Autopilot:
         async with self._command_lock:
             with self.tap(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command) as acks:
                 for confirmation in range(retries + 1):
-                    self._link.send(
-                        lambda mav, c=confirmation: mav.command_long_send(
-                            cfg.target_system, cfg.target_component, command, c, *p
-                        )
-                    )
+                    self._link.send(partial(self._command_long, command, confirmation, p))
                     deadline = time.monotonic() + timeout
                     while (left := deadline - time.monotonic()) > 0:
                         try:
@@ -259,6 +256,10 @@ class Autopilot:
                     if not self.state.link_up:
                         raise LinkLost(f"autopilot link lost while waiting for command {command}")
         raise AutopilotTimeout(f"no COMMAND_ACK for command {command} after {retries + 1} tries")
+
+    def _command_long(self, command: int, confirmation: int, p: list[float], mav: Any) -> None:
+        cfg = self.config
+        mav.command_long_send(cfg.target_system, cfg.target_component, command, confirmation, *p)
 
     def _recent_reason(self) -> str:
         """The autopilot's latest PreArm/failure text, to explain a rejection."""
@@ -333,70 +334,6 @@ class Autopilot:
             return "rtl"
         await self.disarm()
         return "disarmed"
-
-    def inject_rtcm(self, frame: bytes) -> int:
-        """Send one RTCM3 frame as GPS_RTCM_DATA fragments; returns the fragment count."""
-        fragments = mavlink_fragments(frame, self._rtcm_seq)
-        self._rtcm_seq = (self._rtcm_seq + 1) % 32
-        for flags, data in fragments:
-            padded = data + bytes(180 - len(data))
-            self._link.send(
-                lambda mav, f=flags, d=data, p=padded: mav.gps_rtcm_data_send(f, len(d), p)
-            )
-        return len(fragments)
-
-    def send_landing_target(
-        self,
-        angle_x: float,
-        angle_y: float,
-        distance: float = 0.0,
-        frame: int = 12,
-        position: tuple[float, float, float] | None = None,
-    ) -> None:
-        """LANDING_TARGET (default MAV_FRAME_BODY_FRD); `position` sets position_valid."""
-        x, y, z = position or (0.0, 0.0, 0.0)
-        usec = int(time.time() * 1e6)
-        self._link.send(
-            lambda mav: mav.landing_target_send(
-                usec, 0, frame, angle_x, angle_y, distance, 0, 0, x, y, z, [1, 0, 0, 0], 2,
-                int(position is not None),
-            )
-        )  # fmt: skip
-
-    def send_velocity_ned(self, vn: float, ve: float, vd: float) -> None:
-        """SET_POSITION_TARGET_LOCAL_NED with a velocity only (GUIDED)."""
-        cfg = self.config
-        mask = 0b0000_1101_1100_0111  # ignore position, acceleration, yaw, yaw rate
-        self._link.send(
-            lambda mav: mav.set_position_target_local_ned_send(
-                0,
-                cfg.target_system,
-                cfg.target_component,
-                1,
-                mask,
-                0,
-                0,
-                0,
-                vn,
-                ve,
-                vd,
-                0,
-                0,
-                0,
-                0,
-                0,
-            )
-        )
-
-    def send_position_ned(self, n: float, e: float, d: float) -> None:
-        """SET_POSITION_TARGET_LOCAL_NED with a position from home (GUIDED)."""
-        cfg = self.config
-        mask = 0b0000_1101_1111_1000  # ignore velocity, acceleration, yaw, yaw rate
-        self._link.send(
-            lambda mav: mav.set_position_target_local_ned_send(
-                0, cfg.target_system, cfg.target_component, 1, mask, n, e, d, 0, 0, 0, 0, 0, 0, 0, 0
-            )
-        )
 
     # --- missions (see mission.py) ---------------------------------------------------------
     async def upload_mission(self, items: list[MissionItem], verify: bool = True) -> None:

@@ -40,6 +40,7 @@ from sim.vehicle.dynamics import Dynamics, DynamicsParams
 from sim.vehicle.geo import GeoOrigin
 from sim.vehicle.gnss import FIX_3D, GnssModel, GnssParams, GnssReading
 from sim.vehicle.guidance import Guidance
+from sim.vehicle.mission_link import MissionProtocolMixin
 from sim.vehicle.precland import PrecisionLanding, TargetReading
 
 
@@ -96,7 +97,7 @@ class Faults:
         return wall < self.mute_until
 
 
-class Copter:
+class Copter(MissionProtocolMixin):
     """One ArduPilot-Copter-like vehicle on its base."""
 
     def __init__(self, base: Base, config: CopterConfig | None = None) -> None:
@@ -338,84 +339,6 @@ class Copter:
             self.gnss.correction(self.wall, True)
         if not good:
             self.gnss.correction(self.wall, False)
-
-    # --- mission protocol ------------------------------------------------------------------
-    def _on_mission_count(self, msg: Any, link: Any) -> None:
-        if getattr(msg, "mission_type", 0) != 0:
-            self.send(
-                mavlink.MAVLink_mission_ack_message(255, 0, ms.UNSUPPORTED, msg.mission_type), link
-            )
-            return
-        if (
-            self.upload is not None
-            and not self.upload.done
-            and self.upload.count == msg.count
-            and link is self.upload_link
-        ):
-            self._upload_action(self.upload.on_count_again(self.wall))
-            return
-        cfg = self.config
-        self.upload = ms.Upload(msg.count, self.wall, cfg.mission_resend_s, cfg.mission_timeout_s)
-        self.upload_link = link
-        self._upload_action(self.upload.start())
-
-    def _on_mission_item_int(self, msg: Any, link: Any) -> None:
-        if self.upload is None or self.upload.done:
-            return
-        item = ms.Item(
-            msg.seq, msg.frame, msg.command, msg.param1, msg.param2, msg.param3, msg.param4,
-            msg.x, msg.y, msg.z, msg.autocontinue,
-        )  # fmt: skip
-        action = self.upload.on_item(item, self.wall)
-        if action:
-            self._upload_action(action)
-
-    def _upload_action(self, action: tuple[str, int]) -> None:
-        kind, value = action
-        if kind == "request":
-            self.send(mavlink.MAVLink_mission_request_int_message(255, 0, value), self.upload_link)
-            return
-        self.send(mavlink.MAVLink_mission_ack_message(255, 0, value), self.upload_link)
-        if value == ms.ACCEPTED and self.upload is not None:
-            self.items = [self.home_item(), *self.upload.items[1:]]
-            self.mission_current = min(self.mission_current, len(self.items) - 1)
-            self.text(INFO, f"Flight plan received ({len(self.items)} items)")
-
-    def _on_mission_request_list(self, msg: Any, link: Any) -> None:
-        self.send(mavlink.MAVLink_mission_count_message(255, 0, len(self.items)), link)
-
-    def _on_mission_request_int(self, msg: Any, link: Any) -> None:
-        if not 0 <= msg.seq < len(self.items):
-            self.send(mavlink.MAVLink_mission_ack_message(255, 0, ms.INVALID_SEQUENCE), link)
-            return
-        it = self.home_item() if msg.seq == 0 else self.items[msg.seq]
-        self.send(
-            mavlink.MAVLink_mission_item_int_message(
-                255, 0, it.seq, it.frame, it.command, int(it.seq == self.mission_current),
-                it.autocontinue, it.param1, it.param2, it.param3, it.param4, it.x, it.y, it.z,
-            ),
-            link,
-        )  # fmt: skip
-
-    _on_mission_request = _on_mission_request_int
-
-    def _on_mission_ack(self, msg: Any, link: Any) -> None:
-        """The ground's ack closing a download: nothing to do."""
-
-    def _on_mission_clear_all(self, msg: Any, link: Any) -> None:
-        self.items = [self.home_item()]
-        self.mission_current = 0
-        self.guidance.mission_cleared()
-        self.send(mavlink.MAVLink_mission_ack_message(255, 0, ms.ACCEPTED), link)
-
-    def _on_mission_set_current(self, msg: Any, link: Any) -> None:
-        if 0 < msg.seq < len(self.items):
-            self.mission_current = msg.seq
-            if self.mode == AUTO and self.armed:
-                self.guidance.start_item(msg.seq)
-        self.send(
-            mavlink.MAVLink_mission_current_message(self.mission_current, len(self.items)), link
-        )
 
     def _on_request_data_stream(self, msg: Any, link: Any) -> None:
         if self.streams is not None:
