@@ -1,0 +1,341 @@
+"""Our side of the telemetry benchmark: one `aerobase server` process, set up through the public API.
+
+The server runs as a subprocess with its own SQLite file (or DATABASE_URL) and the in-process
+broker. A superuser comes from `aerobase admin create-superuser` on the same database; the
+organisation, one viewer per operator and the UAV assets are created over HTTP; assets log in with
+the secret of their encrypted configuration file and speak `/ws/asset`; operators watch every asset
+over `/ws/operator`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import contextlib
+import json
+import os
+import resource
+import socket
+import subprocess
+import sys
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import httpx
+from websockets.asyncio.client import ClientConnection, connect
+
+from bench._load import Payloads, Recorder, drain, figures, pace
+from protocol.codec import MAX_MESSAGE_BYTES, encode
+from protocol.configfile import decrypt_config
+from protocol.messages import HelloPayload, envelope
+
+ROOT = Path(__file__).resolve().parents[1]
+SUPER_PASSWORD = "bench-superuser-password-1"
+USER_PASSWORD = "bench-viewer-password-1"
+ASSET_PASSWORD = "bench-asset-password-1"
+
+Progress = Callable[[str], None]
+
+
+def free_port() -> int:
+    """A TCP port free right now on 127.0.0.1."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def raise_fd_limit() -> int:
+    """Raise this process's open-file limit to its hard limit (children inherit it)."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft < hard:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard))
+    return resource.getrlimit(resource.RLIMIT_NOFILE)[0]
+
+
+@dataclass
+class Server:
+    """A running `aerobase server` subprocess."""
+
+    proc: subprocess.Popen
+    url: str
+    database_url: str
+    log_path: Path
+
+    @property
+    def pid(self) -> int:
+        """The server's process id."""
+        return self.proc.pid
+
+    def stop(self) -> None:
+        """Terminate the server (SIGTERM, then SIGKILL after 15 s)."""
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(15)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5)
+
+
+def server_env(database_url: str, port: int) -> dict[str, str]:
+    """The environment of the benchmark's server: fast set-up, no throttling of the load."""
+    return {
+        **os.environ,
+        "DATABASE_URL": database_url,
+        "AEROBASE_PORT": str(port),
+        "AEROBASE_CONFIG_SCRYPT_LOG_N": "12",
+        "AEROBASE_WS_RATE_PER_S": "1000000",
+        "AEROBASE_WS_BURST": "1000000",
+        "AEROBASE_LOGIN_MAX_FAILURES_ADDRESS": "100000",
+        "AEROBASE_ARGON2_MEMORY_KIB": "8192",
+        "AEROBASE_ARGON2_TIME_COST": "1",
+        "AEROBASE_ARGON2_PARALLELISM": "1",
+        "AEROBASE_LOG_FORMAT": "json",
+        "PYTHONPATH": str(ROOT),
+    }
+
+
+def start_server(tmp: Path, superuser: str, progress: Progress) -> Server:
+    """Create the superuser on the database, start `aerobase server`, wait for /api/health."""
+    database_url = os.environ.get("DATABASE_URL") or f"sqlite+aiosqlite:///{tmp}/bench.db"
+    port = free_port()
+    env = server_env(database_url, port)
+    cli = [sys.executable, "-m", "aerobase.cli"]
+    progress(f"creating the superuser on {database_url.split('@')[-1]}")
+    done = subprocess.run(
+        [*cli, "admin", "create-superuser", "--email", superuser, "--password", SUPER_PASSWORD],
+        env=env,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    if done.returncode != 0:
+        raise RuntimeError(f"aerobase admin create-superuser failed: {done.stderr.strip()[-500:]}")
+    log_path = tmp / "server.log"
+    log = open(log_path, "wb")
+    proc = subprocess.Popen(
+        [*cli, "server", "--port", str(port)],
+        env=env,
+        cwd=ROOT,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
+    server = Server(proc, f"http://127.0.0.1:{port}", database_url, log_path)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise RuntimeError(f"aerobase server exited with {proc.returncode}; see {log_path}")
+        with contextlib.suppress(httpx.HTTPError):
+            if httpx.get(f"{server.url}/api/health", timeout=1).status_code == 200:
+                progress(f"aerobase server pid {proc.pid} is up on {server.url}")
+                return server
+        time.sleep(0.1)
+    server.stop()
+    raise RuntimeError("aerobase server did not answer /api/health within 60 s")
+
+
+@dataclass
+class Fleet:
+    """What set-up produced: asset ids, names and secrets, and one viewer token per operator."""
+
+    asset_ids: list[str]
+    names: list[str]
+    secrets: list[str]
+    viewer_tokens: list[str]
+
+
+def _ok(r: httpx.Response, expected: int = 200) -> dict:
+    if r.status_code != expected:
+        raise RuntimeError(
+            f"{r.request.method} {r.request.url.path} answered {r.status_code}: {r.text[:300]}"
+        )
+    return dict(r.json())
+
+
+async def set_up(
+    url: str, superuser: str, assets: int, operators: int, progress: Progress
+) -> Fleet:
+    """Organisation, viewers and UAV assets through the public API."""
+    async with httpx.AsyncClient(base_url=url, timeout=120) as api:
+        login = {"email": superuser, "password": SUPER_PASSWORD, "force": True}
+        root = _ok(await api.post("/api/v1/auth/login", json=login))["access_token"]
+        org = _ok(
+            await api.post(
+                "/api/v1/organizations",
+                json={"name": f"bench-{uuid.uuid4().hex[:8]}"},
+                headers={"Authorization": f"Bearer {root}"},
+            ),
+            201,
+        )
+        root = _ok(
+            await api.post("/api/v1/auth/login", json={**login, "organization_id": org["id"]})
+        )["access_token"]
+        h = {"Authorization": f"Bearer {root}"}
+        tokens = []
+        for k in range(operators):
+            email = f"viewer-{k}-{uuid.uuid4().hex[:6]}@bench.test"
+            _ok(
+                await api.post(
+                    "/api/v1/users",
+                    json={"email": email, "password": USER_PASSWORD, "role": "viewer"},
+                    headers=h,
+                ),
+                201,
+            )
+            tokens.append(
+                _ok(
+                    await api.post(
+                        "/api/v1/auth/login", json={"email": email, "password": USER_PASSWORD}
+                    )
+                )["access_token"]
+            )
+        ids, names, secrets = [""] * assets, [""] * assets, [""] * assets
+        tag, counter, lock = uuid.uuid4().hex[:6], iter(range(assets)), asyncio.Lock()
+        registered = 0
+
+        async def worker() -> None:
+            nonlocal registered
+            for i in counter:
+                body = {
+                    "name": f"bench-uav-{tag}-{i:05d}",
+                    "kind": "uav",
+                    "password": ASSET_PASSWORD,
+                    "description": "telemetry benchmark",
+                }
+                created = _ok(await api.post("/api/v1/assets", json=body, headers=h), 201)
+                cfg = await asyncio.to_thread(
+                    decrypt_config, base64.b64decode(created["config_file"]), ASSET_PASSWORD
+                )
+                ids[i], names[i], secrets[i] = created["id"], cfg.name, cfg.secret
+                async with lock:
+                    registered += 1
+                    if registered % 100 == 0 or registered == assets:
+                        progress(f"registered {registered}/{assets} assets")
+
+        await asyncio.gather(*(worker() for _ in range(min(8, assets))))
+        return Fleet(ids, names, secrets, tokens)
+
+
+def _ws(url: str) -> str:
+    return url.replace("http://", "ws://", 1).replace("https://", "wss://", 1)
+
+
+async def _operator(url: str, token: str, asset_ids: list[str]) -> ClientConnection:
+    """Connect a viewer to /ws/operator and subscribe to every asset; returns once subscribed."""
+    ws = await connect(
+        f"{_ws(url)}/ws/operator?token={token}",
+        max_size=MAX_MESSAGE_BYTES,
+        ping_interval=None,
+        max_queue=None,
+    )
+    subscribe = {
+        "v": 1,
+        "type": "subscribe",
+        "id": str(uuid.uuid4()),
+        "seq": 0,
+        "ts": 0,
+        "payload": {"asset_ids": asset_ids},
+    }
+    await ws.send(json.dumps(subscribe))
+    # The server handles an operator's messages in order: the error for an unknown asset id,
+    # asked for next, proves the first subscription is in place.
+    probe = str(uuid.uuid4())
+    await ws.send(
+        json.dumps({**subscribe, "id": str(uuid.uuid4()), "payload": {"asset_ids": [probe]}})
+    )
+    while True:
+        msg = json.loads(await asyncio.wait_for(ws.recv(), 120))
+        if msg["type"] == "error" and probe in msg["payload"].get("message", ""):
+            return ws
+        if msg["type"] == "error":
+            raise RuntimeError(f"subscribe failed: {msg['payload']}")
+
+
+async def _asset(url: str, name: str, secret: str, api: httpx.AsyncClient) -> ClientConnection:
+    """Log an asset in and open its /ws/asset session (hello, welcome)."""
+    token = _ok(
+        await api.post("/api/v1/assets/login", json={"name": name, "secret": secret, "force": True})
+    )
+    ws = await connect(
+        f"{_ws(url)}/ws/asset",
+        additional_headers={"Authorization": f"Bearer {token['access_token']}"},
+        max_size=MAX_MESSAGE_BYTES,
+        ping_interval=None,
+        open_timeout=60,
+        close_timeout=2,
+    )
+    await ws.send(
+        encode(envelope(HelloPayload(stream=uuid.uuid4(), agent="asset_agent", version="0.1.0")))
+    )
+    welcome = json.loads(await asyncio.wait_for(ws.recv(), 60))
+    if welcome.get("type") != "welcome" or welcome["payload"]["last_acked_seq"] != 0:
+        raise RuntimeError(f"expected welcome with last_acked_seq 0, got {welcome}")
+    return ws
+
+
+async def run_ours(
+    url: str,
+    pid: int,
+    fleet: Fleet,
+    payloads: Payloads,
+    rate: float,
+    warmup: float,
+    seconds: float,
+    progress: Progress,
+) -> dict:
+    """Operators subscribe, assets connect, the load runs; returns the figures."""
+    n, m = len(fleet.asset_ids), len(fleet.viewer_tokens)
+    index = {a: i for i, a in enumerate(fleet.asset_ids)}
+    rec = Recorder(n, m)
+    ops = [await _operator(url, token, fleet.asset_ids) for token in fleet.viewer_tokens]
+    progress(f"{m} operator(s) subscribed to {n} assets")
+    sockets: list[ClientConnection | None] = [None] * n
+    async with httpx.AsyncClient(base_url=url, timeout=120) as api:
+        sem = asyncio.Semaphore(32)
+        connected = 0
+
+        async def open_one(i: int) -> None:
+            nonlocal connected
+            async with sem:
+                sockets[i] = await _asset(url, fleet.names[i], fleet.secrets[i], api)
+            connected += 1
+            if connected % 100 == 0 or connected == n:
+                progress(f"connected {connected}/{n} assets")
+
+        await asyncio.gather(*(open_one(i) for i in range(n)))
+    ws_all = [s for s in sockets if s is not None]
+
+    async def read_acks(i: int, ws: ClientConnection) -> None:
+        with contextlib.suppress(Exception):
+            async for raw in ws:
+                if '"type":"ack"' in raw:
+                    rec.acked[i] = max(rec.acked[i], json.loads(raw)["payload"]["seq"])
+                elif '"type":"error"' in raw:
+                    rec.errors += 1
+
+    async def read_operator(k: int, ws: ClientConnection) -> None:
+        with contextlib.suppress(Exception):
+            async for raw in ws:
+                t = time.perf_counter()
+                msg = json.loads(raw)
+                if msg["type"] == "telemetry":
+                    rec.on_delivered(k, index[msg["payload"]["asset_id"]], msg["seq"], t)
+
+    readers = [asyncio.create_task(read_acks(i, ws)) for i, ws in enumerate(ws_all)]
+    readers += [asyncio.create_task(read_operator(k, ws)) for k, ws in enumerate(ops)]
+
+    def send(i: int, seq: int):  # type: ignore[no-untyped-def]
+        return ws_all[i].send(payloads.text(i, seq))
+
+    try:
+        marks = await pace(n, rate, warmup, seconds, rec, send, progress, pid)
+        drained = await drain(rec, 15.0)
+    finally:
+        for task in readers:
+            task.cancel()
+        await asyncio.gather(*(ws.close() for ws in [*ws_all, *ops]), return_exceptions=True)
+    return figures(rec, marks, drained)
