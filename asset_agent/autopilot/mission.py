@@ -18,6 +18,7 @@ from asset_agent.autopilot.errors import (
     MissionError,
 )
 from asset_agent.autopilot.items import FRAME_GLOBAL, MissionItem
+from asset_agent.autopilot.state import UavState
 
 if TYPE_CHECKING:
     from asset_agent.autopilot.client import Autopilot
@@ -27,6 +28,19 @@ log = logging.getLogger(__name__)
 MAV_MISSION_ACCEPTED = 0
 MAV_MISSION_TYPE_MISSION = 0
 HOME_PLACEHOLDER = MissionItem(command=16, frame=FRAME_GLOBAL)
+
+
+def home_item(state: UavState) -> MissionItem:
+    """Item 0: the autopilot's home when known (as Mission Planner sends it), else zeros."""
+    if state.home_lat is None or state.home_lon is None:
+        return HOME_PLACEHOLDER
+    return MissionItem(
+        command=16,
+        frame=FRAME_GLOBAL,
+        x=round(state.home_lat * 1e7),
+        y=round(state.home_lon * 1e7),
+        z=state.home_alt_msl or 0.0,
+    )
 
 
 def _result_name(code: int) -> str:
@@ -51,7 +65,7 @@ async def upload(ap: Autopilot, items: list[MissionItem], verify: bool = True) -
     """Upload `items` (home is prepended) and, with `verify`, read them back and compare."""
     ap.require_link()
     cfg = ap.config
-    full = [HOME_PLACEHOLDER, *items]
+    full = [home_item(ap.state), *items]
     kinds = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK")
 
     def send_count() -> None:

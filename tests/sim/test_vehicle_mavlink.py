@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import asyncio
+import random
+import socket
 import time
 from collections.abc import AsyncIterator
 from typing import Any
@@ -209,3 +211,25 @@ async def test_vehicle_in_the_world_sits_on_the_closed_base() -> None:
         async with httpx.AsyncClient(base_url=f"http://127.0.0.1:{world.ports['control']}") as http:
             truth = (await http.get("/vehicle/truth")).json()
         assert truth["landed"] and truth["ports"]["mavlink_tcp"] == world.ports["mavlink_tcp"]
+
+
+async def test_garbage_never_stops_the_vehicle(sim: VehicleServer, peer: Peer) -> None:
+    rng = random.Random(1)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as udp:
+        for _ in range(50):
+            udp.sendto(
+                bytes(rng.randrange(256) for _ in range(rng.randrange(1, 300))),
+                ("127.0.0.1", sim.udp_port),
+            )
+        udp.sendto(
+            b"\xfd\x09\x00\x00\x00\xff\xbe\x00\x00\x00" + bytes(20), ("127.0.0.1", sim.udp_port)
+        )
+    _reader, writer = await asyncio.open_connection("127.0.0.1", sim.tcp_port)
+    writer.write(bytes(rng.randrange(256) for _ in range(5000)))
+    await writer.drain()
+    writer.close()
+    # a message addressed to another system is ignored, not answered
+    peer.conn.mav.command_long_send(7, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
+    peer.conn.mav.command_long_send(1, 1, 400, 0, 0, 0, 0, 0, 0, 0, 0)
+    ack = await peer.recv("COMMAND_ACK", command=400)
+    assert ack.result == 0 and not sim.copter.armed

@@ -1,0 +1,1 @@
+"""Schedules: one-shot, interval and cron (with a time zone); each due time starts exactly one run."""
