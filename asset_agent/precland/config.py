@@ -75,6 +75,9 @@ class DetectorConfig(_Model):
     use_aruco: bool = True
     value_floor: int = 60  # never threshold Value below this
     value_fraction: float = 0.45  # threshold = fraction x the 99.9th percentile of Value
+    local_contrast: int = 40  # and this much above the local background (0 disables): glare
+    background_cell_px: int = 8  # the background is estimated on a grid of this cell size
+    background_kernel_cells: int = 9  # structures narrower than this many cells are foreground
     frame_hole_ratio: tuple[float, float] = (0.82, 0.97)  # inner/outer side of the frame ring
     min_frame_side_px: float = 20.0
     circle_fill_min: float = 0.72  # blob area / enclosing-circle area

@@ -90,6 +90,8 @@ class PadDetector:
         p999 = int(np.searchsorted(cdf, 0.999))
         thr = max(cfg.value_floor, int(cfg.value_fraction * p999))
         _, binary = cv2.threshold(value, thr, 255, cv2.THRESH_BINARY)
+        if cfg.local_contrast > 0:
+            binary = cv2.bitwise_and(binary, self._above_background(value))
         frame, mask = (None, None)
         if cfg.use_frame:
             frame, mask = self._masking_frame(binary, roll, pitch)
@@ -103,6 +105,22 @@ class PadDetector:
             gray = value if mask is None else cv2.bitwise_and(value, mask)
             aruco = self._aruco_pose(gray, roll, pitch)
         return Detections(frame, pattern, aruco, n)
+
+    def _above_background(self, value: np.ndarray) -> np.ndarray:
+        """Pixels brighter than the local background by `local_contrast`: the background is a
+        morphological opening on a coarse grid, so a smooth lens flare is background while the
+        reflective elements (narrower than the kernel) are not."""
+        cfg = self.config
+        h, w = value.shape
+        cell = cfg.background_cell_px
+        small = cv2.resize(
+            value, (max(1, w // cell), max(1, h // cell)), interpolation=cv2.INTER_AREA
+        )
+        k = cv2.getStructuringElement(cv2.MORPH_RECT, (cfg.background_kernel_cells,) * 2)
+        bg = cv2.morphologyEx(small, cv2.MORPH_OPEN, k)
+        bg = cv2.resize(cv2.blur(bg, (3, 3)), (w, h), interpolation=cv2.INTER_LINEAR)
+        level = cv2.add(bg, np.full_like(bg, cfg.local_contrast))
+        return cv2.compare(value, level, cv2.CMP_GT)
 
     # -- masking frame -------------------------------------------------------------------------
 

@@ -145,7 +145,7 @@ def test_pad_partly_outside_the_frame(detector, renderer):
 def test_degraded_images_exposure_glare_blur_noise_distortion():
     dist = (-0.12, 0.03, 0.0, 0.0, 0.0)
     effects = CameraEffects(
-        exposure=0.7, glare=Glare(420, 140, 60, 60), blur_px=3, blur_angle_deg=30, noise_sigma=4
+        exposure=0.6, glare=Glare(420, 140, 60, 120), blur_px=3, blur_angle_deg=30, noise_sigma=4
     )
     renderer = PadRenderer(CameraIntrinsics(dist=dist), effects, seed=1)
     detector = PadDetector(camera=CameraModel(dist=dist))
