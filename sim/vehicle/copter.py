@@ -126,6 +126,7 @@ class Copter(MissionProtocolMixin):
         self._was_landed = True
         self._blocked_told = False
         base.set_pad_load(cfg.dynamics.mass_g, True)
+        self._share_battery(self.dyn.state.battery_pct / 100.0)
 
     # --- frames ----------------------------------------------------------------------------
     def home_item(self) -> ms.Item:
@@ -259,17 +260,29 @@ class Copter(MissionProtocolMixin):
 
     def _check_landing(self) -> None:
         landed = self.dyn.state.landed
-        if landed == self._was_landed:
-            return
-        self._was_landed = landed
-        if not landed:
-            self.base.set_pad_load(0.0, False)
-            return
-        dist = self.pad_distance()
-        if dist <= self.config.pad_radius_m:
-            self.base.set_pad_load(
-                self.config.dynamics.mass_g, dist <= self.config.contacts_tolerance_m
-            )
+        if landed != self._was_landed:
+            self._was_landed = landed
+            if not landed:
+                self.base.set_pad_load(0.0, False)
+                self._share_battery(None)
+            elif self.pad_distance() <= self.config.pad_radius_m:
+                seated = self.pad_distance() <= self.config.contacts_tolerance_m
+                self.base.set_pad_load(self.config.dynamics.mass_g, seated)
+                self._share_battery(self.dyn.state.battery_pct / 100.0 if seated else None)
+        elif landed and not self.armed:
+            self._charge_from_base()
+
+    def _share_battery(self, soc: float | None) -> None:
+        """Optional base extension: tell a base with a charger what battery sits on its contacts."""
+        share = getattr(self.base, "set_uav_battery", None)
+        if callable(share):
+            share(soc)
+
+    def _charge_from_base(self) -> None:
+        """Optional base extension: follow the charger's state of charge while seated."""
+        soc = getattr(getattr(self.base, "charger", None), "uav_soc", None)
+        if isinstance(soc, float | int) and abs(soc * 100.0 - self.dyn.state.battery_pct) > 0.01:
+            self.dyn.set_battery(soc * 100.0)
 
     def _check_battery(self) -> None:
         if self.failsafe or not self.flying:

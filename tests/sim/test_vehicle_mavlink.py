@@ -19,6 +19,7 @@ from sim.vehicle.copter import CopterConfig
 from sim.vehicle.part import VehiclePart
 from sim.vehicle.server import VehicleServer, run_vehicle
 from sim.world import World, WorldConfig
+from tests.sim.conftest import wait_until
 
 
 class Peer:
@@ -199,6 +200,11 @@ async def test_vehicle_in_the_world_sits_on_the_closed_base() -> None:
     world.add_part(VehiclePart())
     async with world:
         assert world.base.pad_mass_g > 0 and world.base.contacts_seated
+        assert world.base.charger.uav_soc == 1.0  # the vehicle's battery sits on the contacts
+        world.base.set_uav_battery(0.5)  # as if the base's charger had a half-full pack
+        await wait_until(
+            lambda: abs(world.parts[0].server.copter.dyn.state.battery_pct - 50) < 0.1, 5
+        )
         peer = Peer(f"udpout:127.0.0.1:{world.ports['mavlink_udp']}")
         try:
             peer.conn.mav.heartbeat_send(6, 8, 0, 0, 0)
