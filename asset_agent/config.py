@@ -1,0 +1,60 @@
+"""The companion-computer daemon's configuration (`agent.toml`), validated at start."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class ServerSection(BaseModel):
+    """How to reach the server: the encrypted asset file and where the link keeps its state."""
+
+    model_config = ConfigDict(extra="forbid")
+    config_file: Path = Path("~/.aerobase/asset.enc")
+    password_file: Path | None = None  # else AEROBASE_ASSET_PASSWORD, else a prompt
+    state_file: Path = Path("~/.aerobase/agent-link.db")
+    url: str | None = None  # overrides the server URL written in the asset file
+    max_outbox: int = Field(default=200_000, ge=100)
+
+
+class AutopilotSection(BaseModel):
+    """The MAVLink connection to the autopilot (pymavlink URL: udpin:, udpout:, tcp:, serial device)."""
+
+    model_config = ConfigDict(extra="forbid")
+    url: str = "tcp:127.0.0.1:5760"
+    link_timeout_s: float = Field(default=3.0, gt=0)
+    command_timeout_s: float = Field(default=1.5, gt=0)
+
+
+class TelemetrySection(BaseModel):
+    """What is reported to the server and when."""
+
+    model_config = ConfigDict(extra="forbid")
+    rate_hz: float = Field(default=5.0, gt=0, le=50)
+    low_battery_pct: float = Field(default=30.0, ge=0, le=100)
+
+
+class AvailabilitySection(BaseModel):
+    """Limits of the UAV's availability check."""
+
+    model_config = ConfigDict(extra="forbid")
+    min_battery_pct: float = Field(default=80.0, ge=0, le=100)
+    min_fix_type: int = Field(default=3, ge=0, le=6)
+
+
+class AgentConfig(BaseModel):
+    """All of agent.toml."""
+
+    model_config = ConfigDict(extra="forbid")
+    server: ServerSection = ServerSection()
+    autopilot: AutopilotSection = AutopilotSection()
+    telemetry: TelemetrySection = TelemetrySection()
+    availability: AvailabilitySection = AvailabilitySection()
+
+    @classmethod
+    def load(cls, path: str | Path) -> AgentConfig:
+        """Parse and validate a TOML file."""
+        with open(path, "rb") as f:
+            return cls.model_validate(tomllib.load(f))

@@ -1,0 +1,121 @@
+"""`aerobase agent --config agent.toml`: the companion-computer daemon.
+
+setup() reads the configuration and the encrypted asset file; run() keeps the autopilot link and
+the server link, reports telemetry and events, answers commands and injects RTK corrections;
+main() is the console entry point. If the server link drops, the flight goes on: the autopilot
+flies its mission and everything the agent reports waits in the link's on-disk outbox.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import logging
+import signal
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from asset_agent.autopilot import Autopilot, AutopilotConfig
+from asset_agent.availability import AvailabilityLimits
+from asset_agent.config import AgentConfig
+from asset_agent.events import EventLimits, EventTracker
+from asset_agent.handlers import Handlers
+from asset_agent.telemetry import to_event, to_telemetry
+from protocol.configfile import AssetConfig, ConfigFileError
+from protocol.configfile_cli import PasswordSourceError, load_config
+from protocol.link import Link
+
+log = logging.getLogger("asset_agent")
+
+
+@dataclass
+class Agent:
+    """The daemon's parts, built by setup()."""
+
+    config: AgentConfig
+    asset: AssetConfig
+    autopilot: Autopilot
+    link: Link
+    tracker: EventTracker
+
+
+def setup(config: AgentConfig, asset: AssetConfig) -> Agent:
+    """Build the autopilot adapter and the server link; nothing connects yet."""
+    ap = config.autopilot
+    autopilot = Autopilot(AutopilotConfig(url=ap.url, link_timeout_s=ap.link_timeout_s,
+                                          command_timeout_s=ap.command_timeout_s))
+    link = Link(config.server.url or asset.server_url, asset.name, asset.secret,
+                config.server.state_file.expanduser(), agent="asset_agent", max_outbox=config.server.max_outbox)
+    limits = AvailabilityLimits(config.availability.min_battery_pct, config.availability.min_fix_type)
+    for name, handler in Handlers(autopilot, limits).table().items():
+        link.on_command(name, handler)
+    link.on_rtcm(autopilot.inject_rtcm)
+    tracker = EventTracker(EventLimits(low_battery_pct=config.telemetry.low_battery_pct))
+    return Agent(config, asset, autopilot, link, tracker)
+
+
+async def _report(agent: Agent, stop: asyncio.Event) -> None:
+    """Telemetry at the configured rate; events from state changes and autopilot notifications."""
+    period = 1.0 / agent.config.telemetry.rate_hz
+    notes = agent.autopilot.subscribe()
+    try:
+        while not stop.is_set():
+            state = agent.autopilot.state
+            events = agent.tracker.update(state)
+            while not notes.empty():
+                events += agent.tracker.notification(notes.get_nowait())
+            for event in events:
+                await agent.link.send_event(to_event(event))
+            if state.link_up:
+                await agent.link.send_telemetry(to_telemetry(state))
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(stop.wait(), period)
+    finally:
+        agent.autopilot.unsubscribe(notes)
+
+
+async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
+    """Run until `stop` is set (or forever)."""
+    stop = stop or asyncio.Event()
+    await agent.autopilot.start()
+    await agent.link.start()
+    log.info("agent %s running: autopilot %s, server %s", agent.asset.name, agent.config.autopilot.url,
+             agent.link.server_url)
+    try:
+        await _report(agent, stop)
+    finally:
+        await agent.link.stop()
+        await agent.autopilot.close()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of `aerobase agent`."""
+    parser = argparse.ArgumentParser(prog="aerobase agent")
+    parser.add_argument("--config", required=True, help="agent.toml")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    try:
+        config = AgentConfig.load(args.config)
+        pw = str(config.server.password_file.expanduser()) if config.server.password_file else None
+        asset = load_config(config.server.config_file.expanduser(), pw)
+    except (OSError, ValueError, ConfigFileError, PasswordSourceError) as err:
+        print(f"aerobase agent: {err}", file=sys.stderr)
+        return 1
+    if asset.kind != "uav":
+        print(f"aerobase agent: {Path(config.server.config_file)} is a {asset.kind}'s file, not a UAV's",
+              file=sys.stderr)
+        return 1
+    agent = setup(config, asset)
+
+    async def _main() -> None:
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(sig, stop.set)
+        await run(agent, stop)
+
+    asyncio.run(_main())
+    return 0
