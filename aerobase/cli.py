@@ -31,7 +31,7 @@ ROUTES: dict[tuple[str, ...], str] = {
     ("asset",): "protocol.configfile_cli:main",
     ("base-station",): "base_station.main:main",
     ("agent",): "asset_agent.main:main",
-    ("sim", "world"): "sim.world:main",
+    ("sim", "world"): "sim.assemble:main",
     ("sim", "precland-eval"): "sim.precland_eval:main",
     ("demo",): "aerobase.demo:main",
 }
