@@ -336,9 +336,17 @@ class Autopilot(SetpointsMixin):
         return "disarmed"
 
     # --- missions (see mission.py) ---------------------------------------------------------
-    async def upload_mission(self, items: list[MissionItem], verify: bool = True) -> None:
-        """Upload the mission (server list order, home added), then read it back and compare."""
-        await mission.upload(self, items, verify=verify)
+    async def upload_mission(
+        self,
+        items: list[MissionItem],
+        verify: bool = True,
+        progress: Callable[[str, int, int], None] | None = None,
+    ) -> None:
+        """Upload the mission (server list order, home added), then read it back and compare.
+
+        `progress(phase, done, total)` reports "upload" then "verify" progress.
+        """
+        await mission.upload(self, items, verify=verify, progress=progress)
 
     async def download_mission(self) -> list[MissionItem]:
         """Read the mission back (home dropped)."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from asset_agent.autopilot.errors import (
@@ -61,8 +62,16 @@ async def _await(ap: Autopilot, queue: asyncio.Queue[Any], step: str, index: int
         return None
 
 
-async def upload(ap: Autopilot, items: list[MissionItem], verify: bool = True) -> None:
-    """Upload `items` (home is prepended) and, with `verify`, read them back and compare."""
+async def upload(
+    ap: Autopilot,
+    items: list[MissionItem],
+    verify: bool = True,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> None:
+    """Upload `items` (home is prepended) and, with `verify`, read them back and compare.
+
+    `progress(phase, done, total)` is called as items go out ("upload") and come back ("verify").
+    """
     ap.require_link()
     cfg = ap.config
     full = [home_item(ap.state), *items]
@@ -123,10 +132,14 @@ async def upload(ap: Autopilot, items: list[MissionItem], verify: bool = True) -
                     raise MissionError(None, f"autopilot requested item seq {seq} of {len(full)}")
                 send_item(seq)
                 last_sent = seq
+                if progress is not None and seq > highest and seq % 10 == 0:
+                    progress("upload", seq, len(items))
                 highest = max(highest, seq)
     log.info("mission uploaded: %d items", len(items))
+    if progress is not None:
+        progress("upload", len(items), len(items))
     if verify:
-        back = await download(ap)
+        back = await download(ap, progress)
         if len(back) != len(items):
             raise MissionError(
                 None, f"verification failed: sent {len(items)} items, read back {len(back)}"
@@ -137,7 +150,9 @@ async def upload(ap: Autopilot, items: list[MissionItem], verify: bool = True) -
                 raise MissionError(i, f"verification failed: {field} differs after read-back")
 
 
-async def download(ap: Autopilot) -> list[MissionItem]:
+async def download(
+    ap: Autopilot, progress: Callable[[str, int, int], None] | None = None
+) -> list[MissionItem]:
     """Read the whole mission (MISSION_REQUEST_LIST, then each item); home is dropped."""
     ap.require_link()
     cfg = ap.config
@@ -163,6 +178,8 @@ async def download(ap: Autopilot) -> list[MissionItem]:
         with ap.tap(lambda m: m.get_type() in kinds and getattr(m, "mission_type", 0) == 0) as q:
             for seq in range(count):
                 items.append(await _download_item(ap, q, seq))
+                if progress is not None and (seq % 10 == 0 or seq == count - 1):
+                    progress("verify", seq, count - 1)
         ap.send(
             lambda mav: mav.mission_ack_send(
                 cfg.target_system, cfg.target_component, MAV_MISSION_ACCEPTED, 0

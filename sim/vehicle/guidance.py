@@ -226,6 +226,8 @@ class Guidance:
         target = c.precland.target_ne(c.t)
         if target is not None:
             tn, te = target
+            # keep landing at the last estimate if the target is lost later
+            self.goal = Goal("land", tn, te)
             if not self._target_seen:
                 c.text(INFO, "PrecLand: Target Found")
         elif self._target_seen:

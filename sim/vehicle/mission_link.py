@@ -50,13 +50,22 @@ class MissionProtocolMixin:
         ):
             self._upload_action(self.upload.on_count_again(self.wall))
             return
+        if self.upload is not None and not self.upload.done and link is not self.upload_link:
+            # as ArduPilot: one upload at a time; another link is refused
+            self.send(mavlink.MAVLink_mission_ack_message(255, 0, ms.DENIED), link)
+            return
         cfg = self.config
         self.upload = ms.Upload(msg.count, self.wall, cfg.mission_resend_s, cfg.mission_timeout_s)
         self.upload_link = link
         self._upload_action(self.upload.start())
 
+    def _on_mission_item(self, msg: Any, link: Any) -> None:
+        """The float MISSION_ITEM older ground stations send: same as the INT form."""
+        msg.x, msg.y = round(msg.x * 1e7), round(msg.y * 1e7)
+        self._on_mission_item_int(msg, link)
+
     def _on_mission_item_int(self, msg: Any, link: Any) -> None:
-        if self.upload is None or self.upload.done:
+        if self.upload is None or self.upload.done or link is not self.upload_link:
             return
         item = ms.Item(
             msg.seq, msg.frame, msg.command, msg.param1, msg.param2, msg.param3, msg.param4,

@@ -254,12 +254,10 @@ async def test_landing_target_frames(autopilot: Autopilot, vehicle: VehicleServe
     async def sensor() -> None:
         while True:
             s = copter.dyn.state
-            dn, de = target[0] - s.position[0], target[1] - s.position[1]
-            h = max(s.altitude, 0.1)
-            fwd = dn * math.cos(s.yaw) + de * math.sin(s.yaw)
-            right = -dn * math.sin(s.yaw) + de * math.cos(s.yaw)
-            # level-frame angles (LOCAL_FRD); ArduPilot: los = (-tan(angle_y), tan(angle_x), 1)
-            autopilot.send_landing_target(math.atan2(right, h), -math.atan2(fwd, h), frame=20)
+            to_target = (target[0] - s.position[0], target[1] - s.position[1], max(s.altitude, 0.1))
+            x, y, z = ned_to_body(to_target, s.roll, s.pitch, s.yaw)
+            # a camera's angles in the body frame; ArduPilot: los = (-tan(angle_y), tan(angle_x), 1)
+            autopilot.send_landing_target(math.atan2(y, z), -math.atan2(x, z), frame=12)
             await asyncio.sleep(0.02)
 
     task = asyncio.create_task(sensor())
@@ -274,6 +272,20 @@ async def test_landing_target_frames(autopilot: Autopilot, vehicle: VehicleServe
 
 
 seen: list[Notification] = []
+
+
+def ned_to_body(
+    v: tuple[float, float, float], roll: float, pitch: float, yaw: float
+) -> tuple[float, float, float]:
+    """Rotate a NED vector into the body FRD frame (the transpose of Rz(yaw) Ry(pitch) Rx(roll))."""
+    n, e, d = v
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    n, e = cy * n + sy * e, -sy * n + cy * e  # undo yaw
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    n, d = cp * n - sp * d, sp * n + cp * d  # undo pitch
+    cr, sr = math.cos(roll), math.sin(roll)
+    e, d = cr * e + sr * d, -sr * e + cr * d  # undo roll
+    return n, e, d
 
 
 def drain_into(q: asyncio.Queue[Notification], into: list[Notification]) -> list[Notification]:

@@ -37,7 +37,10 @@ def survey(n: int) -> list[dict]:
 
 async def test_upload_and_read_back_200_items(autopilot: Autopilot, vehicle: VehicleServer) -> None:
     items = items_from_dicts(survey(200))
-    await autopilot.upload_mission(items)  # verified by reading back inside
+    steps: list[tuple[str, int, int]] = []
+    await autopilot.upload_mission(items, progress=lambda *p: steps.append(p))  # verified inside
+    assert steps[-1] == ("verify", 200, 200) and ("upload", 200, 200) in steps
+    assert len(steps) > 20
     back = await autopilot.download_mission()
     assert len(back) == 200
     assert all(a.same_as(b) is None for a, b in zip(items, back, strict=True))
@@ -102,3 +105,31 @@ async def test_autopilot_silent_mid_upload_gives_a_clear_error(
     assert elapsed < (cfg.mission_retries + 2) * cfg.mission_timeout_s + cfg.link_timeout_s
     assert info.value.index is not None and 49 <= info.value.index < 200
     assert "timeout" in info.value.reason or "link lost" in info.value.reason
+
+
+async def test_a_second_link_cannot_upload_at_the_same_time(
+    autopilot: Autopilot, vehicle: VehicleServer
+) -> None:
+    import asyncio
+
+    from asset_agent.autopilot import Autopilot as Adapter
+    from tests.asset_agent.conftest import fast_config
+
+    other = Adapter(fast_config(f"tcp:127.0.0.1:{vehicle.tcp_port}"))
+    await other.start()
+    try:
+        await other.wait_link(10)
+        first = asyncio.create_task(
+            autopilot.upload_mission(items_from_dicts(survey(200)), verify=False)
+        )
+        copter = vehicle.copter
+        await wait_for(
+            lambda: copter.upload is not None and copter.upload.expected >= 5, 10, "upload"
+        )
+        with pytest.raises(MissionError) as info:
+            await other.upload_mission(items_from_dicts(survey(3)))
+        assert "MAV_MISSION_DENIED" in info.value.reason
+        await first
+        assert len(copter.items) == 201
+    finally:
+        await other.close()

@@ -5,6 +5,8 @@ from __future__ import annotations
 import itertools
 import math
 
+import pytest
+
 from sim.vehicle import mission as ms
 from sim.vehicle.dynamics import Dynamics, DynamicsParams, Phase
 from sim.vehicle.geo import GeoOrigin
@@ -116,6 +118,14 @@ def test_precland_frames_angles_and_timeouts() -> None:
     n, e = pl.target_ne(1.5) or (None, None)
     assert abs(n) < 1e-9 and abs(e - 6.0) < 1e-9
     assert pl.fresh(1.9) and not pl.fresh(2.1)
+    # LOCAL_FRD ignores roll and pitch; BODY_FRD does not
+    banked = (math.radians(20), 0.0, 0.0)
+    local = PrecisionLanding()
+    local.handle(TargetReading(20), 0.0, (0, 0), 10, banked)
+    assert local.target_ne(0.0) == (0.0, 0.0)
+    body = PrecisionLanding()
+    body.handle(TargetReading(MAV_FRAME_BODY_FRD), 0.0, (0, 0), 10, banked)
+    assert body.target_ne(0.0)[1] == pytest.approx(-10 * math.tan(math.radians(20)))
     assert pl.target_ne(2.9) is not None and pl.target_ne(3.1) is None and pl.lost(3.1)
 
 
