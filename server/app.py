@@ -21,6 +21,7 @@ from server.health import router as health_router
 from server.kit.db import make_engine, make_sessionmaker
 from server.kit.errors import RejectNulBytes, install_error_handlers
 from server.kit.security import Passwords
+from server.missions.endpoints import router as missions_router
 from server.organizations.endpoints import router as organizations_router
 from server.realtime.broker import make_broker
 from server.realtime.endpoints import router as realtime_router
@@ -93,7 +94,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(RejectNulBytes)
     install_error_handlers(app)
     for router in (health_router, auth_router, organizations_router, assets_router, audit_router,
-                   commands_router, telemetry_router, realtime_router):
+                   commands_router, telemetry_router, realtime_router, missions_router):
         app.include_router(router)
     # NTRIP is its own protocol (basic auth, gnss/* content types): served beside the REST API
     app.include_router(ntrip_router(BaseCorrections(app.state), caster_authenticator(app.state, settings)),

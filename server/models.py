@@ -5,6 +5,7 @@ from server.audit.models import AuditEvent
 from server.auth.models import AuthSession, LoginFailure
 from server.commands.models import AssetCommand, CommandStatusChange
 from server.kit.db import Base
+from server.missions.models import Mission, MissionKind
 from server.organizations.models import Membership, Organization, Role, User
 from server.telemetry.models import AssetEvent, AssetStream, TelemetrySample
 
@@ -20,6 +21,8 @@ __all__ = [
            "CommandStatusChange",
            "LoginFailure",
            "Membership",
+           "Mission",
+           "MissionKind",
            "Organization",
            "Role",
            "TelemetrySample",

@@ -76,11 +76,15 @@ class Victim:
         cmd = tenant.api.post(f"/api/v1/assets/{uav}/commands", json={"name": "check_availability"},
                               headers=tenant.h("operator"))
         assert cmd.status_code == 202, cmd.text
+        mission = tenant.api.post("/api/v1/missions", headers=tenant.h("operator"), json={
+            "name": "walk-mission", "items": [{"command": 22, "lat": 47.39, "lon": 8.54, "alt": 20}]})
+        assert mission.status_code == 201, mission.text
         self.ids = {
             "asset_id": uav,
             "command_id": cmd.json()["id"],
             "user_id": tenant.user_ids["viewer"],
             "organization_id": tenant.id,
+            "mission_id": mission.json()["id"],
         }
         self.secret_values = set(self.ids.values()) | {tenant.name}
 

@@ -1,0 +1,1 @@
+"""Missions: waypoint lists and survey areas, QGroundControl/WPL import and export, validation."""

@@ -1,0 +1,272 @@
+"""HTTP routes of missions: CRUD, QGroundControl/WPL import and export, validation."""
+
+from __future__ import annotations
+
+import json
+import uuid
+from typing import Any, Literal
+
+from fastapi import APIRouter, Query, Request, Response
+from fastapi.responses import JSONResponse
+
+from server.assets.repository import AssetRepository
+from server.audit.service import record
+from server.deps import DB, Operator, SettingsDep, Viewer, client_addr
+from server.kit.errors import AppError
+from server.kit.scope import Principal
+from server.missions import qgc, wpl
+from server.missions.models import Mission, MissionKind
+from server.missions.repository import MissionRepository
+from server.missions.schemas import (
+    MissionCreate,
+    MissionOut,
+    MissionUpdate,
+    ValidateRequest,
+    ValidationReport,
+)
+from server.missions.service import MissionService, estimate, limits_from, rejected
+from server.missions.validate import Problem
+
+router = APIRouter(tags=["missions"])
+MAX_IMPORT_BYTES = 5 * 1024 * 1024
+JSON_TYPES = {"application/json"}
+WPL_TYPES = {"text/plain", wpl.MEDIA_TYPE}
+
+
+class TooLarge(AppError):
+    """The request body is over the limit."""
+
+    status, code = 413, "too_large"
+
+
+class UnsupportedMediaType(AppError):
+    """The request body's content type is not one we read."""
+
+    status, code = 415, "unsupported_media_type"
+
+
+def _service(db: DB, principal: Principal, settings: SettingsDep) -> MissionService:
+    return MissionService(MissionRepository(db, principal), limits_from(settings))
+
+
+def _out(mission: Mission) -> MissionOut:
+    return MissionOut.model_validate(
+        {
+            "id": mission.id,
+            "organization_id": mission.organization_id,
+            "name": mission.name,
+            "description": mission.description,
+            "kind": mission.kind,
+            "source": mission.source,
+            "items": mission.items,
+            "home": mission.home,
+            "speed_mps": mission.speed_mps,
+            "survey": mission.survey,
+            "survey_plan": mission.survey_plan,
+            "extras": mission.extras or {},
+            "estimate": estimate(mission).as_dict(),
+            "created_at": mission.created_at,
+            "updated_at": mission.updated_at,
+        }
+    )
+
+
+async def _audit(
+    db: DB, request: Request, principal: Principal, action: str, mission: Mission, **details: Any
+) -> None:
+    await record(
+        db,
+        action,
+        organization_id=principal.organization_id,
+        actor_kind="user",
+        actor_id=principal.actor_id,
+        target=str(mission.id),
+        client_addr=client_addr(request),
+        **details,
+    )
+
+
+@router.get("/api/v1/missions", response_model=list[MissionOut])
+async def list_missions(
+    principal: Viewer,
+    db: DB,
+    kind: MissionKind | None = None,
+    limit: int = Query(100, ge=1, le=1000),
+    offset: int = Query(0, ge=0, le=10**9),
+) -> list[MissionOut]:
+    """Missions of the caller's organisation, oldest first."""
+    rows = await MissionRepository(db, principal).list_filtered(limit, offset, kind)
+    return [_out(m) for m in rows]
+
+
+@router.post("/api/v1/missions", status_code=201, response_model=MissionOut)
+async def create_mission(
+    body: MissionCreate, principal: Operator, request: Request, db: DB, settings: SettingsDep
+) -> MissionOut:
+    """Create a waypoints or survey mission (operators); 422 lists every problem."""
+    mission = await _service(db, principal, settings).create(
+        name=body.name,
+        description=body.description,
+        kind=body.kind,
+        items=body.items,
+        survey=body.survey,
+        home=body.home,
+        speed_mps=body.speed_mps,
+    )
+    await _audit(
+        db,
+        request,
+        principal,
+        "mission.created",
+        mission,
+        name=mission.name,
+        kind=mission.kind.value,
+    )
+    return _out(mission)
+
+
+IMPORT_BODY = {
+    "required": True,
+    "content": {
+        "application/json": {
+            "schema": {"type": "object", "description": "a QGroundControl .plan file"}
+        },
+        "text/plain": {"schema": {"type": "string", "description": "a QGC WPL 110 waypoint file"}},
+        wpl.MEDIA_TYPE: {
+            "schema": {"type": "string", "description": "a QGC WPL 110 waypoint file"}
+        },
+    },
+}
+
+
+def _read_import(body: bytes, content_type: str) -> tuple[qgc.Imported, str]:
+    """Parse an uploaded file by its content type; raises ImportRejected or an AppError."""
+    media = content_type.split(";")[0].strip().lower()
+    if media in JSON_TYPES or media.endswith("+json"):
+        try:
+            document = json.loads(body)
+        except (ValueError, RecursionError) as err:
+            raise qgc.ImportRejected(
+                [Problem("body", f"not valid JSON: {str(err)[:200]}")]
+            ) from err
+        return qgc.parse_plan(document), "qgc"
+    if media in WPL_TYPES:
+        try:
+            text = body.decode("utf-8-sig")
+        except UnicodeDecodeError as err:
+            raise qgc.ImportRejected(
+                [Problem("body", "a waypoint file must be UTF-8 text")]
+            ) from err
+        return wpl.parse_wpl(text), "wpl"
+    raise UnsupportedMediaType(
+        f"content type {media or 'none'!r}: send application/json (QGroundControl .plan) or "
+        f"text/plain / {wpl.MEDIA_TYPE} (QGC WPL 110)"
+    )
+
+
+@router.post(
+    "/api/v1/missions/import",
+    status_code=201,
+    response_model=MissionOut,
+    openapi_extra={"requestBody": IMPORT_BODY},
+)
+async def import_mission(
+    principal: Operator,
+    request: Request,
+    db: DB,
+    settings: SettingsDep,
+    name: str | None = Query(None, min_length=1, max_length=100),
+    description: str = Query("", max_length=2000),
+) -> MissionOut:
+    """Import a QGroundControl .plan (JSON) or a WPL 110 file (text); 422 names every item refused."""
+    body = await request.body()
+    if len(body) > MAX_IMPORT_BYTES:
+        raise TooLarge(f"the file is over {MAX_IMPORT_BYTES} bytes")
+    try:
+        imported, source = _read_import(body, request.headers.get("content-type", ""))
+    except qgc.ImportRejected as err:
+        raise rejected(err.problems, code="import_rejected") from err
+    label = {"qgc": "QGroundControl plan", "wpl": "waypoint file"}[source]
+    title = (name or "").strip() or f"imported {label}"
+    mission = await _service(db, principal, settings).import_file(
+        imported, name=title, description=description, source=source
+    )
+    await _audit(
+        db,
+        request,
+        principal,
+        "mission.imported",
+        mission,
+        name=mission.name,
+        source=source,
+        items=len(mission.items),
+    )
+    return _out(mission)
+
+
+@router.get("/api/v1/missions/{mission_id}", response_model=MissionOut)
+async def get_mission(mission_id: uuid.UUID, principal: Viewer, db: DB) -> MissionOut:
+    """One mission of the caller's organisation."""
+    return _out(await MissionRepository(db, principal).get(mission_id))
+
+
+@router.patch("/api/v1/missions/{mission_id}", response_model=MissionOut)
+async def update_mission(
+    mission_id: uuid.UUID,
+    body: MissionUpdate,
+    principal: Operator,
+    request: Request,
+    db: DB,
+    settings: SettingsDep,
+) -> MissionOut:
+    """Change a mission (operators); items and survey are validated and compiled again."""
+    service = _service(db, principal, settings)
+    mission = await service.repo.get(mission_id)
+    changes = body.model_dump(exclude_unset=True)
+    await service.update(mission, changes, body)
+    await _audit(db, request, principal, "mission.updated", mission, changes=sorted(changes))
+    return _out(mission)
+
+
+@router.delete("/api/v1/missions/{mission_id}", status_code=204, response_class=Response)
+async def delete_mission(
+    mission_id: uuid.UUID, principal: Operator, request: Request, db: DB
+) -> Response:
+    """Delete a mission (operators)."""
+    repo = MissionRepository(db, principal)
+    mission = await repo.get(mission_id)
+    await _audit(db, request, principal, "mission.deleted", mission, name=mission.name)
+    await repo.delete(mission)
+    return Response(status_code=204)
+
+
+@router.get(
+    "/api/v1/missions/{mission_id}/export",
+    responses={
+        200: {
+            "content": {"application/json": {}, "text/plain": {}},
+            "description": "a QGroundControl .plan (qgc) or QGC WPL 110 text (wpl)",
+        }
+    },
+)
+async def export_mission(
+    mission_id: uuid.UUID, principal: Viewer, db: DB, format: Literal["qgc", "wpl"] = "qgc"
+) -> Response:
+    """The mission as a QGroundControl .plan file or a WPL 110 waypoint file."""
+    mission = await MissionRepository(db, principal).get(mission_id)
+    content, filename = MissionService.export(mission, format)
+    headers = {"Content-Disposition": f'attachment; filename="{filename}"'}
+    if isinstance(content, dict):
+        return JSONResponse(content, headers=headers)
+    return Response(content, media_type="text/plain; charset=utf-8", headers=headers)
+
+
+@router.post("/api/v1/missions/{mission_id}/validate", response_model=ValidationReport)
+async def validate_mission(
+    mission_id: uuid.UUID, body: ValidateRequest, principal: Operator, db: DB, settings: SettingsDep
+) -> ValidationReport:
+    """Check a mission against the limits and, with `uav_id`, the UAV's endurance (operators)."""
+    service = _service(db, principal, settings)
+    mission = await service.repo.get(mission_id)
+    uav = await AssetRepository(db, principal).get(body.uav_id) if body.uav_id else None
+    return ValidationReport.model_validate(service.check(mission, uav))

@@ -1,0 +1,33 @@
+"""All SQL of missions."""
+
+from __future__ import annotations
+
+from server.kit.scope import ScopedRepository
+from server.missions.models import Mission, MissionKind
+
+
+class MissionRepository(ScopedRepository[Mission]):
+    """Missions of the caller's organisation."""
+
+    model = Mission
+    noun = "mission"
+
+    async def list_filtered(
+        self, limit: int, offset: int, kind: MissionKind | None
+    ) -> list[Mission]:
+        """Missions of the caller's organisation, oldest first, optionally of one kind."""
+        stmt = self.select().order_by(Mission.created_at, Mission.id).limit(limit).offset(offset)
+        if kind:
+            stmt = stmt.where(Mission.kind == kind)
+        return list((await self.db.execute(stmt)).scalars())
+
+    async def add(self, mission: Mission) -> Mission:
+        """Insert a mission into the current unit of work."""
+        self.db.add(mission)
+        await self.db.flush()
+        return mission
+
+    async def delete(self, mission: Mission) -> None:
+        """Delete a mission in the current unit of work."""
+        await self.db.delete(mission)
+        await self.db.flush()

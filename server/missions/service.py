@@ -1,0 +1,359 @@
+"""Decisions about missions: building (compile, validate), import/export, checks against a UAV."""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from typing import Any
+
+from server.assets.models import Asset, AssetKind
+from server.kit.errors import Unprocessable
+from server.missions import qgc, wpl
+from server.missions.flight import estimate_flight
+from server.missions.geometry import LocalProjection, open_ring, ring_area
+from server.missions.items import MissionItem, item_dicts, items_of
+from server.missions.models import Mission, MissionKind
+from server.missions.repository import MissionRepository
+from server.missions.schemas import HomeIn, SurveyIn
+from server.missions.survey import Camera, SurveySpec, compile_survey
+from server.missions.validate import (
+    FlightEstimate,
+    Home,
+    MissionLimits,
+    Problem,
+    check_endurance,
+    validate_items,
+    validate_ring,
+)
+
+DEFAULT_ENDURANCE_S = 1200.0
+DEFAULT_CRUISE_MPS = 8.0
+RESERVE = 0.2
+
+
+def limits_from(settings: Any) -> MissionLimits:
+    """Mission limits from the server settings (`mission_*` fields when present), else defaults."""
+    d = MissionLimits()
+    return MissionLimits(
+        min_alt_m=float(getattr(settings, "mission_min_alt_m", d.min_alt_m)),
+        max_alt_m=float(getattr(settings, "mission_max_alt_m", d.max_alt_m)),
+        max_area_m2=float(getattr(settings, "mission_max_area_m2", d.max_area_m2)),
+        max_items=int(getattr(settings, "mission_max_items", d.max_items)),
+    )
+
+
+def rejected(problems: list[Problem], code: str = "invalid_mission") -> Unprocessable:
+    """The 422 error listing every problem."""
+    first = problems[0]
+    more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+    return Unprocessable(
+        f"{first.where}: {first.what}{more}", code=code, details=[p.as_dict() for p in problems]
+    )
+
+
+@dataclass(frozen=True)
+class Built:
+    """A mission's items and, for a survey, the compiled figures."""
+
+    items: list[MissionItem]
+    survey_plan: dict[str, Any] | None = None
+
+
+def home_of(home: HomeIn | dict[str, Any] | None) -> Home | None:
+    """The domain value of a home position."""
+    if home is None:
+        return None
+    h = home.model_dump() if isinstance(home, HomeIn) else home
+    return Home(float(h["lat"]), float(h["lon"]), float(h.get("alt", 0.0)))
+
+
+def build(
+    kind: MissionKind,
+    items: list[MissionItem] | None,
+    survey: SurveyIn | None,
+    home: Home | None,
+    limits: MissionLimits,
+) -> tuple[Built, list[Problem]]:
+    """The mission's final items, and every problem found on the way."""
+    if kind == MissionKind.waypoints:
+        problems = []
+        if survey is not None:
+            problems.append(Problem("survey", "a waypoints mission takes items, not a survey"))
+        normalized = [i.normalized() for i in items or []]
+        problems += validate_items(normalized, limits, home)
+        return Built(normalized), problems
+    return _build_survey(items, survey, home, limits)
+
+
+def _build_survey(
+    items: list[MissionItem] | None,
+    survey: SurveyIn | None,
+    home: Home | None,
+    limits: MissionLimits,
+) -> tuple[Built, list[Problem]]:
+    if survey is None:
+        return Built([]), [Problem("survey", "a survey mission needs a survey area and parameters")]
+    problems: list[Problem] = []
+    if items:
+        problems.append(
+            Problem(
+                "items",
+                "a survey's items are compiled from its area; do not give them",
+                len(items),
+                0,
+            )
+        )
+    rings = survey.polygon.coordinates
+    if len(rings) > 1:
+        problems.append(
+            Problem(
+                "survey.polygon.coordinates",
+                "holes (inner rings) are not supported",
+                len(rings) - 1,
+                0,
+            )
+        )
+    ring = rings[0] if rings else []
+    bad = [k for k, pos in enumerate(ring) if len(pos) not in (2, 3)]
+    if bad:
+        problems.append(
+            Problem(
+                f"survey.polygon.coordinates[0][{bad[0]}]",
+                "a position is [lon, lat] or [lon, lat, alt]",
+                len(ring[bad[0]]),
+                2,
+            )
+        )
+        return Built([]), problems
+    points = tuple((p[0], p[1]) for p in ring)
+    problems += validate_ring(points, limits)
+    alt = survey.altitude_m
+    if not limits.min_alt_m <= alt <= limits.max_alt_m:
+        problems.append(
+            Problem(
+                "survey.altitude_m",
+                "altitude out of range (metres above home)",
+                alt,
+                [limits.min_alt_m, limits.max_alt_m],
+            )
+        )
+    if (survey.camera is None) == (survey.footprint is None):
+        problems.append(
+            Problem("survey", "give either a camera or a ground footprint (one of them)")
+        )
+    if problems:
+        return Built([]), problems
+    camera = None
+    if survey.camera is not None:
+        camera = Camera(**survey.camera.model_dump())
+        width, height = camera.footprint(alt)
+    else:
+        assert survey.footprint is not None
+        width, height = survey.footprint.width_m, survey.footprint.height_m
+    spec = SurveySpec(
+        ring=points,
+        footprint_across_m=width,
+        footprint_along_m=height,
+        front_overlap_pct=survey.front_overlap_pct,
+        side_overlap_pct=survey.side_overlap_pct,
+        altitude_m=alt,
+        speed_mps=survey.speed_mps,
+        heading_deg=survey.heading_deg,
+        takeoff=(home.lat, home.lon) if home else None,
+    )
+    if spec.line_spacing_m < limits.min_line_spacing_m:
+        return Built([]), [
+            Problem(
+                "survey",
+                "line spacing too small (m): raise the altitude or lower the side overlap",
+                round(spec.line_spacing_m, 3),
+                limits.min_line_spacing_m,
+            )
+        ]
+    try:
+        plan = compile_survey(spec)
+    except ValueError as err:
+        return Built([]), [Problem("survey", f"cannot compile the survey: {err}")]
+    compiled = list(plan.items)
+    problems += validate_items(compiled, limits, home)
+    pts = open_ring(points)
+    proj = LocalProjection(sum(p[1] for p in pts) / len(pts), sum(p[0] for p in pts) / len(pts))
+    area = abs(ring_area([proj.to_local(lat, lon) for lon, lat in pts]))
+    figures = {
+        "heading_deg": round(plan.heading_deg, 3),
+        "line_count": len(plan.lines),
+        "line_spacing_m": round(plan.line_spacing_m, 3),
+        "trigger_distance_m": round(plan.trigger_distance_m, 3),
+        "footprint_width_m": round(width, 3),
+        "footprint_height_m": round(height, 3),
+        "gsd_cm": round(camera.gsd_cm(alt), 3) if camera else None,
+        "area_m2": round(area, 1),
+    }
+    return Built(compiled, figures), problems
+
+
+def estimate(mission: Mission, cruise_speed_mps: float = DEFAULT_CRUISE_MPS) -> FlightEstimate:
+    """Path length and flight time of a stored mission."""
+    speed = mission.speed_mps or cruise_speed_mps
+    return estimate_flight(items_of(mission.items), speed, home_of(mission.home))
+
+
+def _attr(asset: Asset, key: str, default: float, problems: list[Problem]) -> float:
+    value = (asset.attributes or {}).get(key, default)
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not math.isfinite(value)
+        or value <= 0
+    ):
+        problems.append(Problem(f"uav.attributes.{key}", "must be a positive number", value))
+        return default
+    return float(value)
+
+
+def safe_filename(name: str, suffix: str) -> str:
+    """A file name made of the mission's name, safe in a Content-Disposition header."""
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "mission"
+    return f"{stem[:80]}{suffix}"
+
+
+class MissionService:
+    """Creates, changes, imports, exports and checks missions of the caller's organisation."""
+
+    def __init__(self, repo: MissionRepository, limits: MissionLimits) -> None:
+        self.repo = repo
+        self.limits = limits
+
+    def _built(
+        self,
+        kind: MissionKind,
+        items: list[MissionItem] | None,
+        survey: SurveyIn | None,
+        home: Home | None,
+    ) -> Built:
+        built, problems = build(kind, items, survey, home, self.limits)
+        if problems:
+            raise rejected(problems)
+        return built
+
+    async def create(
+        self,
+        *,
+        name: str,
+        description: str,
+        kind: MissionKind,
+        items: list[MissionItem] | None,
+        survey: SurveyIn | None,
+        home: HomeIn | None,
+        speed_mps: float | None,
+        source: str = "api",
+        extras: dict[str, Any] | None = None,
+    ) -> Mission:
+        """A new mission, validated (and compiled, for a survey); raises Unprocessable listing problems."""
+        built = self._built(kind, items, survey, home_of(home))
+        mission = Mission(
+            organization_id=self.repo.principal.organization_id,
+            name=name,
+            description=description,
+            kind=kind,
+            source=source,
+            items=item_dicts(built.items),
+            home=home.model_dump() if home else None,
+            speed_mps=speed_mps,
+            survey=survey.model_dump(mode="json") if survey else None,
+            survey_plan=built.survey_plan,
+            extras=extras or {},
+            created_by=self.repo.principal.actor_id,
+        )
+        return await self.repo.add(mission)
+
+    async def update(self, mission: Mission, changes: dict[str, Any], body: Any) -> Mission:
+        """Apply a partial update; items and survey are validated (and compiled) again."""
+        home = (
+            body.home if "home" in changes else (HomeIn(**mission.home) if mission.home else None)
+        )
+        items = body.items if "items" in changes else None
+        if mission.kind == MissionKind.waypoints and "items" not in changes:
+            items = items_of(mission.items)
+        survey = (
+            body.survey
+            if "survey" in changes
+            else (SurveyIn.model_validate(mission.survey) if mission.survey else None)
+        )
+        if {"items", "survey", "home"} & changes.keys():
+            built = self._built(mission.kind, items, survey, home_of(home))
+            mission.items = item_dicts(built.items)
+            mission.survey = survey.model_dump(mode="json") if survey else None
+            mission.survey_plan = built.survey_plan
+            mission.home = home.model_dump() if home else None
+        for key in ("name", "description", "speed_mps"):
+            if key in changes and (changes[key] is not None or key == "speed_mps"):
+                setattr(mission, key, changes[key])
+        await self.repo.db.flush()
+        return mission
+
+    async def import_file(
+        self, imported: qgc.Imported, *, name: str, description: str, source: str
+    ) -> Mission:
+        """A waypoints mission from an imported file."""
+        home = (
+            HomeIn(lat=imported.home.lat, lon=imported.home.lon, alt=imported.home.alt)
+            if imported.home
+            else None
+        )
+        return await self.create(
+            name=name,
+            description=description,
+            kind=MissionKind.waypoints,
+            items=imported.items,
+            survey=None,
+            home=home,
+            speed_mps=imported.speed_mps
+            if imported.speed_mps and imported.speed_mps <= 30
+            else None,
+            source=source,
+            extras=imported.extras,
+        )
+
+    @staticmethod
+    def export(mission: Mission, fmt: str) -> tuple[str | dict[str, Any], str]:
+        """The mission as a QGC plan (dict) or WPL text, and a file name."""
+        items, home = items_of(mission.items), home_of(mission.home)
+        if fmt == "wpl":
+            return wpl.export_wpl(items, home), safe_filename(mission.name, ".waypoints")
+        return (
+            qgc.export_plan(items, home, mission.speed_mps, mission.extras),
+            safe_filename(mission.name, ".plan"),
+        )
+
+    def check(self, mission: Mission, uav: Asset | None) -> dict[str, Any]:
+        """Every problem of a stored mission, and its flight against the UAV's endurance."""
+        problems: list[Problem] = []
+        survey = SurveyIn.model_validate(mission.survey) if mission.survey else None
+        items = items_of(mission.items) if mission.kind == MissionKind.waypoints else None
+        _, found = build(mission.kind, items, survey, home_of(mission.home), self.limits)
+        problems += found
+        uav_out: dict[str, Any] | None = None
+        cruise, endurance = DEFAULT_CRUISE_MPS, DEFAULT_ENDURANCE_S
+        if uav is not None:
+            if uav.kind != AssetKind.uav:
+                raise Unprocessable(f"asset {uav.id} is not a UAV", code="not_a_uav")
+            endurance = _attr(uav, "endurance_s", DEFAULT_ENDURANCE_S, problems)
+            cruise = _attr(uav, "cruise_speed_mps", DEFAULT_CRUISE_MPS, problems)
+            uav_out = {
+                "id": uav.id,
+                "name": uav.name,
+                "endurance_s": endurance,
+                "usable_endurance_s": round(endurance * (1 - RESERVE), 1),
+                "cruise_speed_mps": cruise,
+            }
+        flight = estimate(mission, cruise)
+        if uav is not None:
+            problems += check_endurance(flight, endurance, RESERVE)
+        return {
+            "valid": not problems,
+            "problems": [p.as_dict() for p in problems],
+            "estimate": flight.as_dict(),
+            "uav": uav_out,
+        }
