@@ -12,6 +12,7 @@ Example `base.toml` (every key optional; these are the defaults)::
     timeout_s = 1.0
     watchdog_period_s = 0.25
     reconnect_s = 0.5
+    heartbeat_timeout_s = 1.0   # PLC_HEARTBEAT frozen this long = PLC not running = link down
 
     [motion]
     panels_travel_s = 12.0
@@ -63,21 +64,22 @@ class PlcConfig(_Section):
     """Where the PLC is and how often to talk to it."""
 
     host: str = "127.0.0.1"
-    port: int = Field(502, ge=0, le=65535)
-    unit: int = Field(1, ge=0, le=255)
-    poll_hz: float = Field(5.0, ge=5.0, le=50.0)
-    timeout_s: float = Field(1.0, gt=0)
-    watchdog_period_s: float = Field(0.25, gt=0, le=0.5)
-    reconnect_s: float = Field(0.5, gt=0)
+    port: int = Field(default=502, ge=0, le=65535)
+    unit: int = Field(default=1, ge=0, le=255)
+    poll_hz: float = Field(default=5.0, ge=5.0, le=50.0)
+    timeout_s: float = Field(default=1.0, gt=0)
+    watchdog_period_s: float = Field(default=0.25, gt=0, le=0.5)
+    reconnect_s: float = Field(default=0.5, gt=0)
+    heartbeat_timeout_s: float = Field(default=1.0, ge=0.3)
 
 
 class MotionConfig(_Section):
     """Travel times of the panels and the lift (wall seconds on the real base)."""
 
-    panels_travel_s: float = Field(12.0, gt=0)
-    lift_travel_s: float = Field(8.0, gt=0)
-    timeout_factor: float = Field(1.5, ge=1.0)
-    timeout_margin_s: float = Field(2.0, ge=0)
+    panels_travel_s: float = Field(default=12.0, gt=0)
+    lift_travel_s: float = Field(default=8.0, gt=0)
+    timeout_factor: float = Field(default=1.5, ge=1.0)
+    timeout_margin_s: float = Field(default=2.0, ge=0)
 
 
 class WeatherLimits(_Section):
@@ -96,8 +98,8 @@ class UavConfig(_Section):
     min_mass_g: float = 1200.0
     max_mass_g: float = 1800.0
     scale_tare_g: float = 0.0
-    stable_s: float = Field(3.0, ge=0)
-    stable_tolerance_g: float = Field(50.0, gt=0)
+    stable_s: float = Field(default=3.0, ge=0)
+    stable_tolerance_g: float = Field(default=50.0, gt=0)
 
     @model_validator(mode="after")
     def _window(self) -> UavConfig:
@@ -109,7 +111,7 @@ class UavConfig(_Section):
 class ChargeConfig(_Section):
     """Default charge current limit."""
 
-    current_limit_ma: int = Field(5000, ge=0, le=65535)
+    current_limit_ma: int = Field(default=5000, ge=0, le=65535)
 
 
 class ServerConfig(_Section):
@@ -123,7 +125,7 @@ class RtkConfig(_Section):
     """Where the base GNSS receiver's RTCM3 stream comes from."""
 
     tcp_host: str = "127.0.0.1"
-    tcp_port: int = Field(5021, ge=0, le=65535)
+    tcp_port: int = Field(default=5021, ge=0, le=65535)
     serial_device: str = ""
     baudrate: int = 115200
 
@@ -131,14 +133,14 @@ class RtkConfig(_Section):
 class StationConfig(_Section):
     """The whole daemon configuration."""
 
-    telemetry_hz: float = Field(2.0, ge=1.0, le=5.0)
-    plc: PlcConfig = PlcConfig()
-    motion: MotionConfig = MotionConfig()
-    weather: WeatherLimits = WeatherLimits()
-    uav: UavConfig = UavConfig()
-    charge: ChargeConfig = ChargeConfig()
-    server: ServerConfig = ServerConfig()
-    rtk: RtkConfig = RtkConfig()
+    telemetry_hz: float = Field(default=2.0, ge=1.0, le=5.0)
+    plc: PlcConfig = Field(default_factory=PlcConfig)
+    motion: MotionConfig = Field(default_factory=MotionConfig)
+    weather: WeatherLimits = Field(default_factory=WeatherLimits)
+    uav: UavConfig = Field(default_factory=UavConfig)
+    charge: ChargeConfig = Field(default_factory=ChargeConfig)
+    server: ServerConfig = Field(default_factory=ServerConfig)
+    rtk: RtkConfig = Field(default_factory=RtkConfig)
 
 
 def load_config(path: str | Path) -> StationConfig:

@@ -4,6 +4,9 @@ It polls the PLC at `plc.poll_hz`, turns each read into an immutable `Snapshot`,
 events from successive snapshots and publishes them on its `EventBus`. It never writes a
 motion coil by itself: on start and on every reconnect it only reads (and feeds the
 watchdog), so a restart or a reconnect cannot start any motion.
+
+The link counts as down when a request fails or times out, and also when PLC_HEARTBEAT
+stays frozen for `plc.heartbeat_timeout_s` (the PLC answers but its CPU is not running).
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ class Coordinator:
         self._tick = asyncio.Event()
         self._tasks: list[asyncio.Task[None]] = []
         self.polls = 0
+        self._heartbeat: tuple[int, float] | None = None  # last value, when it last changed
 
     # --- lifecycle -----------------------------------------------------------------------
 
@@ -95,10 +99,25 @@ class Coordinator:
                 log.info("coordinator: connected to PLC %s:%s", self.client.host, self.client.port)
             plc = await self.client.read_state()
         except PlcLinkError as err:
+            self._heartbeat = None
             self._publish(started, False, str(err), self.snapshot.plc)
+            return self.snapshot
+        stale = self._heartbeat_stale(plc.heartbeat, started)
+        if stale:
+            self._publish(started, False, stale, plc)
         else:
             self._publish(started, True, "", plc)
         return self.snapshot
+
+    def _heartbeat_stale(self, value: int, now: float) -> str:
+        """A reason when PLC_HEARTBEAT has not moved for `heartbeat_timeout_s`, else ""."""
+        if self._heartbeat is None or self._heartbeat[0] != value:
+            self._heartbeat = (value, now)
+            return ""
+        frozen = now - self._heartbeat[1]
+        if frozen > self.config.plc.heartbeat_timeout_s:
+            return f"PLC heartbeat frozen for {frozen:.1f} s (PLC CPU not running)"
+        return ""
 
     def _publish(self, started: float, link_up: bool, error: str, plc: PlcState | None) -> None:
         self.polls += 1

@@ -15,6 +15,7 @@ travel timeout.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import time
 from collections.abc import AsyncIterator, Callable
@@ -109,6 +110,13 @@ class Station:
     def telemetry(self) -> StationTelemetry:
         """Telemetry of the latest snapshot."""
         return build_telemetry(self.coord.snapshot)
+
+    async def telemetry_stream(self, hz: float | None = None) -> AsyncIterator[StationTelemetry]:
+        """Telemetry at `hz` (default `telemetry_hz` of the configuration), forever."""
+        period = 1.0 / (hz or self.config.telemetry_hz)
+        while True:
+            yield self.telemetry()
+            await asyncio.sleep(period)
 
     async def execute(self, name: str, params: dict[str, Any] | None = None) -> AsyncIterator[Item]:
         """Run one command: Progress values, then one Result. Never raises for bad input."""
@@ -226,6 +234,8 @@ class Station:
                 yield Result(command, Status.SUCCEEDED, reason)
                 return
             if outcome is Outcome.FAILED:
+                if not snap.link_up:
+                    reason = f"{reason} ({snap.link_error})"
                 if reason.startswith("travel timeout") and snap.link_up:
                     await self.coord.write_coil(Coil.MOTION_STOP, True)
                 yield self._fail(command, reason)

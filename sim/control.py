@@ -11,6 +11,7 @@ errors answer `{"error": {"code", "message"}}` with 400/404.
 | POST /faults/stall            | {"axis": "panels"|"lift", "on": true, "immediate": false} |
 | POST /faults/link             | {"mode": "normal"|"cut"|"freeze"}                       |
 | POST /faults/estop            | {"on": true}                                            |
+| POST /faults/cpu_halt         | {"on": true}  (outputs drop; heartbeat and commands freeze) |
 | POST /faults/weather_sensor   | {"on": true}                                            |
 | POST /faults/charger          | {"on": true}                                            |
 | POST /faults/grid             | {"present": false}                                      |
@@ -127,6 +128,11 @@ def base_router(world: World) -> APIRouter:
     @r.post("/faults/estop")
     def estop(body: OnBody) -> dict[str, Any]:
         base.set_estop(body.on)
+        return ok()
+
+    @r.post("/faults/cpu_halt")
+    def cpu_halt(body: OnBody) -> dict[str, Any]:
+        base.set_cpu_halt(body.on)
         return ok()
 
     @r.post("/faults/weather_sensor")

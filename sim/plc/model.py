@@ -107,6 +107,8 @@ class LandingBase:
         self._wall_start: float | None = None
         self._wall_now = 0.0
         self._watchdog_changed_at: float | None = None
+        self._heartbeat = 0
+        self.cpu_halted = False
 
     # --- vehicle-facing API --------------------------------------------------------------
 
@@ -140,6 +142,12 @@ class LandingBase:
             self._stop_all()
             self.faults |= FAULT_ESTOP
 
+    def set_cpu_halt(self, on: bool) -> None:
+        """Halt (True) or restart the PLC CPU: outputs drop, commands and heartbeat freeze."""
+        self.cpu_halted = on
+        if on:
+            self._stop_all()
+
     def _axis(self, name: str) -> Axis:
         if name == "panels":
             return self.panels
@@ -155,7 +163,7 @@ class LandingBase:
             coil = address + offset
             if coil == CHARGER_ENABLE:
                 self.charger_enable = bool(value)
-            elif 0 <= coil < N_COILS and value:
+            elif 0 <= coil < N_COILS and value and not self.cpu_halted:
                 self._command(coil)
 
     def write_holding(self, address: int, values: list[int], wall_now: float) -> None:
@@ -234,6 +242,9 @@ class LandingBase:
         if self._wall_start is None:
             self._wall_start = wall_now
         self._wall_now = wall_now
+        if not self.cpu_halted:
+            ticks = int((wall_now - self._wall_start) / HEARTBEAT_PERIOD_S)
+            self._heartbeat = ticks % 65536
         changed = self._watchdog_changed_at
         if changed is not None and wall_now - changed > WATCHDOG_TIMEOUT_S:
             if not self.faults & FAULT_WATCHDOG:
@@ -248,9 +259,7 @@ class LandingBase:
     @property
     def heartbeat(self) -> int:
         """PLC_HEARTBEAT: wall-time 100 ms ticks since power-up, wrapping at 65535."""
-        if self._wall_start is None:
-            return 0
-        return int((self._wall_now - self._wall_start) / HEARTBEAT_PERIOD_S) % 65536
+        return self._heartbeat
 
     # --- register image ------------------------------------------------------------------
 
@@ -345,6 +354,7 @@ class LandingBase:
                 "jammed": self.lift.jammed,
             },
             "estop_active": self.estop_active,
+            "cpu_halted": self.cpu_halted,
             "faults": self.fault_bits(),
             "interlock_refused": self.interlock_refused,
             "watchdog_armed": self.watchdog_armed,

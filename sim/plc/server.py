@@ -18,6 +18,7 @@ import contextlib
 import logging
 import time
 from enum import StrEnum
+from typing import Any
 
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
@@ -117,7 +118,8 @@ class PlcServer:
         """Start the Modbus server and the public relay; `port` holds the bound port after."""
         self._modbus = ModbusTcpServer(self._device(), address=("127.0.0.1", 0))
         await self._modbus.serve_forever(background=True)
-        self._inner_port = self._modbus.transport.sockets[0].getsockname()[1]  # type: ignore[union-attr]
+        listener: Any = self._modbus.transport  # an asyncio.Server once listening
+        self._inner_port = listener.sockets[0].getsockname()[1]
         self._relay = await asyncio.start_server(self._accept, self.host, self.port)
         self.port = self._relay.sockets[0].getsockname()[1]
         log.info("plc: Modbus TCP on %s:%d (unit %d)", self.host, self.port, UNIT_ID)

@@ -145,3 +145,24 @@ async def test_restart_while_moving_starts_nothing_new() -> None:
         replay = await run(rig.station, "open_panels")  # replayed by a reconnecting server
         assert replay.status in (Status.REJECTED, Status.SUCCEEDED)
         assert rig.commands() == ["PANELS_OPEN"]
+
+
+async def test_plc_cpu_halt_is_seen_through_the_frozen_heartbeat(rig: Rig) -> None:
+    motion = asyncio.ensure_future(run(rig.station, "open_panels"))
+    await wait_for(lambda: rig.world.base.panels.moving, what="panels moving")
+    await rig.inject("/faults/cpu_halt", {"on": True})
+    result = await motion  # outputs drop: the motion fails whichever is seen first
+    assert result.status is Status.FAILED
+    await rig.link_up(False)
+    assert "heartbeat frozen" in rig.station.telemetry().plc_link_error
+    assert (await run(rig.station, "open_panels")).status is Status.REJECTED
+    await rig.inject("/faults/cpu_halt", {"on": False})
+    await rig.link_up(True)
+    assert rig.commands() == ["PANELS_OPEN"]
+
+
+async def test_telemetry_stream_yields_samples(rig: Rig) -> None:
+    stream = rig.station.telemetry_stream(hz=50.0)
+    samples = [await stream.__anext__() for _ in range(3)]
+    await stream.aclose()
+    assert all(s.plc_link == "up" and s.power is not None for s in samples)

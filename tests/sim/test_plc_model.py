@@ -211,3 +211,18 @@ def test_power_rule() -> None:
     assert pick_source(10, 50, True) is PowerSource.GRID
     assert pick_source(10, 50, False) is PowerSource.BATTERY
     assert solar_output_w(3.0, 300) == 0.0 and solar_output_w(12.0, 300) == 300.0
+
+
+def test_cpu_halt_freezes_heartbeat_and_ignores_commands() -> None:
+    b = make()
+    b.tick_wall(10.0)
+    cmd(b, PANELS_OPEN)
+    b.set_cpu_halt(True)
+    assert not b.panels.moving
+    b.tick_wall(11.0)
+    assert b.heartbeat == 0
+    cmd(b, PANELS_OPEN)
+    assert not b.panels.moving and len(b.command_log) == 1
+    b.set_cpu_halt(False)
+    b.tick_wall(11.5)
+    assert b.heartbeat == 15
