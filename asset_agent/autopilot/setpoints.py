@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 from functools import partial
 from typing import Any
 
 from protocol.rtcm import mavlink_fragments
+
+log = logging.getLogger(__name__)
 
 
 def _rtcm(flags: int, length: int, data: bytes, mav: Any) -> None:
@@ -25,12 +28,24 @@ class SetpointsMixin:
         raise NotImplementedError
 
     def inject_rtcm(self, frame: bytes) -> int:
-        """Send one RTCM3 frame as GPS_RTCM_DATA fragments; returns the fragment count."""
-        fragments = mavlink_fragments(frame, self._rtcm_seq)
+        """Send one RTCM3 frame as GPS_RTCM_DATA fragments; returns the fragment count.
+
+        A frame too long for four fragments (>= 720 bytes) or a failed send is logged and
+        counted as 0 fragments: corrections are a stream, one lost frame is not an error.
+        """
+        try:
+            fragments = mavlink_fragments(bytes(frame), self._rtcm_seq)
+        except (ValueError, TypeError) as err:
+            log.warning("RTCM frame not injected: %s", err)
+            return 0
         self._rtcm_seq = (self._rtcm_seq + 1) % 32
-        for flags, data in fragments:
-            padded = data + bytes(180 - len(data))
-            self.send(partial(_rtcm, flags, len(data), padded))
+        try:
+            for flags, data in fragments:
+                padded = data + bytes(180 - len(data))
+                self.send(partial(_rtcm, flags, len(data), padded))
+        except (OSError, RuntimeError) as err:
+            log.warning("RTCM frame not injected: %s", err)
+            return 0
         return len(fragments)
 
     def send_landing_target(
