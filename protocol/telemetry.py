@@ -18,7 +18,7 @@ Deg360 = Annotated[float, Field(ge=0, le=360)]
 
 GnssFix = Literal["none", "2d", "3d", "dgps", "rtk_float", "rtk_fixed"]
 LandedState = Literal["unknown", "on_ground", "in_air", "takeoff", "landing"]
-MotionState = Literal["closed", "opening", "open", "closing", "fault", "stopped"]
+MotionState = Literal["closed", "opening", "open", "closing", "moving", "fault", "stopped"]
 ChargerState = Literal["idle", "charging", "complete", "fault"]
 PowerSource = Literal["grid", "solar", "battery"]
 LinkState = Literal["up", "down"]
@@ -171,6 +171,7 @@ class LandingBaseTelemetry(Frozen):
     panels: Actuator | None = None
     lift: Actuator | None = None
     uav_present: bool | None = None
+    landing_confirmed: bool | None = None  # the UAV's mass in its window and stable
     scale_mass_g: Annotated[float, Field(ge=0)] | None = None
     weather: Weather | None = None
     charger: Charger | None = None
