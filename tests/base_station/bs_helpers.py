@@ -45,7 +45,7 @@ def station_config(plc_port: int, speed: float = SPEED, **uav: Any) -> StationCo
                 "host": "127.0.0.1",
                 "port": plc_port,
                 "poll_hz": 20.0,
-                "timeout_s": 0.5,
+                "timeout_s": 1.0,
                 "reconnect_s": 0.1,
             },
             "motion": {

@@ -85,7 +85,11 @@ async def test_every_failed_condition_is_listed_with_measured_value_and_limit(ri
 async def test_weather_sensor_fault_fails_availability(rig: Rig) -> None:
     await rig.inject("/pad", {"mass_g": 1500})
     await rig.inject("/faults/weather_sensor", {"on": True})
-    await wait_for(lambda: "WEATHER_SENSOR" in rig.station.telemetry().faults)
+    await wait_for(
+        lambda: "WEATHER_SENSOR" in rig.station.telemetry().faults
+        and rig.station.telemetry().uav_present is True,
+        what="sensor fault and UAV seen",
+    )
     result = await run(rig.station, "check_availability")
     names = {c["name"] for c in result.data["failed"]}
     assert names == {"weather_sensor", "faults"}
