@@ -96,8 +96,11 @@ class Autopilot(SetpointsMixin):
 
     # --- life cycle ------------------------------------------------------------------------
     async def start(self) -> None:
-        """Open the link, start the heartbeat and the link watchdog."""
-        await self._link.open()
+        """Open the link, start the heartbeat and the link watchdog; LinkLost if it cannot open."""
+        try:
+            await self._link.open()
+        except (OSError, ValueError) as err:  # refused TCP, missing serial device, bad string
+            raise LinkLost(f"cannot open {self.config.url}: {err}") from err
         self._send_heartbeat()
         self._tasks = [
             asyncio.create_task(self._heartbeat_loop(), name="autopilot-heartbeat"),

@@ -86,12 +86,19 @@ def _extended_sys_state(s: UavState, m: Any) -> UavState:
 
 
 def _mission_current(s: UavState, m: Any) -> UavState:
+    # total excludes home (on the last item seq == total); 0 = not reported, 0xFFFF = no mission
     total = getattr(m, "total", 0)
     state = getattr(m, "mission_state", 0)
+    if total == 0xFFFF:
+        mission_total: int | None = 0
+    elif total:
+        mission_total = total
+    else:
+        mission_total = s.mission_total
     return replace(
         s,
-        mission_current=max(m.seq - 1, 0) if total or m.seq else None,
-        mission_total=max(total - 1, 0) if total else s.mission_total,
+        mission_current=max(m.seq - 1, 0),
+        mission_total=mission_total,
         mission_state=MISSION_STATES.get(state, "UNKNOWN"),
     )
 

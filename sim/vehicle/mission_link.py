@@ -10,6 +10,11 @@ from sim.vehicle import mission as ms
 from sim.vehicle.constants import AUTO, INFO
 
 
+def mission_total(items: list[ms.Item]) -> int:
+    """MISSION_CURRENT.total: items without home (the last seq), UINT16_MAX when there are none."""
+    return len(items) - 1 if len(items) > 1 else 0xFFFF
+
+
 class MissionProtocolMixin:
     """MISSION_* handlers of `Copter`; state lives on the copter (items, upload, mission_current)."""
 
@@ -119,5 +124,8 @@ class MissionProtocolMixin:
             if self.mode == AUTO and self.armed:
                 self.guidance.start_item(msg.seq)
         self.send(
-            mavlink.MAVLink_mission_current_message(self.mission_current, len(self.items)), link
+            mavlink.MAVLink_mission_current_message(
+                self.mission_current, mission_total(self.items)
+            ),
+            link,
         )

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sim.vehicle.constants import AUTO, BRAKE, GUIDED, LAND, LOITER, RTL
+from sim.vehicle.mission_link import mission_total
 
 if TYPE_CHECKING:
     from sim.vehicle.copter import Copter
@@ -105,7 +106,10 @@ def _gps_raw(c: Copter) -> Any:
 
 def _mission_current(c: Copter) -> Any:
     return mavlink.MAVLink_mission_current_message(
-        c.mission_current, len(c.items), c.guidance.reported_mission_state(), int(c.mode == AUTO)
+        c.mission_current,
+        mission_total(c.items),
+        c.guidance.reported_mission_state(),
+        int(c.mode == AUTO),
     )
 
 

@@ -352,3 +352,16 @@ async def test_battery_failsafe_returns_home(autopilot: Autopilot, vehicle: Vehi
     await wait_for(lambda: not autopilot.state.armed, 60, "landed at home")
     assert vehicle.copter.pad_distance() <= 4 * vehicle.copter.gnss.params.sigma_3d_m
     assert isinstance(tracker.prev, UavState)
+
+
+async def test_unreachable_autopilot_is_a_typed_error() -> None:
+    import socket
+
+    from asset_agent.autopilot import LinkLost
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # bound, never listening: connections are refused
+        ap = Autopilot(fast_config(f"tcp:127.0.0.1:{port}"))
+        with pytest.raises(LinkLost):
+            await ap.start()

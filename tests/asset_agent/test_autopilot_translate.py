@@ -52,8 +52,9 @@ def test_battery_attitude_landed_state_and_mission() -> None:
     assert s.roll_deg == pytest.approx(10) and s.yaw_deg == pytest.approx(270)
     s = apply(s, m.MAVLink_extended_sys_state_message(0, 4))
     assert s.landed_state == "LANDING" and s.in_air
-    s = apply(s, m.MAVLink_mission_current_message(3, 11, 3, 1))
+    s = apply(s, m.MAVLink_mission_current_message(3, 10, 3, 1))
     assert (s.mission_current, s.mission_total, s.mission_state) == (2, 10, "ACTIVE")
+    assert apply(s, m.MAVLink_mission_current_message(0, 0xFFFF, 1, 0)).mission_total == 0
     s = apply(
         s,
         m.MAVLink_home_position_message(
