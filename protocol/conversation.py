@@ -66,6 +66,12 @@ class TokenBucket:
             return 0.0
         return (1 - self._tokens) / self.rate
 
+    def slow_down(self, factor: float = 0.5, min_rate: float = 1.0) -> None:
+        """Cut the rate and the burst by `factor` (the server said we were too fast)."""
+        self.rate = max(min_rate, self.rate * factor)
+        self.burst = max(1.0, self.burst * factor)
+        self._tokens = min(self._tokens, self.burst)
+
     async def acquire(self) -> None:
         """Wait until a token is available and take it."""
         # Pacing by the clock, not waiting for another task: nothing to signal an Event.
@@ -237,6 +243,9 @@ class Conversation:
                     await outcome
         elif isinstance(msg, Error):
             log.warning("server error %s: %s", msg.payload.code, msg.payload.message)
+            if msg.payload.code == "rate_limited":
+                self.bucket.slow_down()
+                log.warning("slowing down to %.0f messages/s", self.bucket.rate)
         else:
             log.warning("ignoring unexpected %s", msg.type)
 

@@ -107,6 +107,17 @@ def test_token_bucket_allows_a_burst_then_paces_to_the_rate() -> None:
     assert sum(1 for _ in range(1000) if bucket.delay() == 0) == 300  # never above the burst
 
 
+def test_token_bucket_slows_down_when_told() -> None:
+    clock = FakeClock()
+    bucket = TokenBucket(rate=150, burst=300, clock=clock)
+    bucket.slow_down()
+    assert bucket.rate == 75 and bucket.burst == 150
+    assert sum(1 for _ in range(1000) if bucket.delay() == 0) == 150
+    for _ in range(20):
+        bucket.slow_down()
+    assert bucket.rate == 1.0 and bucket.burst == 1.0
+
+
 def test_link_pacing_stays_under_the_servers_default_limit() -> None:
     """Over any span t, the link sends at most burst + rate*t, the server accepts 400 + 200*t."""
     link = Link("http://127.0.0.1:1", "uav-1", "secret", "unused.sqlite")
