@@ -7,8 +7,10 @@ from collections.abc import Sequence
 
 from server.missions.geometry import haversine_m
 from server.missions.items import (
+    CONDITION_DELAY,
     DO_CHANGE_SPEED,
     DO_JUMP,
+    NAV_DELAY,
     NAV_LAND,
     NAV_LOITER_TIME,
     NAV_LOITER_TURNS,
@@ -51,7 +53,12 @@ def _start(items: Sequence[MissionItem], home: Home | None) -> tuple[float, floa
     if home is not None:
         return home.lat, home.lon
     for item in items:
-        if item.spec and item.spec.positional and (item.lat, item.lon) != (0.0, 0.0):
+        if (
+            item.spec
+            and item.spec.nav
+            and item.spec.positional
+            and (item.lat, item.lon) != (0.0, 0.0)
+        ):
             return item.lat, item.lon
     return 0.0, 0.0
 
@@ -95,7 +102,11 @@ def estimate_flight(
             walk.fly_to(here[0], here[1], None)
             walk.land_here()
             landed = True
-        elif item.spec is not None and item.spec.nav:
+        elif item.command in (NAV_DELAY, CONDITION_DELAY):
+            walk.time += max(
+                0.0, item.params[0] or 0.0
+            )  # NAV_DELAY -1: a clock time; not known here
+        elif item.spec is not None and item.spec.nav and item.spec.positional:
             walk.fly_to(here[0], here[1], rel)
             _loiter(walk, item)
         elif item.command == DO_CHANGE_SPEED and item.params[1] is not None and item.params[1] > 0:

@@ -28,6 +28,7 @@ NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TURNS, NAV_LOITER_TIME = 16, 17, 18, 
 NAV_RETURN_TO_LAUNCH, NAV_LAND, NAV_TAKEOFF, NAV_SPLINE_WAYPOINT = 20, 21, 22, 82
 DO_JUMP, DO_CHANGE_SPEED, DO_SET_ROI_LOCATION, DO_SET_ROI = 177, 178, 195, 201
 DO_SET_CAM_TRIGG_DIST = 206
+NAV_DELAY, CONDITION_DELAY, CONDITION_YAW = 93, 112, 115
 
 
 @dataclass(frozen=True)
@@ -53,18 +54,28 @@ COMMANDS: dict[int, CommandSpec] = {
     DO_SET_ROI_LOCATION: CommandSpec("DO_SET_ROI_LOCATION", False, True),
     DO_SET_ROI: CommandSpec("DO_SET_ROI", False, True),
     DO_SET_CAM_TRIGG_DIST: CommandSpec("DO_SET_CAM_TRIGG_DIST", False, False),
+    # common in ArduPilot Copter plans; carried through as they are
+    NAV_DELAY: CommandSpec("NAV_DELAY", True, False),
+    CONDITION_DELAY: CommandSpec("CONDITION_DELAY", False, False),
+    CONDITION_YAW: CommandSpec("CONDITION_YAW", False, False),
+    181: CommandSpec("DO_SET_RELAY", False, False),
+    183: CommandSpec("DO_SET_SERVO", False, False),
+    197: CommandSpec("DO_SET_ROI_NONE", False, False),
+    203: CommandSpec("DO_DIGICAM_CONTROL", False, False),
+    205: CommandSpec("DO_MOUNT_CONTROL", False, False),
+    2000: CommandSpec("IMAGE_START_CAPTURE", False, False),
+    2001: CommandSpec("IMAGE_STOP_CAPTURE", False, False),
+    2500: CommandSpec("VIDEO_START_CAPTURE", False, False),
+    2501: CommandSpec("VIDEO_STOP_CAPTURE", False, False),
 }
 
 # a few names of commands we do not take, so an error can say what was refused
 OTHER_COMMAND_NAMES = {
     30: "NAV_CONTINUE_AND_CHANGE_ALT", 31: "NAV_LOITER_TO_ALT", 84: "NAV_VTOL_TAKEOFF",
-    85: "NAV_VTOL_LAND", 92: "NAV_GUIDED_ENABLE", 93: "NAV_DELAY", 94: "NAV_PAYLOAD_PLACE",
-    112: "CONDITION_DELAY", 113: "CONDITION_CHANGE_ALT", 114: "CONDITION_DISTANCE",
-    115: "CONDITION_YAW", 179: "DO_SET_HOME", 181: "DO_SET_RELAY", 182: "DO_REPEAT_RELAY",
-    183: "DO_SET_SERVO", 184: "DO_REPEAT_SERVO", 189: "DO_LAND_START", 202: "DO_DIGICAM_CONFIGURE",
-    203: "DO_DIGICAM_CONTROL", 205: "DO_MOUNT_CONTROL", 211: "DO_GRIPPER",
-    2000: "IMAGE_START_CAPTURE", 2001: "IMAGE_STOP_CAPTURE", 2500: "VIDEO_START_CAPTURE",
-    2501: "VIDEO_STOP_CAPTURE", 1000: "DO_GIMBAL_MANAGER_PITCHYAW",
+    85: "NAV_VTOL_LAND", 92: "NAV_GUIDED_ENABLE", 94: "NAV_PAYLOAD_PLACE",
+    113: "CONDITION_CHANGE_ALT", 114: "CONDITION_DISTANCE", 179: "DO_SET_HOME",
+    182: "DO_REPEAT_RELAY", 184: "DO_REPEAT_SERVO", 189: "DO_LAND_START",
+    202: "DO_DIGICAM_CONFIGURE", 211: "DO_GRIPPER", 1000: "DO_GIMBAL_MANAGER_PITCHYAW",
 }  # fmt: skip
 
 
@@ -89,7 +100,7 @@ def frame_problem(command: int, frame: int) -> str | None:
     frame = normalize_frame(frame)
     if frame not in FRAME_NAMES:
         return f"frame {frame} is not supported (use 0 GLOBAL, 3 GLOBAL_RELATIVE_ALT or 10 GLOBAL_TERRAIN_ALT)"
-    if spec is not None and spec.positional and frame not in POSITION_FRAMES:
+    if spec is not None and spec.nav and spec.positional and frame not in POSITION_FRAMES:
         return f"{spec.name} needs a global frame (0, 3 or 10), not {frame} {FRAME_NAMES[frame]}"
     return None
 

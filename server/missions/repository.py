@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from sqlalchemy.exc import IntegrityError
+
+from server.kit.errors import Conflict
 from server.kit.scope import ScopedRepository
 from server.missions.models import Mission, MissionKind
 
@@ -28,6 +31,11 @@ class MissionRepository(ScopedRepository[Mission]):
         return mission
 
     async def delete(self, mission: Mission) -> None:
-        """Delete a mission in the current unit of work."""
+        """Delete a mission in the current unit of work; Conflict while runs still refer to it."""
         await self.db.delete(mission)
-        await self.db.flush()
+        try:
+            await self.db.flush()
+        except IntegrityError as err:
+            raise Conflict(
+                f"mission {mission.id} is used by runs and cannot be deleted", code="mission_in_use"
+            ) from err

@@ -62,6 +62,9 @@ class SurveyIn(BaseModel):
     side_overlap_pct: float = Field(default=60.0, ge=0, le=95)
     altitude_m: float = Field(description="metres above home")
     speed_mps: float = Field(default=5.0, gt=0, le=30)
+    camera_trigger: bool = Field(
+        default=True, description="DO_SET_CAM_TRIGG_DIST on each line; false: waypoints only"
+    )
     heading_deg: float | None = Field(
         default=None,
         ge=-360,

@@ -161,6 +161,7 @@ def _build_survey(
         speed_mps=survey.speed_mps,
         heading_deg=survey.heading_deg,
         takeoff=(home.lat, home.lon) if home else None,
+        camera_trigger=survey.camera_trigger,
     )
     if spec.line_spacing_m < limits.min_line_spacing_m:
         return Built([]), [
@@ -327,6 +328,10 @@ class MissionService:
             safe_filename(mission.name, ".plan"),
         )
 
+    async def get(self, mission_id: Any) -> Mission:
+        """A mission of the caller's organisation (NotFound otherwise)."""
+        return await self.repo.get(mission_id)
+
     def check(self, mission: Mission, uav: Asset | None) -> dict[str, Any]:
         """Every problem of a stored mission, and its flight against the UAV's endurance."""
         problems: list[Problem] = []
@@ -351,6 +356,17 @@ class MissionService:
         flight = estimate(mission, cruise)
         if uav is not None:
             problems += check_endurance(flight, endurance, RESERVE)
+            if "max_range_m" in (uav.attributes or {}):
+                max_range = _attr(uav, "max_range_m", math.inf, problems)
+                if flight.distance_m > max_range * (1 - RESERVE):
+                    problems.append(
+                        Problem(
+                            "mission",
+                            f"path length (m) exceeds the UAV's range less a {RESERVE:.0%} reserve",
+                            round(flight.distance_m, 1),
+                            round(max_range * (1 - RESERVE), 1),
+                        )
+                    )
         return {
             "valid": not problems,
             "problems": [p.as_dict() for p in problems],

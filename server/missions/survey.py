@@ -59,6 +59,7 @@ class SurveySpec:
     speed_mps: float
     heading_deg: float | None = None  # direction of the lines, clockwise from north; None: best
     takeoff: tuple[float, float] | None = None  # (lat, lon) of the takeoff; None: first waypoint
+    camera_trigger: bool = True  # DO_SET_CAM_TRIGG_DIST on each line (off: waypoints only)
 
     @property
     def line_spacing_m(self) -> float:
@@ -182,15 +183,17 @@ def compile_survey(spec: SurveySpec) -> SurveyPlan:
     trigger = round(spec.trigger_distance_m, 3)
     for start, end in lines:
         items.append(_waypoint(start, alt))
-        items.append(
-            MissionItem(
-                command=DO_SET_CAM_TRIGG_DIST, frame=FRAME_MISSION, params=(trigger, 0, 1, 0)
+        if spec.camera_trigger:
+            items.append(
+                MissionItem(
+                    command=DO_SET_CAM_TRIGG_DIST, frame=FRAME_MISSION, params=(trigger, 0, 1, 0)
+                )
             )
-        )
         items.append(_waypoint(end, alt))
-        items.append(
-            MissionItem(command=DO_SET_CAM_TRIGG_DIST, frame=FRAME_MISSION, params=(0, 0, 0, 0))
-        )
+        if spec.camera_trigger:
+            items.append(
+                MissionItem(command=DO_SET_CAM_TRIGG_DIST, frame=FRAME_MISSION, params=(0, 0, 0, 0))
+            )
     items.append(MissionItem(command=NAV_RETURN_TO_LAUNCH, frame=FRAME_MISSION))
     return SurveyPlan(
         heading_deg=heading,

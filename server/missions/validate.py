@@ -24,6 +24,7 @@ from server.missions.items import (
     NAV_LOITER_TIME,
     NAV_LOITER_TURNS,
     NAV_RETURN_TO_LAUNCH,
+    NAV_WAYPOINT,
     MissionItem,
     command_name,
     frame_problem,
@@ -192,7 +193,14 @@ def _param_problems(
                     command=item.command,
                 )
             )
-    elif item.command == NAV_LOITER_TIME and (p1 is None or p1 < 0):
+    elif item.command in (NAV_LOITER_TIME, NAV_WAYPOINT) and p1 is not None and p1 < 0:
+        what = (
+            "loiter time must be >= 0 s"
+            if item.command == NAV_LOITER_TIME
+            else "hold time must be >= 0 s"
+        )
+        out.append(Problem(f"{at}.params[0]", what, p1, 0, index=i, command=item.command))
+    elif item.command == NAV_LOITER_TIME and p1 is None:
         out.append(
             Problem(
                 f"{at}.params[0]",

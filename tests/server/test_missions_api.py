@@ -138,7 +138,7 @@ def test_validation_errors_list_every_problem(api, tenant: Tenant):
     items = waypoints()
     items[1]["alt"] = 150
     items[2]["lat"] = 95
-    items[3] = {"command": 183, "frame": 2, "params": [1, 1500, 0, 0]}
+    items[3] = {"command": 84, "frame": 2, "params": [1, 1500, 0, 0]}
     r = api.post(
         "/api/v1/missions", json={"name": "bad", "items": items}, headers=tenant.h("operator")
     )
@@ -148,9 +148,9 @@ def test_validation_errors_list_every_problem(api, tenant: Tenant):
     assert [(d["where"], d["value"], d["limit"]) for d in error["details"]] == [
         ("items[1].alt", 150, 120),
         ("items[2].lat", 95, [-90, 90]),
-        ("items[3].command", 183, error["details"][2]["limit"]),
+        ("items[3].command", 84, error["details"][2]["limit"]),
     ]
-    assert error["details"][2]["index"] == 3 and error["details"][2]["command"] == 183
+    assert error["details"][2]["index"] == 3 and error["details"][2]["command"] == 84
     empty = api.post(
         "/api/v1/missions", json={"name": "empty", "items": []}, headers=tenant.h("operator")
     )
@@ -181,6 +181,11 @@ def test_survey_is_compiled_into_a_lawnmower(api, tenant: Tenant):
         headers=tenant.h("operator"),
     )
     assert r.status_code == 200 and r.json()["survey_plan"]["line_count"] == 4  # ceil(200 / 60)
+    # waypoints only, without camera trigger items
+    r = api.post(
+        "/api/v1/missions", json=survey_body(camera_trigger=False), headers=tenant.h("operator")
+    )
+    assert [i["command"] for i in r.json()["items"]] == [22, 178] + [16, 16] * 7 + [20]
     # a footprint given directly
     r = api.post(
         "/api/v1/missions",
@@ -236,6 +241,13 @@ def test_validate_against_the_uavs_endurance(api, tenant: Tenant):
         ]
         == 1200
     )
+    short = tenant.create_asset("uav", attributes={"max_range_m": 1000, "cruise_speed_mps": "fast"})
+    report = api.post(url, json={"uav_id": short["id"]}, headers=tenant.h("operator")).json()
+    assert [(p["where"], p["limit"]) for p in report["problems"]] == [
+        ("uav.attributes.cruise_speed_mps", None),
+        ("mission", 800),
+    ]
+    assert report["uav"]["cruise_speed_mps"] == 8
     base = tenant.create_asset("landing_base")
     r = api.post(url, json={"uav_id": base["id"]}, headers=tenant.h("operator"))
     assert r.status_code == 422 and r.json()["error"]["code"] == "not_a_uav"
@@ -305,20 +317,22 @@ def test_wpl_import_export_round_trip(api, tenant: Tenant):
 
 def test_import_refusals_name_every_item(api, tenant: Tenant):
     plan = json.loads(SIMPLE_SQUARE_PLAN)
-    plan["mission"]["items"][2]["command"] = 183
+    plan["mission"]["items"][2]["command"] = 84
     plan["mission"]["items"][4] = {"type": "ComplexItem", "complexItemType": "StructureScan"}
     r = api.post("/api/v1/missions/import", json=plan, headers=tenant.h("operator"))
     assert r.status_code == 422
     error = r.json()["error"]
     assert error["code"] == "import_rejected"
-    assert [(d.get("index"), d.get("command")) for d in error["details"]] == [(2, 183), (4, None)]
-    wpl = "QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t47\t8\t400\t1\n1\t0\t2\t183\t1\t1\t0\t0\t0\t0\t0\t1\n"
+    assert [(d.get("index"), d.get("command")) for d in error["details"]] == [(2, 84), (4, None)]
+    wpl = (
+        "QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t47\t8\t400\t1\n1\t0\t2\t84\t1\t1\t0\t0\t0\t0\t0\t1\n"
+    )
     r = api.post(
         "/api/v1/missions/import",
         content=wpl,
         headers={**tenant.h("operator"), "Content-Type": "text/plain"},
     )
-    assert r.status_code == 422 and r.json()["error"]["details"][0]["command"] == 183
+    assert r.status_code == 422 and r.json()["error"]["details"][0]["command"] == 84
     # an imported plan is validated like any mission (here: above the altitude limit)
     high = json.loads(SIMPLE_SQUARE_PLAN)
     high["mission"]["items"][1]["params"][6] = 500

@@ -187,9 +187,9 @@ def test_non_positional_items_export_without_altitude_keys():
 def test_unsupported_items_are_all_named_by_index_and_command():
     items = [
         simple(22, params=(0, 0, 0, None, 47, 8, 20)),
-        simple(183, 2, (1, 1500, 0, 0, 0, 0, 0)),
+        simple(84, 2, (1, 1500, 0, 0, 0, 0, 0)),
         simple(16, 3, (0, 0, 0, None, 47, 8, 20)),
-        simple(203, 2),
+        simple(30, 2),
         simple(16, 1),
         {"type": "Weird"},
         simple(16, 3, (0, 0, 0)),
@@ -197,10 +197,10 @@ def test_unsupported_items_are_all_named_by_index_and_command():
     with pytest.raises(ImportRejected) as err:
         parse_plan(wrap(items))
     named = [(p.index, p.command) for p in err.value.problems]
-    assert named == [(1, 183), (3, 203), (4, 16), (5, None), (6, 16)]
+    assert named == [(1, 84), (3, 30), (4, 16), (5, None), (6, 16)]
     assert (
-        "DO_SET_SERVO" in err.value.problems[0].what
-        and "DO_DIGICAM_CONTROL" in err.value.problems[1].what
+        "NAV_VTOL_TAKEOFF" in err.value.problems[0].what
+        and "NAV_CONTINUE_AND_CHANGE_ALT" in err.value.problems[1].what
     )
 
 
@@ -307,21 +307,21 @@ def test_wpl_names_every_line_it_cannot_take():
             HEADER,
             "0\t1\t0\t16\t0\t0\t0\t0\t47\t8\t400\t1",
             "1\t0\t3\t22\t0\t0\t0\t0\t0\t0\t20\t1",
-            "2\t0\t2\t183\t1\t1500\t0\t0\t0\t0\t0\t1",
+            "2\t0\t2\t84\t1\t1500\t0\t0\t0\t0\t0\t1",
             "3\t0\t3\t16\t0\t0\t0",
             "4\t0\t3\t16\t0\t0\t0\t0\tabc\t8\t20\t1",
             "7\t0\t3\t16\t0\t0\t0\t0\t47\t8\t20\t1",
-            "6\t0\t3\t2000\t0\t0\t0\t0\t0\t0\t0\t1",
+            "6\t0\t3\t85\t0\t0\t0\t0\t0\t0\t0\t1",
         ]
     )
     with pytest.raises(ImportRejected) as err:
         parse_wpl(text)
     assert [(p.where, p.index, p.command) for p in err.value.problems] == [
-        ("line 4", 1, 183),
+        ("line 4", 1, 84),
         ("line 5", 2, None),
         ("line 6", 3, None),
         ("line 7", 4, None),
-        ("line 8", 5, 2000),
+        ("line 8", 5, 85),
     ]
     with pytest.raises(ImportRejected):
         parse_wpl("QGC WPL 100\n")

@@ -112,7 +112,7 @@ def test_item_validation_altitude_frames_commands_and_jumps():
         MissionItem(command=22, alt=20),
         MissionItem(command=16, lat=47.4, lon=8.5, alt=150),  # too high
         MissionItem(command=16, lat=47.4, lon=8.5, alt=1),  # too low
-        MissionItem(command=183, frame=2),  # DO_SET_SERVO: not supported
+        MissionItem(command=84, frame=2),  # NAV_VTOL_TAKEOFF: not for a copter
         MissionItem(
             command=16, frame=2, lat=47.4, lon=8.5, alt=20
         ),  # a waypoint needs a global frame
@@ -128,14 +128,14 @@ def test_item_validation_altitude_frames_commands_and_jumps():
     assert where == [
         ("items[1].alt", 1, 16),
         ("items[2].alt", 2, 16),
-        ("items[3].command", 3, 183),
+        ("items[3].command", 3, 84),
         ("items[4].frame", 4, 16),
         ("items[5].lat", 5, 16),
         ("items[6].params[0]", 6, 177),
     ]
     assert problems[0].value == 150 and problems[0].limit == 120
     assert problems[1].value == 1 and problems[1].limit == 2
-    assert "DO_SET_SERVO" in problems[2].what
+    assert "NAV_VTOL_TAKEOFF" in problems[2].what
     assert validate_items(items[:1], MissionLimits(max_alt_m=10))[0].limit == 10
 
 
@@ -277,3 +277,50 @@ def test_endurance_check_keeps_a_reserve():
     assert check_endurance(est, est.flight_time_s / 0.79) == []
     problems = check_endurance(est, est.flight_time_s / 0.81)
     assert problems and problems[0].limit == round(est.flight_time_s / 0.81 * 0.8, 1)
+
+
+def test_delays_count_in_the_estimate_and_roi_may_use_the_mission_frame():
+    model = FlightModel(per_waypoint_s=0.0, takeoff_s=0.0, landing_s=0.0)
+    base = [MissionItem(command=22, alt=20), MissionItem(command=21, lat=LAT0, lon=LON0)]
+    delayed = [
+        base[0],
+        MissionItem(command=93, frame=2, params=(30, -1, -1, -1)),
+        MissionItem(command=112, frame=2, params=(15, 0, 0, 0)),
+        base[1],
+    ]
+    t0 = estimate_flight(base, 8.0, Home(LAT0, LON0, 0), model).flight_time_s
+    t1 = estimate_flight(delayed, 8.0, Home(LAT0, LON0, 0), model).flight_time_s
+    assert abs(t1 - t0 - 45) < 1e-6
+    roi = [base[0], MissionItem(command=201, frame=2, params=(0, 0, 0, 0)), base[1]]
+    assert validate_items(roi, MissionLimits()) == []
+
+
+def test_compiled_items_are_what_the_agent_and_the_simulated_autopilot_accept():
+    """Contract: the agent's parser takes every compiled item; the simulator stores them."""
+    from asset_agent.autopilot.items import items_from_dicts
+    from server.missions.items import item_dicts
+    from sim.vehicle import mission as sim_mission
+
+    spec = SurveySpec(SQUARE, 75, 50, 70, 60, 50, 6.0, heading_deg=30, camera_trigger=False)
+    items = item_dicts(list(compile_survey(spec).items))
+    converted = items_from_dicts(items)
+    assert len(converted) == len(items) == 2 + 2 * len(compile_survey(spec).lines) + 1
+    for seq, it in enumerate(converted, start=1):
+        stored = sim_mission.Item(
+            seq,
+            it.frame,
+            it.command,
+            it.param1,
+            it.param2,
+            it.param3,
+            it.param4,
+            it.x,
+            it.y,
+            it.z,
+            it.autocontinue,
+        )
+        assert sim_mission.validate(stored) == sim_mission.ACCEPTED, (seq, it)
+    with_trigger = item_dicts(
+        list(compile_survey(SurveySpec(SQUARE, 75, 50, 70, 60, 50, 6.0)).items)
+    )
+    assert items_from_dicts(with_trigger)[3].command == 206
