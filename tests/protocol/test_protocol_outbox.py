@@ -153,6 +153,7 @@ def test_resume_follows_a_server_ahead_of_us(path: Path) -> None:
 
 def test_token_persists_and_clears(path: Path) -> None:
     box = Outbox(path)
+    assert path.stat().st_mode & 0o077 == 0  # the token is for the owner's eyes only
     assert box.load_token() is None
     box.save_token(Token("abc", 1_900_000_000.5))
     box.close()
