@@ -27,6 +27,10 @@ from server.realtime.broker import make_broker
 from server.realtime.endpoints import router as realtime_router
 from server.realtime.hub import Hub
 from server.realtime.ingest import Ingest
+from server.runs.endpoints import router as runs_router
+from server.runs.engine import RunEngine
+from server.schedules.endpoints import router as schedules_router
+from server.schedules.service import Scheduler
 from server.stations.ntrip import ntrip_router
 from server.stations.service import BaseCorrections, caster_authenticator
 from server.telemetry.endpoints import router as telemetry_router
@@ -71,12 +75,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.state.hub = Hub(app.state.broker, app.state.sessionmaker)
         await app.state.hub.start()
         app.state.session_end_listeners.append(app.state.hub.sessions_ended)
+        app.state.runs = RunEngine(app.state, settings, app.state.hub.node)
+        app.state.scheduler = Scheduler(app.state, grace_s=settings.schedule_grace_s)
+        if settings.run_engine:
+            app.state.runs.start()
+            app.state.scheduler.start()
         retention = asyncio.create_task(retention_loop(app.state.telemetry, settings.telemetry_retention_days))
         log.info("server started", extra={"database": engine.url.render_as_string(hide_password=True)})
         try:
             yield
         finally:
             retention.cancel()
+            await app.state.scheduler.stop()
+            await app.state.runs.stop()
             await app.state.hub.stop()
             await app.state.ingest.stop()
             await app.state.telemetry.close()
@@ -94,7 +105,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(RejectNulBytes)
     install_error_handlers(app)
     for router in (health_router, auth_router, organizations_router, assets_router, audit_router,
-                   commands_router, telemetry_router, realtime_router, missions_router):
+                   commands_router, telemetry_router, realtime_router, missions_router, runs_router,
+                   schedules_router):
         app.include_router(router)
     # NTRIP is its own protocol (basic auth, gnss/* content types): served beside the REST API
     app.include_router(ntrip_router(BaseCorrections(app.state), caster_authenticator(app.state, settings)),

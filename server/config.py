@@ -48,6 +48,11 @@ class Settings(BaseSettings):
     ws_burst: float = Field(default=400.0, ge=1)
     telemetry_retention_days: float = Field(default=90.0, gt=0)
 
+    # autonomous runs: per-step time budgets in seconds, e.g. {"flying": 1800} (see server/runs/machine.py)
+    run_timeouts: dict[str, float] = Field(default_factory=dict)
+    run_engine: bool = True  # drive runs and fire schedules in this process (every replica may)
+    schedule_grace_s: float = Field(default=60.0, ge=0, description="a due time later than this is 'missed'")
+
     # failed-login rate limits
     login_window_s: int = Field(default=15 * 60, ge=1)
     login_max_failures_account: int = Field(default=5, ge=1)

@@ -7,6 +7,8 @@ from server.commands.models import AssetCommand, CommandStatusChange
 from server.kit.db import Base
 from server.missions.models import Mission, MissionKind
 from server.organizations.models import Membership, Organization, Role, User
+from server.runs.models import Run, RunTransition
+from server.schedules.models import Schedule
 from server.telemetry.models import AssetEvent, AssetStream, TelemetrySample
 
 __all__ = [
@@ -25,6 +27,9 @@ __all__ = [
            "MissionKind",
            "Organization",
            "Role",
+           "Run",
+           "RunTransition",
+           "Schedule",
            "TelemetrySample",
            "User",
 ]

@@ -79,7 +79,15 @@ class Victim:
         mission = tenant.api.post("/api/v1/missions", headers=tenant.h("operator"), json={
             "name": "walk-mission", "items": [{"command": 22, "lat": 47.39, "lon": 8.54, "alt": 20}]})
         assert mission.status_code == 201, mission.text
+        ids = {"mission_id": mission.json()["id"], "uav_id": uav, "base_id": base["id"]}
+        run = tenant.api.post("/api/v1/runs", headers=tenant.h("operator"), json=ids)
+        assert run.status_code == 201, run.text
+        schedule = tenant.api.post("/api/v1/schedules", headers=tenant.h("operator"), json={
+            **ids, "name": "walk-schedule", "kind": "cron", "cron": "0 6 * * *", "timezone": "Europe/Lisbon"})
+        assert schedule.status_code == 201, schedule.text
         self.ids = {
+            "run_id": run.json()["id"],
+            "schedule_id": schedule.json()["id"],
             "asset_id": uav,
             "command_id": cmd.json()["id"],
             "user_id": tenant.user_ids["viewer"],

@@ -121,3 +121,27 @@ async def test_two_processes_act_as_one(two_servers, api, superuser_email, tmp_p
         assert executed and len(executed) == 1
     finally:
         await link.stop()
+
+
+def test_two_processes_sharing_a_schedule_start_its_run_exactly_once(two_servers, api, superuser_email):
+    from datetime import UTC, datetime, timedelta
+
+    from tests.conftest import wait_for
+
+    url_a, url_b = two_servers
+    tenant = Tenant(api, superuser_email, "sched")
+    base = tenant.create_asset("landing_base")
+    uav = tenant.create_asset("uav", base_id=base["id"])
+    mission = api.post("/api/v1/missions", headers=tenant.h("operator"), json={
+        "name": "m", "items": [{"command": 22, "lat": 41.178, "lon": -8.598, "alt": 20}, {"command": 20}]}).json()
+    ids = {"mission_id": mission["id"], "uav_id": uav["id"], "base_id": base["id"]}
+    with httpx.Client(base_url=url_a) as a, httpx.Client(base_url=url_b) as b:
+        due = (datetime.now(UTC) + timedelta(seconds=2)).isoformat()
+        s = a.post("/api/v1/schedules", headers=tenant.h("operator"),
+                   json={**ids, "name": "dawn patrol", "kind": "once", "at": due}).json()
+        # fired and disabled in the same transaction: after this no process can fire it again
+        wait_for(lambda: not b.get(f"/api/v1/schedules/{s['id']}", headers=tenant.h("viewer")).json()["enabled"],
+                 30, what="the schedule to fire")
+        runs_a = [r for r in a.get("/api/v1/runs", headers=tenant.h("viewer")).json() if r["schedule_id"] == s["id"]]
+        runs_b = [r for r in b.get("/api/v1/runs", headers=tenant.h("viewer")).json() if r["schedule_id"] == s["id"]]
+    assert len(runs_a) == 1 and runs_a == runs_b

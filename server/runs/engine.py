@@ -1,0 +1,206 @@
+"""Drives runs: leases them, observes their assets, persists each transition, then acts on it.
+
+Every replica runs the same loop; a run is leased by one process at a time (row lock with
+SKIP LOCKED on PostgreSQL, serialised writes on SQLite), so a restarted or extra server simply
+picks up where the table says a run stands.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import uuid
+from dataclasses import asdict
+from datetime import datetime, timedelta
+from typing import Any
+
+from server.assets.models import Asset
+from server.commands import service as commands
+from server.kit.time import utcnow
+from server.runs import repository as repo
+from server.runs.machine import (
+    FINAL,
+    STEPS,
+    TOTAL_STEPS,
+    Action,
+    CommandOutcome,
+    Observations,
+    State,
+    advance,
+)
+from server.runs.models import Run, RunTransition
+
+log = logging.getLogger(__name__)
+LEASE_S = 15.0
+
+
+def progress_payload(run: Run, label_override: str | None = None) -> dict[str, Any]:
+    """What operators see of a run: readable step, number, status, reason."""
+    state = State(run.state)
+    step = STEPS[state]
+    return {"run_id": str(run.id), "state": state.value, "step": step.number, "total_steps": TOTAL_STEPS,
+            "label": label_override or step.label, "final": state in FINAL, "outcome": run.outcome,
+            "cause": run.cause, "reason": run.reason, "alert": run.alert, "mission_id": str(run.mission_id),
+            "uav_id": str(run.uav_id), "base_id": str(run.base_id), "at": utcnow().isoformat()}
+
+
+class RunEngine:
+    """The per-process loop that advances every run it holds the lease of."""
+
+    def __init__(self, state: Any, settings: Any, node: str, tick_s: float = 0.25) -> None:
+        self.state = state  # app.state: sessionmaker, broker, telemetry store
+        self.settings = settings
+        self.node = f"runs-{node}"
+        self.tick_s = tick_s
+        self._task: asyncio.Task[None] | None = None
+
+    def start(self) -> None:
+        """Start the loop."""
+        self._task = asyncio.create_task(self._loop(), name="run-engine")
+
+    async def stop(self) -> None:
+        """Stop the loop (leases expire on their own)."""
+        if self._task:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+
+    async def _loop(self) -> None:
+        while True:
+            try:
+                await self.tick()
+            except asyncio.CancelledError:
+                raise
+            except Exception:
+                log.exception("run engine tick failed")
+            await asyncio.sleep(self.tick_s)
+
+    def timeout_s(self, state: State) -> float:
+        """The configured time budget of a step."""
+        return float(self.settings.run_timeouts.get(state.value, STEPS[state].default_timeout_s))
+
+    async def tick(self) -> None:
+        """Lease runs, then drive each one step."""
+        now = utcnow()
+        async with self.state.sessionmaker() as db:
+            ids = await repo.claim(db, self.node, now, now + timedelta(seconds=LEASE_S))
+            await db.commit()
+        for run_id in ids:
+            try:
+                await self.drive(run_id)
+            except Exception:
+                log.exception("driving run %s failed", run_id)
+
+    async def drive(self, run_id: uuid.UUID) -> None:
+        """Issue the current step's commands if not yet out, else look and maybe transition."""
+        async with self.state.sessionmaker() as db:
+            run = await repo.lock(db, run_id)
+            if run is None or run.lease_owner != self.node:
+                return
+            if not run.actions_issued:
+                nudges = await self._issue(db, run)
+                await db.commit()
+                for asset_id in nudges:
+                    await self.state.broker.publish(f"cmd.{asset_id}", {"run_id": str(run.id)})
+                return
+            if State(run.state) in FINAL:
+                return
+            obs = await self._observe(db, run)
+            transition = advance(State(run.state), obs, aborting=run.aborting)
+            if transition is None:
+                return
+            previous = run.state
+            now = utcnow()
+            # written first: a server that dies right after this resumes in the new step
+            db.add(RunTransition(run_id=run.id, at=now, from_state=previous, to_state=transition.to.value,
+                                 reason=transition.reason, cause=transition.cause))
+            if transition.cause == "operator_abort":
+                run.aborting = True
+            if previous == State.flying.value:
+                run.facts = {**run.facts, "flight_ended_at": now.isoformat()}
+            if transition.to == State.flying:
+                run.facts = {**run.facts, "flight_started_at": now.isoformat()}
+            run.state, run.step_started_at, run.updated_at = transition.to.value, now, now
+            run.reason = transition.reason
+            run.alert = run.alert or transition.alert
+            pending = [*transition.extra_actions, *STEPS[transition.to].actions]
+            run.facts = {**run.facts, "pending_actions": [asdict(a) for a in pending]}
+            run.step_commands, run.actions_issued = {}, not pending
+            if transition.to in FINAL:
+                run.outcome, run.cause, run.finished_at = transition.to.value, transition.cause or None, now
+            await db.commit()
+            log.info("run %s: %s -> %s: %s", run.id, previous, transition.to.value, transition.reason)
+        await self._publish(run)
+
+    async def _publish(self, run: Run) -> None:
+        from protocol.messages import RunProgress
+
+        message = RunProgress(payload=progress_payload(run)).model_dump(mode="json")
+        for asset_id in {run.uav_id, run.base_id}:
+            await self.state.broker.publish(f"asset.{asset_id}", message)
+
+    async def _issue(self, db: Any, run: Run) -> set[uuid.UUID]:
+        pending = run.facts.get("pending_actions")
+        actions = [Action(**a) for a in pending] if pending is not None else list(STEPS[State(run.state)].actions)
+        timeout = self.timeout_s(State(run.state)) if State(run.state) not in FINAL else 120.0
+        issued = dict(run.step_commands)
+        nudges: set[uuid.UUID] = set()
+        for action in actions:
+            key = f"{action.target}:{action.command}"
+            if key in issued:
+                continue
+            asset_id = run.uav_id if action.target == "uav" else run.base_id
+            params = dict(action.params) or await self._params(db, run, action)
+            cmd = await commands.create(db, organization_id=run.organization_id, asset_id=asset_id,
+                                        name=action.command, params=params, timeout_s=timeout,
+                                        created_by=f"run:{run.id}")
+            issued[key] = str(cmd.id)
+            nudges.add(asset_id)
+        run.step_commands, run.actions_issued = issued, True
+        run.facts = {k: v for k, v in run.facts.items() if k != "pending_actions"}
+        return nudges
+
+    async def _params(self, db: Any, run: Run, action: Action) -> dict[str, Any]:
+        if action.command == "upload_mission":
+            from server.missions.models import Mission
+
+            mission = await db.get(Mission, run.mission_id)
+            return {"mission_id": str(run.mission_id), "items": list(mission.items) if mission else []}
+        if action.target == "base" and action.command == "check_availability":
+            uav = await db.get(Asset, run.uav_id)
+            attrs = (uav.attributes if uav else None) or {}
+            return {k: attrs[k] for k in ("mass_g", "mass_window_g") if k in attrs}
+        return {}
+
+    async def _observe(self, db: Any, run: Run) -> Observations:
+        ids = [uuid.UUID(v) for v in run.step_commands.values()]
+        found = await repo.commands_by_id(db, ids)
+        outcomes = {}
+        for key, value in run.step_commands.items():
+            cmd = found.get(uuid.UUID(value))
+            if cmd is not None:
+                target, name = key.split(":", 1)
+                outcomes[(target, name)] = CommandOutcome(cmd.status, cmd.reason, cmd.result)
+        since = run.step_started_at
+        uav_events = await repo.event_names_since(db, run.uav_id, since)
+        base_events = await repo.event_names_since(db, run.base_id, since)
+        store = self.state.telemetry
+        uav = await store.latest(run.uav_id) or {}
+        base = await store.latest(run.base_id) or {}
+        landed = (uav.get("landed_state") == "on_ground" and uav.get("armed") is False
+                  and _after(uav.get("ts"), since))
+        return Observations(
+            elapsed_s=(utcnow() - since).total_seconds(), timeout_s=self.timeout_s(State(run.state)),
+            commands=outcomes, uav_events=uav_events, base_events=base_events, uav_landed=landed,
+            base_mass_g=base.get("scale_mass_g"), abort_requested=run.abort_requested,
+            abort_reason=run.abort_reason, took_off="took_off" in uav_events or "armed" in uav_events)
+
+
+def _after(ts: str | None, since: datetime) -> bool:
+    if not ts:
+        return False
+    try:
+        return datetime.fromisoformat(ts) >= since
+    except ValueError:
+        return False

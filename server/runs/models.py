@@ -1,0 +1,61 @@
+"""Tables of runs and their transitions."""
+
+from __future__ import annotations
+
+import uuid
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import JSON, ForeignKey, Index, String
+from sqlalchemy.orm import Mapped, mapped_column
+
+from server.kit.db import Base, IdMixin
+from server.kit.time import utcnow
+
+
+class Run(IdMixin, Base):
+    """One autonomous run: a mission flown by a UAV from a landing base and back."""
+
+    __tablename__ = "runs"
+    __table_args__ = (Index("ix_runs_org_created", "organization_id", "created_at"),
+                      Index("ix_runs_state_lease", "state", "lease_until"),
+                      # one run per due time of a schedule, whatever the number of server processes
+                      Index("uq_runs_schedule_due", "schedule_id", "scheduled_for", unique=True))
+
+    organization_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("organizations.id", ondelete="CASCADE"))
+    mission_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("missions.id", ondelete="RESTRICT"))
+    uav_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("assets.id", ondelete="RESTRICT"))
+    base_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("assets.id", ondelete="RESTRICT"))
+    schedule_id: Mapped[uuid.UUID | None] = mapped_column(default=None)
+    scheduled_for: Mapped[datetime | None] = mapped_column(default=None)
+    state: Mapped[str] = mapped_column(String(16), default="pending")
+    step_started_at: Mapped[datetime] = mapped_column(default=utcnow)
+    step_commands: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)  # "target:command" -> command id
+    actions_issued: Mapped[bool] = mapped_column(default=False)  # the current step's commands are out
+    aborting: Mapped[bool] = mapped_column(default=False)
+    abort_requested: Mapped[bool] = mapped_column(default=False)
+    abort_reason: Mapped[str] = mapped_column(String(2000), default="")
+    outcome: Mapped[str | None] = mapped_column(String(16), default=None)  # completed | aborted | failed
+    cause: Mapped[str | None] = mapped_column(String(64), default=None)
+    reason: Mapped[str] = mapped_column(String(2000), default="")
+    alert: Mapped[bool] = mapped_column(default=False)
+    facts: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)  # battery at start, take-off time, ...
+    lease_owner: Mapped[str | None] = mapped_column(String(64), default=None)
+    lease_until: Mapped[datetime] = mapped_column(default=utcnow)
+    created_by: Mapped[str | None] = mapped_column(String(64), default=None)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(default=utcnow)
+    finished_at: Mapped[datetime | None] = mapped_column(default=None)
+
+
+class RunTransition(IdMixin, Base):
+    """One step of a run's timeline, written before the step is acted on."""
+
+    __tablename__ = "run_transitions"
+
+    run_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("runs.id", ondelete="CASCADE"), index=True)
+    at: Mapped[datetime] = mapped_column(default=utcnow)
+    from_state: Mapped[str] = mapped_column(String(16))
+    to_state: Mapped[str] = mapped_column(String(16))
+    reason: Mapped[str] = mapped_column(String(2000), default="")
+    cause: Mapped[str] = mapped_column(String(64), default="")

@@ -1,0 +1,82 @@
+"""All SQL of runs: scoped reads for the API, leases and observations for the engine."""
+
+from __future__ import annotations
+
+import uuid
+from datetime import datetime
+
+from sqlalchemy import or_, select
+from sqlalchemy.ext.asyncio import AsyncSession
+
+from server.commands.models import AssetCommand
+from server.kit.scope import ScopedRepository
+from server.runs.machine import FINAL
+from server.runs.models import Run, RunTransition
+from server.telemetry.models import AssetEvent
+
+FINAL_VALUES = [s.value for s in FINAL]
+
+
+class RunRepository(ScopedRepository[Run]):
+    """Runs of the caller's organisation."""
+
+    model = Run
+    noun = "run"
+
+    async def filtered(self, limit: int, offset: int, state: str | None, uav_id: uuid.UUID | None) -> list[Run]:
+        """Newest first, optionally by state or UAV."""
+        stmt = self.select().order_by(Run.created_at.desc()).limit(limit).offset(offset)
+        if state:
+            stmt = stmt.where(Run.state == state)
+        if uav_id:
+            stmt = stmt.where(Run.uav_id == uav_id)
+        return list((await self.db.execute(stmt)).scalars())
+
+    async def in_window(self, start: datetime, end: datetime) -> list[Run]:
+        """Runs created in [start, end)."""
+        stmt = self.select().where(Run.created_at >= start, Run.created_at < end).order_by(Run.created_at)
+        return list((await self.db.execute(stmt)).scalars())
+
+    async def busy(self, asset_ids: list[uuid.UUID]) -> Run | None:
+        """An unfinished run using any of these assets."""
+        stmt = self.select().where(Run.state.not_in(FINAL_VALUES),
+                                   or_(Run.uav_id.in_(asset_ids), Run.base_id.in_(asset_ids))).limit(1)
+        return (await self.db.execute(stmt)).scalar_one_or_none()
+
+    async def timeline(self, run_id: uuid.UUID) -> list[RunTransition]:
+        """The transitions of a run already resolved through `get`."""
+        stmt = select(RunTransition).where(RunTransition.run_id == run_id).order_by(RunTransition.at)  # unscoped: run checked by get()
+        return list((await self.db.execute(stmt)).scalars())
+
+
+async def claim(db: AsyncSession, owner: str, now: datetime, until: datetime, limit: int = 50) -> list[uuid.UUID]:
+    """Lease the runs this process will drive: unfinished (or with actions still to issue), unleased or ours."""
+    stmt = (select(Run)  # unscoped: the engine drives every organisation's runs
+            .where(or_(Run.state.not_in(FINAL_VALUES), Run.actions_issued.is_(False)),
+                   or_(Run.lease_until < now, Run.lease_owner == owner))
+            .order_by(Run.created_at).limit(limit).with_for_update(skip_locked=True))
+    runs = list((await db.execute(stmt)).scalars())
+    for run in runs:
+        run.lease_owner, run.lease_until = owner, until
+    return [r.id for r in runs]
+
+
+async def lock(db: AsyncSession, run_id: uuid.UUID) -> Run | None:
+    """A run, locked for the rest of the transaction."""
+    stmt = select(Run).where(Run.id == run_id).with_for_update()  # unscoped: engine
+    return (await db.execute(stmt)).scalar_one_or_none()
+
+
+async def commands_by_id(db: AsyncSession, ids: list[uuid.UUID]) -> dict[uuid.UUID, AssetCommand]:
+    """Commands the run issued."""
+    if not ids:
+        return {}
+    stmt = select(AssetCommand).where(AssetCommand.id.in_(ids))  # unscoped: engine, ids from the run itself
+    return {c.id: c for c in (await db.execute(stmt)).scalars()}
+
+
+async def event_names_since(db: AsyncSession, asset_id: uuid.UUID, since: datetime) -> list[str]:
+    """Names of the events an asset reported that reached the server since `since`."""
+    stmt = (select(AssetEvent.name).where(AssetEvent.asset_id == asset_id,  # unscoped: engine
+                                          AssetEvent.created_at >= since).order_by(AssetEvent.created_at))
+    return list((await db.execute(stmt)).scalars())

@@ -1,0 +1,98 @@
+"""API shapes of runs and reports."""
+
+from __future__ import annotations
+
+import uuid
+from datetime import datetime
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict
+
+from server.kit.types import Text
+
+
+class RunCreate(BaseModel):
+    """Start a run: a mission, the UAV that flies it, the base it leaves from and returns to."""
+
+    model_config = ConfigDict(extra="forbid")
+    mission_id: uuid.UUID
+    uav_id: uuid.UUID
+    base_id: uuid.UUID
+
+
+class AbortRequest(BaseModel):
+    """Why the operator aborts."""
+
+    model_config = ConfigDict(extra="forbid")
+    reason: Text = ""
+
+
+class TransitionOut(BaseModel):
+    """One step of a run's timeline."""
+
+    model_config = ConfigDict(from_attributes=True)
+    at: datetime
+    from_state: str
+    to_state: str
+    reason: str
+    cause: str
+
+
+class RunOut(BaseModel):
+    """A run, its step and (when read alone) its timeline."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: uuid.UUID
+    mission_id: uuid.UUID
+    uav_id: uuid.UUID
+    base_id: uuid.UUID
+    schedule_id: uuid.UUID | None
+    scheduled_for: datetime | None
+    state: str
+    step: int = 0
+    total_steps: int = 0
+    label: str = ""
+    outcome: str | None
+    cause: str | None
+    reason: str
+    alert: bool
+    abort_requested: bool
+    created_at: datetime
+    updated_at: datetime
+    finished_at: datetime | None
+    timeline: list[TransitionOut] = []
+
+
+class RunReport(BaseModel):
+    """The flight history of one run."""
+
+    run: RunOut
+    flight_time_s: float | None
+    battery_used_pct: float | None
+    landing_error_m: float | None
+    track: list[dict[str, Any]]
+
+
+class AssetSummary(BaseModel):
+    """Per-asset figures of the fleet report."""
+
+    asset_id: uuid.UUID
+    runs: int
+    completed: int
+    flight_time_s: float
+
+
+class FleetReport(BaseModel):
+    """Runs in a window: counts, success rate, failures by cause, mean flight time, per asset."""
+
+    start: datetime
+    end: datetime
+    runs: int
+    completed: int
+    aborted: int
+    failed: int
+    in_progress: int
+    success_rate: float | None
+    failures_by_cause: dict[str, int]
+    mean_flight_time_s: float | None
+    per_asset: list[AssetSummary]

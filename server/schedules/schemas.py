@@ -1,0 +1,60 @@
+"""API shapes of schedules."""
+
+from __future__ import annotations
+
+import uuid
+from datetime import datetime
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from server.kit.types import Name
+
+
+class ScheduleCreate(BaseModel):
+    """A schedule: `once` at `at`; `interval` every `interval_s` from `at` (default: now); `cron` in `timezone`."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: Name
+    mission_id: uuid.UUID
+    uav_id: uuid.UUID
+    base_id: uuid.UUID
+    kind: Literal["once", "interval", "cron"]
+    at: datetime | None = None
+    interval_s: int | None = Field(default=None, ge=60, le=366 * 86400)
+    cron: str | None = Field(default=None, max_length=120)
+    timezone: str = Field(default="UTC", max_length=64)
+    missed_policy: Literal["skip", "run_once"] = "skip"
+    enabled: bool = True
+
+
+class ScheduleUpdate(BaseModel):
+    """Enable, disable, rename, or change the missed-run policy."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: Name | None = None
+    enabled: bool | None = None
+    missed_policy: Literal["skip", "run_once"] | None = None
+
+
+class ScheduleOut(BaseModel):
+    """A schedule and its last firing."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: uuid.UUID
+    name: str
+    mission_id: uuid.UUID
+    uav_id: uuid.UUID
+    base_id: uuid.UUID
+    kind: str
+    at: datetime | None
+    interval_s: int | None
+    cron: str | None
+    timezone: str
+    missed_policy: str
+    enabled: bool
+    next_due_at: datetime | None
+    last_fired_at: datetime | None
+    last_run_id: uuid.UUID | None
+    last_result: str
+    created_at: datetime
