@@ -27,7 +27,7 @@ from pathlib import Path
 import httpx
 from websockets.asyncio.client import ClientConnection, connect
 
-from bench._load import Payloads, Recorder, drain, figures, pace
+from bench._load import Payloads, Recorder, drain, figures, pace, process_cpu
 from protocol.codec import MAX_MESSAGE_BYTES, encode
 from protocol.configfile import decrypt_config
 from protocol.messages import HelloPayload, envelope
@@ -36,6 +36,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SUPER_PASSWORD = "bench-superuser-password-1"
 USER_PASSWORD = "bench-viewer-password-1"
 ASSET_PASSWORD = "bench-asset-password-1"
+IDLE_S = 5.0  # seconds of idle CPU measured with every socket connected, before the load
 
 Progress = Callable[[str], None]
 
@@ -308,6 +309,17 @@ async def run_ours(
 
         await asyncio.gather(*(open_one(i) for i in range(n)))
     ws_all = [s for s in sockets if s is not None]
+    idle = await idle_cpu(pid, IDLE_S)
+    progress(
+        f"server CPU with {n} assets and {m} operator(s) connected, no telemetry: {idle:.1f} % of a core"
+    )
+    closed: dict[str, int] = {}
+    stopping = False
+
+    def on_closed(ws: ClientConnection) -> None:
+        if not stopping:
+            key = str(ws.close_code)
+            closed[key] = closed.get(key, 0) + 1
 
     async def read_acks(i: int, ws: ClientConnection) -> None:
         with contextlib.suppress(Exception):
@@ -316,6 +328,7 @@ async def run_ours(
                     rec.acked[i] = max(rec.acked[i], json.loads(raw)["payload"]["seq"])
                 elif '"type":"error"' in raw:
                     rec.errors += 1
+        on_closed(ws)
 
     async def read_operator(k: int, ws: ClientConnection) -> None:
         with contextlib.suppress(Exception):
@@ -324,6 +337,7 @@ async def run_ours(
                 msg = json.loads(raw)
                 if msg["type"] == "telemetry":
                     rec.on_delivered(k, index[msg["payload"]["asset_id"]], msg["seq"], t)
+        on_closed(ws)
 
     readers = [asyncio.create_task(read_acks(i, ws)) for i, ws in enumerate(ws_all)]
     readers += [asyncio.create_task(read_operator(k, ws)) for k, ws in enumerate(ops)]
@@ -335,7 +349,19 @@ async def run_ours(
         marks = await pace(n, rate, warmup, seconds, rec, send, progress, pid)
         drained = await drain(rec, 15.0)
     finally:
+        stopping = True
         for task in readers:
             task.cancel()
         await asyncio.gather(*(ws.close() for ws in [*ws_all, *ops]), return_exceptions=True)
-    return figures(rec, marks, drained)
+    result = figures(rec, marks, drained)
+    result["idle_cpu_pct_of_core"] = round(idle, 1)
+    result["sockets_closed_by_server"] = closed
+    return result
+
+
+async def idle_cpu(pid: int, seconds: float) -> float:
+    """Percent of one core the process `pid` uses over `seconds` while we send nothing."""
+    c0, t0 = process_cpu(pid), time.perf_counter()
+    await asyncio.sleep(seconds)
+    c1, t1 = process_cpu(pid), time.perf_counter()
+    return 0.0 if c0 is None or c1 is None else 100 * (c1 - c0) / (t1 - t0)
