@@ -65,6 +65,7 @@ COMMANDS: dict[int, CommandSpec] = {
     205: CommandSpec("DO_MOUNT_CONTROL", False, False),
     2000: CommandSpec("IMAGE_START_CAPTURE", False, False),
     2001: CommandSpec("IMAGE_STOP_CAPTURE", False, False),
+    530: CommandSpec("SET_CAMERA_MODE", False, False),
     2500: CommandSpec("VIDEO_START_CAPTURE", False, False),
     2501: CommandSpec("VIDEO_STOP_CAPTURE", False, False),
 }

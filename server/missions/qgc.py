@@ -194,8 +194,15 @@ def _complex(
     raw: dict[str, Any], i: int, where: str, problems: list[Problem]
 ) -> list[tuple[MissionItem, Any]]:
     kind = raw.get("complexItemType")
-    transect = raw.get("TransectStyleComplexItem")
-    inner = transect.get("Items") if isinstance(transect, dict) else None
+    # survey, corridor and structure scans keep their flattened items in TransectStyleComplexItem;
+    # other styles (e.g. AgriculturalStyleComplexItem) in a section of their own, with the same key
+    sections = [raw.get("TransectStyleComplexItem")] + [
+        v for v in raw.values() if isinstance(v, dict)
+    ]
+    inner = next(
+        (s["Items"] for s in sections if isinstance(s, dict) and isinstance(s.get("Items"), list)),
+        None,
+    )
     if not isinstance(inner, list) or not inner:
         problems.append(
             Problem(

@@ -222,6 +222,13 @@ def test_complex_items_import_their_flattened_items_or_are_named():
     imported = parse_plan(plan)
     assert [i.command for i in imported.items] == [22, 16, 206, 16, 206, 20]
     assert imported.items[2].params[0] == 12.5
+    agri = {
+        "type": "ComplexItem",
+        "complexItemType": "AgriculturalStyle",
+        "AgriculturalStyleComplexItem": {"Items": inner[:1], "visualTransectPoints": []},
+    }
+    again = parse_plan(wrap([simple(22, 3, (0, 0, 0, None, 47, 8, 50), 1), agri]))
+    assert [i.command for i in again.items] == [22, 16]
     bare = {"type": "ComplexItem", "complexItemType": "CorridorScan", "polyline": []}
     with pytest.raises(ImportRejected) as err:
         parse_plan(wrap([simple(22, 3, (0, 0, 0, None, 47, 8, 50)), bare]))
