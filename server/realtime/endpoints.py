@@ -180,8 +180,6 @@ class _AssetConn:
         self.bucket = TokenBucket(rate, burst)
         self.pending: deque[tuple[int, asyncio.Future[None]]] = deque()
         self.have_pending = asyncio.Event()
-        self.limited_since_error = 0
-        self.last_error_at = 0.0
 
     def _error(self, code: str, message: str, seq: int | None = None) -> None:
         self.sender.send_text(encode(envelope(ErrorPayload(code=code, message=message, re_seq=seq))))
@@ -193,14 +191,14 @@ class _AssetConn:
             raw = await ws.receive_text()
             hub.counters.received += 1
             if not self.bucket.take():
+                # Acks are cumulative: storing later messages past a rejected one would lose it. So the
+                # excess is refused with an error and the socket closed; the client reconnects and
+                # replays from the last ack, at its own pace.
                 hub.counters.rate_limited += 1
-                self.limited_since_error += 1
-                now = time.monotonic()
-                if now - self.last_error_at >= 0.1:
-                    self._error("rate_limited", f"over {self.bucket.rate:.0f} messages/s: "
-                                f"{self.limited_since_error} message(s) rejected")
-                    self.last_error_at, self.limited_since_error = now, 0
-                continue
+                self._error("rate_limited", f"over {self.bucket.rate:.0f} messages/s (burst "
+                            f"{self.bucket.burst:.0f}): reconnect and replay from the last ack")
+                self.sender.close(1008, "rate limit exceeded")
+                return
             msg = decode(raw, "asset_to_server")
             if isinstance(msg, DecodeError):
                 hub.counters.malformed += 1
