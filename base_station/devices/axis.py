@@ -151,7 +151,8 @@ class MotionTracker:
         s = self.spec
         if not link_up or plc is None:
             return Outcome.FAILED, f"PLC link lost while moving {self.verb}"
-        if plc.estop_active:
+        if plc.estop_active or plc.fault_bits & FaultBit.ESTOP:
+            # the four tables are read one after another: either sign of the E-stop counts
             return Outcome.FAILED, f"E-stop pressed while moving {self.verb}"
         r = s.read(plc)
         if plc.fault_bits & s.stall_bit:

@@ -18,7 +18,7 @@ from base_station.main import App, setup
 from base_station.station import Result, Station
 from sim.world import World, WorldConfig
 
-SPEED = 10.0  # panels travel in 1.2 s wall, lift in 0.8 s
+SPEED = 15.0  # panels travel in 0.8 s wall, lift in 0.53 s
 
 
 async def wait_for(

@@ -143,6 +143,7 @@ async def test_charging_cc_cv_to_completion_with_limit_and_power_source() -> Non
     async with rig_at(speed=400.0) as rig:
         await rig.inject("/weather/force", {"rain_mm_h": 2.0})  # clouds: solar cannot cover it
         await rig.inject("/pad", {"mass_g": 1500, "contacts_seated": True, "uav_soc": 0.88})
+        await wait_for(lambda: rig.station.telemetry().charger.contacts_seated, what="contacts")
         samples: list[tuple[str | None, int, float | None]] = []
         async with rig.station.subscribe() as events:
             result = await run(rig.station, "start_charging", {"current_limit_ma": 4000})
