@@ -64,6 +64,7 @@ class Guidance:
         self._arrived_at: float | None = None
         self._taking_off = False
         self._target_seen = False
+        self._jumps: dict[int, int] = {}
 
     # --- entry points --------------------------------------------------------------------
     def hold(self) -> None:
@@ -115,6 +116,7 @@ class Guidance:
         if self.mission_state in (MISSION_PAUSED, MISSION_ACTIVE) and c.mission_current >= 1:
             self.start_item(c.mission_current)
         else:
+            self._jumps.clear()
             self.start_item(1)
 
     def guided_target(self, msg: Any) -> None:
@@ -145,10 +147,10 @@ class Guidance:
             vn, ve = rot(msg.vx, msg.vy)
             self.goal = Goal("vel", vn, ve, msg.vz, expires=c.t + c.config.guided_timeout_s)
 
-    def start_item(self, seq: int) -> None:
-        """AUTO: begin mission item `seq`."""
+    def start_item(self, seq: int, chain: int = 0) -> None:
+        """AUTO: begin mission item `seq` (`chain` counts items stepped over without flying)."""
         c = self.c
-        if seq >= len(c.items):
+        if seq >= len(c.items) or chain > 2 * len(c.items):  # the end, or a loop of DO_JUMPs
             self._complete()
             return
         c.mission_current = seq
@@ -157,20 +159,37 @@ class Guidance:
         self.rtl_phase = None
         item = c.items[seq]
         n, e, d = c.item_ned(item)
+        c.text(INFO, f"Mission: {seq} {_CMD_NAMES.get(item.command, item.command)}")
         if item.command == ms.DO_CHANGE_SPEED:
             self.speed = item.param2
-            self.start_item(seq + 1)
+            self.start_item(seq + 1, chain + 1)
+        elif item.command == ms.DO_JUMP:
+            self._jump(seq, item, chain)
+        elif item.command not in ms.NAV_COMMANDS:
+            self.start_item(seq + 1, chain + 1)  # camera, gimbal, yaw, delay...: nothing to fly
         elif item.command == ms.NAV_TAKEOFF:
             est = c.estimated_position()
             self.goal = Goal("goto", est[0], est[1], min(d, est[2]))
             self._taking_off = True
-        elif item.command in (ms.NAV_WAYPOINT, ms.NAV_LOITER_TIME):
-            self.goal = Goal("goto", n, e, d, self.speed)
+        elif item.command == ms.NAV_DELAY:
+            self.hold()
+            self._arrived_at = c.t
         elif item.command == ms.NAV_LAND:
             self.goal = Goal("land", n, e)
         elif item.command == ms.NAV_RETURN_TO_LAUNCH:
             self.rtl_start()
-        c.text(INFO, f"Mission: {seq} {_CMD_NAMES.get(item.command, item.command)}")
+        else:  # waypoints and loiters
+            self.goal = Goal("goto", n, e, d, self.speed)
+
+    def _jump(self, seq: int, item: ms.Item, chain: int) -> None:
+        """DO_JUMP: back to param1, param2 times (-1: for ever), then on."""
+        left = self._jumps.setdefault(seq, int(item.param2))
+        if left == 0 or not 1 <= int(item.param1) < len(self.c.items):
+            self.start_item(seq + 1, chain + 1)
+            return
+        if left > 0:
+            self._jumps[seq] = left - 1
+        self.start_item(int(item.param1), chain + 1)
 
     def land_here(self) -> None:
         """LAND: descend at the current estimated position (or onto a landing target)."""
@@ -256,11 +275,14 @@ class Guidance:
         if item.command == ms.NAV_TAKEOFF:
             if c.dyn.state.altitude >= -self.goal.d - 0.3:
                 self._reached(c.mission_current)
-        elif item.command in (ms.NAV_WAYPOINT, ms.NAV_LOITER_TIME):
-            if self._arrived_at is None and self._arrived(c.config.wp_radius):
-                self._arrived_at = c.t
-            if self._arrived_at is not None and c.t - self._arrived_at >= max(item.param1, 0.0):
-                self._reached(c.mission_current)
+            return
+        hold_s = _HOLD_S.get(item.command)
+        if hold_s is None:
+            return  # land, RTL: done on touchdown; LOITER_UNLIM: never
+        if self._arrived_at is None and self._arrived(c.config.wp_radius):
+            self._arrived_at = c.t
+        if self._arrived_at is not None and c.t - self._arrived_at >= hold_s(item):
+            self._reached(c.mission_current)
 
     def _rtl_update(self) -> None:
         c = self.c
@@ -319,7 +341,18 @@ class Guidance:
         return self.mission_state
 
 
+# how long each nav item holds once there (LOITER_TURNS: 10 s a turn)
+_HOLD_S = {
+    ms.NAV_WAYPOINT: lambda it: max(it.param1, 0.0),
+    ms.NAV_SPLINE_WAYPOINT: lambda it: max(it.param1, 0.0),
+    ms.NAV_LOITER_TIME: lambda it: max(it.param1, 0.0),
+    ms.NAV_LOITER_TURNS: lambda it: 10.0 * max(it.param1, 0.0),
+    ms.NAV_DELAY: lambda it: max(it.param1, 0.0),
+}
+
 _CMD_NAMES = {
     ms.NAV_WAYPOINT: "WP", ms.NAV_LOITER_TIME: "LoitTime", ms.NAV_RETURN_TO_LAUNCH: "RTL",
     ms.NAV_LAND: "Land", ms.NAV_TAKEOFF: "Takeoff", ms.DO_CHANGE_SPEED: "ChangeSpeed",
+    ms.DO_JUMP: "Jump", ms.NAV_LOITER_UNLIM: "LoitUnlim", ms.NAV_LOITER_TURNS: "LoitTurns",
+    ms.NAV_SPLINE_WAYPOINT: "SplineWP", ms.NAV_DELAY: "Delay",
 }  # fmt: skip

@@ -21,10 +21,17 @@ INVALID_PARAM5_X, INVALID_PARAM6_Y, INVALID_PARAM7 = 10, 11, 12
 INVALID_SEQUENCE, DENIED, OPERATION_CANCELLED = 13, 14, 15
 
 # MAV_CMD
-NAV_WAYPOINT, NAV_LOITER_TIME, NAV_RETURN_TO_LAUNCH, NAV_LAND, NAV_TAKEOFF = 16, 19, 20, 21, 22
-DO_CHANGE_SPEED = 178
-NAV_COMMANDS = (NAV_WAYPOINT, NAV_LOITER_TIME, NAV_RETURN_TO_LAUNCH, NAV_LAND, NAV_TAKEOFF)
-SUPPORTED_COMMANDS = (*NAV_COMMANDS, DO_CHANGE_SPEED)
+NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TURNS, NAV_LOITER_TIME = 16, 17, 18, 19
+NAV_RETURN_TO_LAUNCH, NAV_LAND, NAV_TAKEOFF, NAV_SPLINE_WAYPOINT, NAV_DELAY = 20, 21, 22, 82, 93
+DO_JUMP, DO_CHANGE_SPEED = 177, 178
+NAV_COMMANDS = (
+    NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TURNS, NAV_LOITER_TIME, NAV_RETURN_TO_LAUNCH,
+    NAV_LAND, NAV_TAKEOFF, NAV_SPLINE_WAYPOINT, NAV_DELAY,
+)  # fmt: skip
+POSITIONAL_NAV = tuple(c for c in NAV_COMMANDS if c not in (NAV_RETURN_TO_LAUNCH, NAV_DELAY))
+# camera, gimbal, relay, servo, ROI, yaw and delay commands: stored and stepped over in flight
+PASSIVE_COMMANDS = (112, 115, 181, 183, 195, 197, 201, 203, 205, 206, 530, 2000, 2001, 2500, 2501)
+SUPPORTED_COMMANDS = (*NAV_COMMANDS, DO_JUMP, DO_CHANGE_SPEED, *PASSIVE_COMMANDS)
 
 # MAV_FRAME
 FRAME_GLOBAL, FRAME_MISSION, FRAME_GLOBAL_RELATIVE_ALT = 0, 2, 3
@@ -85,7 +92,9 @@ def validate(item: Item) -> int:
         if not 0.0 < item.param2 <= MAX_SPEED_MPS:
             return INVALID_PARAM2
         return ACCEPTED
-    if item.command == NAV_RETURN_TO_LAUNCH:
+    if item.command == DO_JUMP:
+        return ACCEPTED if item.param1 >= 1 else INVALID_PARAM1
+    if item.command not in POSITIONAL_NAV:
         return ACCEPTED  # no position: any frame will do
     if item.frame not in GLOBAL_FRAMES:
         return UNSUPPORTED_FRAME
@@ -95,9 +104,7 @@ def validate(item: Item) -> int:
         return INVALID_PARAM6_Y
     if not -1000.0 <= item.z <= MAX_ALT_M:
         return INVALID_PARAM7
-    if item.command == NAV_LOITER_TIME and item.param1 < 0:
-        return INVALID_PARAM1
-    if item.command == NAV_WAYPOINT and item.param1 < 0:
+    if item.command in (NAV_WAYPOINT, NAV_LOITER_TIME, NAV_LOITER_TURNS) and item.param1 < 0:
         return INVALID_PARAM1
     return ACCEPTED
 

@@ -66,7 +66,7 @@ async def test_out_of_range_item_is_rejected_with_its_index(autopilot: Autopilot
 
 async def test_unsupported_item_is_rejected_with_its_index(autopilot: Autopilot) -> None:
     items = items_from_dicts(survey(6))
-    items[3] = MissionItem(command=183, frame=2, param1=9, param2=1500)  # DO_SET_SERVO
+    items[3] = MissionItem(command=84, frame=3, z=10)  # NAV_VTOL_TAKEOFF: not for a Copter
     with pytest.raises(MissionError) as info:
         await autopilot.upload_mission(items)
     assert info.value.index == 3

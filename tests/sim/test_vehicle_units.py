@@ -132,7 +132,10 @@ def test_precland_frames_angles_and_timeouts() -> None:
 def test_mission_item_validation() -> None:
     wp = ms.Item(1, 6, ms.NAV_WAYPOINT, x=411780000, y=-85960000, z=20)
     assert ms.validate(wp) == ms.ACCEPTED
-    assert ms.validate(ms.Item(1, 6, 183)) == ms.UNSUPPORTED
+    assert ms.validate(ms.Item(1, 6, 84)) == ms.UNSUPPORTED  # NAV_VTOL_TAKEOFF
+    assert ms.validate(ms.Item(1, 2, 206, param1=25)) == ms.ACCEPTED  # camera trigger: stored
+    assert ms.validate(ms.Item(1, 2, ms.DO_JUMP, param1=0)) == ms.INVALID_PARAM1
+    assert ms.validate(ms.Item(1, 2, ms.NAV_DELAY, param1=5)) == ms.ACCEPTED
     assert ms.validate(ms.Item(1, 1, ms.NAV_WAYPOINT)) == ms.UNSUPPORTED_FRAME
     assert ms.validate(ms.Item(1, 6, ms.NAV_WAYPOINT, x=int(91e7))) == ms.INVALID_PARAM5_X
     assert ms.validate(ms.Item(1, 6, ms.NAV_WAYPOINT, y=int(-181e7))) == ms.INVALID_PARAM6_Y
@@ -166,3 +169,29 @@ def test_upload_rejects_bad_item_and_too_many() -> None:
     ok.on_item(ms.Item(0, 0, 16), 0.0)
     assert ok.on_item(ms.Item(1, 3, 22, z=10), 0.0) == ("ack", ms.ACCEPTED)
     assert ms.starts_with_takeoff([ms.Item(0, 0, 16), *ok.items[1:]])
+
+
+def test_mission_flight_steps_over_passive_items_and_jumps() -> None:
+    from sim.vehicle.copter import Copter, CopterConfig
+    from sim.vehicle.standalone import OpenPad
+
+    c = Copter(OpenPad(), CopterConfig(seed=2))
+    lat, lon = round(41.1780 * 1e7), round(-8.5960 * 1e7)
+    c.items = [
+        c.home_item(),
+        ms.Item(1, 3, ms.NAV_TAKEOFF, z=5),
+        ms.Item(2, 2, 206, param1=20),  # camera trigger distance: nothing to fly
+        ms.Item(3, 3, ms.NAV_WAYPOINT, x=lat + 200, y=lon, z=5),  # 2.2 m north
+        ms.Item(4, 2, ms.DO_JUMP, param1=3, param2=2),  # fly item 3 twice more
+        ms.Item(5, 3, ms.NAV_LAND),
+    ]
+    assert c.set_mode(4) and c.arm() == 0 and c.set_mode(3)
+    reached = []
+    for _ in range(4000):
+        c.tick(0.05, 0.0)
+        reached += [m.seq for _, m in c.outbox if m.get_type() == "MISSION_ITEM_REACHED"]
+        c.outbox.clear()
+        if not c.armed:
+            break
+    assert reached == [1, 3, 3, 3, 5]
+    assert not c.armed and c.dyn.state.landed
