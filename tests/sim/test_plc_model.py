@@ -226,3 +226,37 @@ def test_cpu_halt_freezes_heartbeat_and_ignores_commands() -> None:
     b.set_cpu_halt(False)
     b.tick_wall(11.5)
     assert b.heartbeat == 15
+
+
+# --- property: whatever a master writes, the lift is never off its down limit unless the
+# panels are fully open, and nothing moves under E-stop -------------------------------------
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+actions = st.one_of(
+    st.tuples(st.just("coil"), st.integers(0, 6)),
+    st.tuples(st.just("step"), st.floats(0.05, 6.0)),
+    st.tuples(st.just("estop"), st.booleans()),
+    st.tuples(st.just("jam"), st.sampled_from(["panels", "lift"])),
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(actions, max_size=40))
+def test_interlocks_hold_for_any_command_sequence(seq: list[tuple[str, object]]) -> None:
+    b = make()
+    for kind, arg in seq:
+        if kind == "coil":
+            b.write_coils(int(arg), [True])  # type: ignore[call-overload]
+        elif kind == "step":
+            for _ in range(int(float(arg) / 0.5) + 1):  # type: ignore[arg-type]
+                b.step(0.5)
+        elif kind == "estop":
+            b.set_estop(bool(arg))
+        else:
+            b.inject_stall(str(arg))
+        assert b.lift.position == 0.0 or b.panels.at_high
+        if b.estop_active:
+            assert not b.panels.moving and not b.lift.moving
+        assert all(not c for i, c in enumerate(b.coils()) if i != CHARGER_ENABLE)
