@@ -224,3 +224,14 @@ def test_vehicle_facing_api(world: World) -> None:
     assert base.can_vehicle_leave()
     n, e = world.weather.wind_ne(world.base.t_sim)
     assert isinstance(n, float) and isinstance(e, float)
+
+
+async def test_bad_requests_get_exception_responses_and_the_plc_keeps_serving(
+    world: World, plc: AsyncModbusTcpClient
+) -> None:
+    assert (await plc.read_input_registers(0, count=30, device_id=UNIT)).isError()
+    assert (await plc.write_register(5, 1, device_id=UNIT)).isError()
+    assert (await plc.write_coil(40, True, device_id=UNIT)).isError()
+    assert (await plc.read_input_registers(0, count=5, device_id=2)).isError()  # not unit 1
+    assert len(await ir(plc)) == 20 and plc.connected
+    assert world.base.command_log == []
