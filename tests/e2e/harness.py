@@ -1,0 +1,129 @@
+"""The whole platform in one test process, every boundary real: the simulated world (Modbus TCP,
+RTCM3 over TCP, MAVLink over UDP), the server on a socket, both daemons with their server links."""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import contextlib
+import time
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+from asset_agent.config import AgentConfig
+from asset_agent.main import run as run_agent
+from asset_agent.main import setup as setup_agent
+from base_station.main import run as run_base
+from base_station.main import setup as setup_base
+from base_station.server_link import link_runner, make_link
+from protocol.configfile import decrypt_config
+from sim.assemble import full_world
+from sim.world import World, WorldConfig
+from tests.base_station.bs_helpers import station_config
+from tests.conftest import Tenant
+
+SPEED = 10.0
+FINAL = ("completed", "aborted", "failed")
+
+
+def mission_items(lat: float, lon: float) -> list[dict[str, Any]]:
+    """Take off from the pad, fly a small square at 15 m, return to launch (the base)."""
+    square = [(0.0003, 0.0), (0.0003, 0.0004), (0.0, 0.0004)]
+    items = [{"command": 22, "frame": 3, "params": [0, 0, 0, None], "lat": lat, "lon": lon, "alt": 15}]
+    items += [{"command": 16, "frame": 3, "params": [0, 0, 0, None], "lat": lat + dn, "lon": lon + de, "alt": 15}
+              for dn, de in square]
+    items.append({"command": 20, "frame": 3, "params": [0, 0, 0, 0], "lat": 0, "lon": 0, "alt": 0})
+    return items
+
+
+@dataclass
+class Platform:
+    """A running platform and handles to act on it."""
+
+    world: World
+    tenant: Tenant
+    api: httpx.AsyncClient
+    ids: dict[str, str]
+    tasks: dict[str, asyncio.Task[None]]
+    stops: dict[str, asyncio.Event]
+    agent: Any
+    base: Any
+
+    async def ready(self, limit_s: float = 30) -> None:
+        """Wait until both daemons report live telemetry: the UAV with a 3D fix, the base with its PLC up."""
+        deadline = time.monotonic() + limit_s
+        while time.monotonic() < deadline:
+            uav = await self.api.get(f"/api/v1/assets/{self.ids['uav_id']}/telemetry/latest",
+                                     headers=self.tenant.h("viewer"))
+            base = await self.api.get(f"/api/v1/assets/{self.ids['base_id']}/telemetry/latest",
+                                      headers=self.tenant.h("viewer"))
+            if uav.status_code == base.status_code == 200 and base.json().get("plc_link") == "up" \
+                    and uav.json().get("gnss.fix") in ("3d", "dgps", "rtk_float", "rtk_fixed") \
+                    and base.json().get("uav_present"):
+                return
+            await asyncio.sleep(0.1)
+        raise AssertionError("the daemons did not report ready telemetry")
+
+    async def start_run(self) -> str:
+        r = await self.api.post("/api/v1/runs", json=self.ids, headers=self.tenant.h("operator"))
+        assert r.status_code == 201, r.text
+        return str(r.json()["id"])
+
+    async def run_state(self, run_id: str) -> dict[str, Any]:
+        return dict((await self.api.get(f"/api/v1/runs/{run_id}", headers=self.tenant.h("viewer"))).json())
+
+    async def wait_state(self, run_id: str, states: tuple[str, ...], limit_s: float = 120) -> dict[str, Any]:
+        deadline = time.monotonic() + limit_s
+        body: dict[str, Any] = {}
+        while time.monotonic() < deadline:
+            body = await self.run_state(run_id)
+            if body["state"] in states:
+                return body
+            await asyncio.sleep(0.1)
+        raise AssertionError(f"run {run_id} did not reach {states}: {body.get('state')} {body.get('timeline')}")
+
+
+@contextlib.asynccontextmanager
+async def platform(server_url: str, tenant: Tenant, tmp: Path, *, seed: int = 21,
+                   speed: float = SPEED) -> AsyncIterator[Platform]:
+    """World + daemons connected to the server at `server_url`, assets registered in `tenant`."""
+    world = full_world(WorldConfig.for_tests(speed=speed, seed=seed))
+    async with world:
+        world.weather.force(wind_mps=2.0, gust_mps=3.0, rain_mm_h=0.0, temperature_c=15.0)
+        lat, lon, _ = world.base.pad_geodetic
+        base = tenant.create_asset("landing_base", attributes={"latitude": lat, "longitude": lon})
+        uav = tenant.create_asset("uav", base_id=base["id"], attributes={"mass_g": 1450})
+        async with httpx.AsyncClient(base_url=server_url, timeout=30) as api:
+            r = await api.post("/api/v1/missions", headers=tenant.h("operator"),
+                               json={"name": "pad square", "items": mission_items(lat, lon)})
+            assert r.status_code == 201, r.text
+            ids = {"mission_id": r.json()["id"], "uav_id": uav["id"], "base_id": base["id"]}
+            bcfg = decrypt_config(base64.b64decode(base["config_file"]), "asset-password-123")
+            ucfg = decrypt_config(base64.b64decode(uav["config_file"]), "asset-password-123")
+            sconf = station_config(world.ports["plc"], speed, stable_s=1.0)
+            sconf = sconf.model_copy(update={"rtk": sconf.rtk.model_copy(update={"tcp_port": world.ports["gnss"]})})
+            base_app = setup_base(sconf)
+            aconf = AgentConfig.model_validate({
+                "server": {"state_file": str(tmp / "agent.db")},
+                "autopilot": {"url": f"udpout:127.0.0.1:{world.ports['mavlink_udp']}", "link_timeout_s": 2.0},
+                "telemetry": {"rate_hz": 5}})
+            agent = setup_agent(aconf, ucfg)
+            stops = {"base": asyncio.Event(), "agent": asyncio.Event()}
+            tasks = {
+                "base": asyncio.create_task(run_base(base_app, stops["base"], link=link_runner(
+                    make_link(bcfg, tmp / "base.db", server_url)))),
+                "agent": asyncio.create_task(run_agent(agent, stops["agent"])),
+            }
+            p = Platform(world, tenant, api, ids, tasks, stops, agent, base_app)
+            await p.ready()
+            try:
+                yield p
+            finally:
+                for name, stop in stops.items():
+                    stop.set()
+                    with contextlib.suppress(Exception):
+                        await asyncio.wait_for(tasks[name], 20)
