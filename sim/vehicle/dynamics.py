@@ -15,8 +15,8 @@ Usage::
 A position target is tracked with a sqrt (constant-deceleration) profile so the vehicle stops
 on the target; a velocity target is tracked directly. Both are limited by the horizontal and
 vertical speed limits and by the acceleration limit. Wind acts as a disturbance the
-controller mostly rejects: `wind_rejection` is the fraction of the wind that leaks into the
-ground velocity while flying.
+controller rejects once it has learnt it (`wind_adapt_s`); `wind_leak` is the fraction of the
+not-yet-learnt wind (gusts, changes) that leaks into the ground velocity while flying.
 """
 
 from __future__ import annotations
@@ -48,7 +48,8 @@ class DynamicsParams:
     max_accel: float = 3.0  # m/s^2, every axis
     pos_gain: float = 1.0  # 1/s, position error -> velocity
     yaw_rate: float = math.radians(90.0)  # rad/s
-    wind_leak: float = 0.05  # fraction of wind that shows in ground velocity
+    wind_leak: float = 0.1  # fraction of an unexpected wind change that shows in ground velocity
+    wind_adapt_s: float = 1.0  # the controller learns a steady wind in about this long
     mass_g: float = 1450.0
     battery_capacity_mah: float = 5000.0
     cells: int = 4
@@ -114,6 +115,7 @@ class Dynamics:
         self._vel_target: Vec3 = (0.0, 0.0, 0.0)
         self._yaw_target: float | None = None
         self._limits: tuple[float | None, float | None, float | None] = (None, None, None)
+        self._wind_est: tuple[float, float] = (0.0, 0.0)
 
     # --- targets ---------------------------------------------------------------------------
     def set_position_target(
@@ -191,9 +193,15 @@ class Dynamics:
         ve = _approach(s.velocity[1], want[1], dv)
         vd = _approach(s.velocity[2], want[2], dv)
         airborne = s.position[2] < -0.01 or vd < 0
-        leak_n, leak_e = (
-            (wind_ne[0] * p.wind_leak, wind_ne[1] * p.wind_leak) if airborne else (0, 0)
+        # the position controller's integrator learns the wind; only the unlearnt part (gusts,
+        # changes) pushes the vehicle off its track
+        k = min(1.0, dt / p.wind_adapt_s)
+        self._wind_est = (
+            self._wind_est[0] + (wind_ne[0] - self._wind_est[0]) * k,
+            self._wind_est[1] + (wind_ne[1] - self._wind_est[1]) * k,
         )
+        leak_n = (wind_ne[0] - self._wind_est[0]) * p.wind_leak if airborne else 0.0
+        leak_e = (wind_ne[1] - self._wind_est[1]) * p.wind_leak if airborne else 0.0
         n = s.position[0] + (vn + leak_n) * dt
         e = s.position[1] + (ve + leak_e) * dt
         d = s.position[2] + vd * dt
