@@ -15,6 +15,8 @@ from asset_agent.autopilot.state import COPTER_MODES, LANDED_STATES, MISSION_STA
 
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 SENSOR_PREARM_CHECK = 0x10000000
+# MAV_SYS_STATUS_SENSOR: gyro, accel, mag, baro, GPS, AHRS, battery, pre-arm checks
+CRITICAL_SENSORS = 0x1 | 0x2 | 0x4 | 0x8 | 0x20 | 0x200000 | 0x2000000 | SENSOR_PREARM_CHECK
 
 
 def _heartbeat(s: UavState, m: Any) -> UavState:
@@ -28,7 +30,9 @@ def _heartbeat(s: UavState, m: Any) -> UavState:
 
 
 def _sys_status(s: UavState, m: Any) -> UavState:
-    enabled = m.onboard_control_sensors_enabled
+    # only the sensors a flight depends on: a missing RC receiver on a companion-driven
+    # vehicle, or an optional rangefinder, must not make it unavailable
+    enabled = m.onboard_control_sensors_enabled & CRITICAL_SENSORS
     healthy = (m.onboard_control_sensors_health & enabled) == enabled
     return replace(
         s,

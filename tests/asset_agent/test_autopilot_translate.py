@@ -43,6 +43,11 @@ def test_battery_attitude_landed_state_and_mission() -> None:
     assert (s.voltage_v, s.current_a, s.battery_pct) == (16.0, 15.2, 77.0)
     s = apply(s, m.MAVLink_sys_status_message(7, 7, 5, 0, 15800, 1000, 76, 0, 0, 0, 0, 0, 0))
     assert s.sensors_healthy is False and s.battery_pct == 76 and s.voltage_v == 15.8
+    rc = 0x10000  # an unhealthy RC receiver does not matter to a companion-driven vehicle
+    s = apply(
+        s, m.MAVLink_sys_status_message(7 | rc, 7 | rc, 7, 0, 15800, 1000, 76, 0, 0, 0, 0, 0, 0)
+    )
+    assert s.sensors_healthy is True
     s = apply(
         s,
         m.MAVLink_attitude_message(
