@@ -190,6 +190,7 @@ class Station:
 
     def _axis_cmd(self, spec: AxisSpec, direction: int, check: Callable[..., Decision]):  # type: ignore[no-untyped-def]
         async def handler(name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+            """Move `spec` towards `direction`."""
             async for item in self._move(name, spec, direction, check):
                 yield item
 

@@ -105,63 +105,76 @@ def base_router(world: World) -> APIRouter:
     base = world.base
 
     def ok() -> dict[str, Any]:
+        """The common answer: ok plus the ground truth."""
         return {"ok": True, "state": base.ground_truth() | {"link": str(world.plc.link)}}
 
     @r.get("/health")
     def health() -> dict[str, Any]:
+        """Bound ports and speed factor."""
         return {"ok": True, "ports": world.ports, "speed": world.config.speed}
 
     @r.get("/state")
     def state() -> dict[str, Any]:
+        """Ground truth of the base."""
         return ok()["state"]
 
     @r.post("/faults/stall")
     def stall(body: StallBody) -> dict[str, Any]:
+        """Jam or free a motor (optionally latching its stall at once)."""
         base.inject_stall(body.axis, body.on, body.immediate)
         return ok()
 
     @r.post("/faults/link")
     def link(body: LinkBody) -> dict[str, Any]:
+        """Cut, freeze or restore the Modbus link."""
         world.plc.set_link(body.mode)
         return ok()
 
     @r.post("/faults/estop")
     def estop(body: OnBody) -> dict[str, Any]:
+        """Press or release the E-stop."""
         base.set_estop(body.on)
         return ok()
 
     @r.post("/faults/cpu_halt")
     def cpu_halt(body: OnBody) -> dict[str, Any]:
+        """Halt or restart the PLC CPU."""
         base.set_cpu_halt(body.on)
         return ok()
 
     @r.post("/faults/weather_sensor")
     def weather_sensor(body: OnBody) -> dict[str, Any]:
+        """Fail or repair the weather sensors."""
         world.weather.sensor_fault = body.on
         return ok()
 
     @r.post("/faults/charger")
     def charger(body: OnBody) -> dict[str, Any]:
+        """Fail or repair the charger."""
         base.charger.fault = body.on
         return ok()
 
     @r.post("/faults/grid")
     def grid(body: GridBody) -> dict[str, Any]:
+        """Connect or disconnect the grid."""
         world.power.grid_present = body.present
         return ok()
 
     @r.post("/weather/force")
     def force(body: WeatherForceBody) -> dict[str, Any]:
+        """Force weather values (null releases one)."""
         world.weather.force(**body.model_dump(exclude_unset=True))
         return ok()
 
     @r.post("/weather/release")
     def release() -> dict[str, Any]:
+        """Release every forced weather value."""
         world.weather.release()
         return ok()
 
     @r.post("/weather/scenario")
     def scenario(body: ScenarioBody) -> Any:
+        """Start a scripted weather scenario."""
         if body.name not in SCENARIOS:
             return _error(404, "unknown_scenario", f"known scenarios: {sorted(SCENARIOS)}")
         world.weather.run_scenario(body.name)
@@ -169,6 +182,7 @@ def base_router(world: World) -> APIRouter:
 
     @r.post("/pad")
     def pad(body: PadBody) -> dict[str, Any]:
+        """Put a mass on the pad (or remove it), seat the contacts, set the UAV's battery."""
         base.set_pad_load(body.mass_g, body.contacts_seated)
         if body.uav_soc is not None:
             base.set_uav_battery(body.uav_soc)
