@@ -36,6 +36,28 @@ def mosquitto_pid() -> int | None:
     return pids[0] if pids else None
 
 
+def mosquitto_nodelay(pid: int | None) -> bool | None:
+    """Whether mosquitto `pid` runs with `set_tcp_nodelay true` (read from its -c file); None if unknown."""
+    if pid is None:
+        return None
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            argv = f.read().decode().split("\0")
+        conf = argv[argv.index("-c") + 1]
+        with open(conf) as f:
+            lines = [
+                line.split() for line in f if line.strip() and not line.lstrip().startswith("#")
+            ]
+    except (OSError, ValueError, IndexError):
+        return None
+    values = [
+        words[1].lower() == "true"
+        for words in lines
+        if len(words) > 1 and words[0] == "set_tcp_nodelay"
+    ]
+    return values[-1] if values else False  # mosquitto's default is false (Nagle on)
+
+
 def reachable(host: str, port: int) -> bool:
     """True when a TCP connection to host:port succeeds."""
     try:
@@ -122,11 +144,12 @@ async def run_mosquitto(
     seconds: float,
     qos: int,
     progress: Progress,
+    pid: int | None = None,
 ) -> dict:
     """Publishers and subscribers on Mosquitto with the same load as ours; returns the figures."""
     loop = asyncio.get_running_loop()
     n = len(names)
-    pid = mosquitto_pid()
+    pid = pid or mosquitto_pid()
     rec = Recorder(n, operators)
     topics = [f"aerobase/{name}/telemetry" for name in names]
     index = {topic: i for i, topic in enumerate(topics)}
@@ -198,4 +221,5 @@ async def run_mosquitto(
         await asyncio.sleep(0.2)
     result = figures(rec, marks, drained)
     result["mosquitto_pid"] = pid
+    result["mosquitto_set_tcp_nodelay"] = mosquitto_nodelay(pid)
     return result

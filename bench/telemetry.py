@@ -39,7 +39,7 @@ from bench._mqtt import reachable, run_mosquitto
 
 TARGET_P99_MS = 50.0
 TARGET_RATIO = 3.0
-MQTT_HOST, MQTT_PORT = "127.0.0.1", 1883
+MQTT_HOST = "127.0.0.1"
 
 
 def progress(text: str) -> None:
@@ -67,6 +67,12 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
         choices=(0, 1),
         default=1,
         help="QoS of the MQTT publishers (default 1: PUBACK is the ack); subscribers use QoS 0",
+    )
+    p.add_argument(
+        "--mqtt-port", type=int, default=1883, help="Mosquitto's port on 127.0.0.1 (default 1883)"
+    )
+    p.add_argument(
+        "--mqtt-pid", type=int, help="Mosquitto's pid for its CPU (default: `pgrep -x mosquitto`)"
     )
     p.add_argument("--skip-mqtt", action="store_true", help="measure ours only")
     p.add_argument("--json", action="store_true", help="print one JSON object as the last line")
@@ -139,14 +145,16 @@ async def bench(args: argparse.Namespace) -> dict[str, Any]:
                 progress(f"server log kept at {kept}")
     if args.skip_mqtt:
         result["mosquitto"] = {"skipped": "--skip-mqtt"}
-    elif not reachable(MQTT_HOST, MQTT_PORT):
-        result["mosquitto"] = {"skipped": f"Mosquitto is not reachable on {MQTT_HOST}:{MQTT_PORT}"}
+    elif not reachable(MQTT_HOST, args.mqtt_port):
+        result["mosquitto"] = {
+            "skipped": f"Mosquitto is not reachable on {MQTT_HOST}:{args.mqtt_port}"
+        }
         progress(result["mosquitto"]["skipped"])
     else:
         progress(f"mosquitto: same load, publishers QoS {args.mqtt_qos}, subscribers QoS 0")
         mq = await run_mosquitto(
             MQTT_HOST,
-            MQTT_PORT,
+            args.mqtt_port,
             fleet.names,
             args.operators,
             payloads,
@@ -155,6 +163,7 @@ async def bench(args: argparse.Namespace) -> dict[str, Any]:
             args.seconds,
             args.mqtt_qos,
             progress,
+            args.mqtt_pid,
         )
         mq["qos"] = {"publish": args.mqtt_qos, "subscribe": 0}
         result["mosquitto"] = mq
@@ -248,6 +257,18 @@ def report(res: dict[str, Any]) -> str:
     if "skipped" in mq:
         lines.append(f"Mosquitto: {mq['skipped']}")
     else:
+        nodelay = mq.get("mosquitto_set_tcp_nodelay")
+        lines.append(
+            f"Mosquitto pid {mq['mosquitto_pid']} as configured on this machine: set_tcp_nodelay "
+            + (
+                "unknown"
+                if nodelay is None
+                else "true"
+                if nodelay
+                else "false (Nagle on for its sends)"
+            )
+            + "; our server's sockets (uvloop) set TCP_NODELAY"
+        )
         r = res["ratio"]
         lines.append(
             f"ours / Mosquitto: p50 latency {_f(r['p50'])}x, p99 latency {_f(r['p99'])}x, "
