@@ -98,6 +98,60 @@ class KinematicVehicle:
             self.roll = self.pitch = 0.0
 
 
+class SharedVehicle:
+    """The world's multirotor (sim.vehicle.dynamics.Dynamics) behind the evaluation's vehicle
+    interface: velocity setpoints in, pose out; the yaw rate becomes a yaw target ahead of the
+    current yaw; the camera sits SEAT_HEIGHT above the vehicle's ground contact."""
+
+    YAW_LEAD_S = 0.5
+
+    def __init__(self, n: float, e: float, up: float, yaw: float) -> None:
+        from sim.vehicle.dynamics import Dynamics, DynamicsState
+
+        start = DynamicsState(position=(n, e, -(up - SEAT_HEIGHT)), yaw=yaw, landed=False)
+        self.dyn = Dynamics(state=start)
+        self.dyn.motors_on = True
+        self.landed = False
+
+    @property
+    def n(self) -> float:
+        """North of the pad centre (m)."""
+        return self.dyn.state.position[0]
+
+    @property
+    def e(self) -> float:
+        """East of the pad centre (m)."""
+        return self.dyn.state.position[1]
+
+    @property
+    def yaw(self) -> float:
+        """Yaw (rad)."""
+        return self.dyn.state.yaw
+
+    def pose(self) -> tuple[float, float, float, float, float, float]:
+        """(north, east, camera height, roll, pitch, yaw) relative to the pad centre."""
+        st = self.dyn.state
+        return (
+            st.position[0],
+            st.position[1],
+            SEAT_HEIGHT - st.position[2],
+            st.roll,
+            st.pitch,
+            st.yaw,
+        )
+
+    def step(self, dt: float, sp: VelocitySetpoint, wind_ne=(0.0, 0.0)) -> None:
+        """Advance dt seconds tracking the setpoint, pushed by the wind."""
+        if self.landed:
+            return
+        vel = (0.0, 0.0, 0.3) if sp.land else (sp.vn, sp.ve, sp.vd)
+        self.dyn.set_velocity_target(vel, yaw=self.dyn.state.yaw + sp.yaw_rate * self.YAW_LEAD_S)
+        self.landed = self.dyn.step(dt, wind_ne).landed
+
+
+VEHICLES = {"shared": SharedVehicle, "kinematic": KinematicVehicle}
+
+
 @dataclass(frozen=True)
 class Scenario:
     """One evaluation scenario: the sensors used, their faults, the approach, the start."""
@@ -166,13 +220,13 @@ class Trial:
     landed: bool
 
 
-def run_trial(sc: Scenario, seed: int, max_time: float = 150.0) -> Trial:
-    """Fly one closed-loop landing of scenario `sc`."""
+def run_trial(
+    sc: Scenario, seed: int, max_time: float = 150.0, vehicle_model: str = "shared"
+) -> Trial:
+    """Fly one closed-loop landing of scenario `sc` with the chosen vehicle model."""
     rng = np.random.default_rng(seed)
     a0, yaw0 = rng.uniform(0, 2 * math.pi), rng.uniform(-math.pi, math.pi)
-    vehicle = KinematicVehicle(
-        n=2.0 * math.cos(a0), e=2.0 * math.sin(a0), up=sc.start_height, yaw=yaw0
-    )
+    vehicle = VEHICLES[vehicle_model](2.0 * math.cos(a0), 2.0 * math.sin(a0), sc.start_height, yaw0)
     camera = "marker" in sc.sensors
     sources = {"ir"} if "ir" in sc.sensors else set()
     if camera:
@@ -200,7 +254,7 @@ def run_trial(sc: Scenario, seed: int, max_time: float = 150.0) -> Trial:
     wind_dir = rng.uniform(0, 2 * math.pi)
 
     def gnss_position() -> tuple[float, float, float]:
-        p = np.array([vehicle.n, vehicle.e, -vehicle.up]) + gnss
+        p = np.array([vehicle.n, vehicle.e, -vehicle.pose()[2]]) + gnss
         return (float(p[0]), float(p[1]), float(p[2]))
 
     # prior: surveyed pad position (true + setup error) minus the GNSS position
@@ -297,13 +351,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="repeatable; default all",
     )
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--vehicle", choices=list(VEHICLES), default="shared")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(list(sys.argv[1:] if argv is None else argv))
     chosen = args.scenario or [*SCENARIOS, PER_SOURCE]
     results: dict = {
         "trials": args.trials,
         "scenarios": {},
-        "vehicle_model": "sim.precland_eval.KinematicVehicle",
+        "vehicle_model": args.vehicle,
     }
     print(
         f"{'scenario':<32}{'landed':>8}{'mean cm':>9}{'max cm':>8}{'hdg °':>7}{'time s':>8}   published (cm, mean / max)"
@@ -311,7 +366,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name in chosen:
         if name == PER_SOURCE:
             continue
-        trials = [run_trial(SCENARIOS[name], args.seed * 1000 + i) for i in range(args.trials)]
+        trials = [
+            run_trial(SCENARIOS[name], args.seed * 1000 + i, vehicle_model=args.vehicle)
+            for i in range(args.trials)
+        ]
         errs = [100 * tr.error_m for tr in trials]
         row = {
             "landed": sum(tr.landed for tr in trials),

@@ -139,7 +139,9 @@ class ControlConfig(_Model):
 
     min_pos_error: float = 0.03
     max_pos_error: float = 0.5
-    kp_xy: float = 2.0  # tuned on the evaluation's kinematic vehicle; retune on the airframe
+    kp_xy: float = 2.0  # tuned on the simulated vehicles; retune on the airframe
+    ki_xy: float = 0.5  # integral of the horizontal error while approaching (steady wind)
+    max_integral_speed: float = 0.5  # m/s the integral term may add
     kp_z: float = 0.5
     max_speed_xy: float = 1.5
     max_descent: float = 1.0

@@ -59,6 +59,8 @@ class LandingSequence:
         self._since = 0.0
         self._last_seen: tuple[float, float, float] | None = None  # vehicle n, e, height
         self._goal: tuple[float, float, float] | None = None
+        self._integral = (0.0, 0.0)  # integral of the horizontal error (m·s) while approaching
+        self._last_t: float | None = None
 
     def _fire(self, event: str, now: float) -> None:
         nxt = TRANSITIONS.get((self.state, event))
@@ -79,6 +81,8 @@ class LandingSequence:
         """One control step. `rel_ned` is the filter's estimate (pad minus vehicle, NED),
         `vehicle_ned` the autopilot's local position."""
         a = float(rel_ned[2])
+        dt = 0.0 if self._last_t is None else max(0.0, min(now - self._last_t, 0.5))
+        self._last_t = now
         if self.state == "landed":
             return Command("landed", VelocitySetpoint(0, 0, 0, land=True), self.attempts)
         if a <= self.control.touchdown_height + self.control.land_margin:
@@ -104,7 +108,7 @@ class LandingSequence:
         elif self.state == "climb" and self._reached(vehicle_ned, a):
             self._fire("reached", now)
         return Command(
-            self.state, self._setpoint(rel_ned, pad_heading, vehicle_ned, yaw), self.attempts
+            self.state, self._setpoint(rel_ned, pad_heading, vehicle_ned, yaw, dt), self.attempts
         )
 
     def _climb_goal(self, vehicle_ned, a: float) -> tuple[float, float, float]:
@@ -119,10 +123,23 @@ class LandingSequence:
         tol = self.retry.reached_tolerance_m
         return math.hypot(vehicle_ned[0] - n, vehicle_ned[1] - e) <= tol and a >= h - tol
 
-    def _setpoint(self, rel_ned, pad_heading, vehicle_ned, yaw) -> VelocitySetpoint:
+    def _integrate(self, sp: VelocitySetpoint, rel_ned, dt: float) -> VelocitySetpoint:
+        """Add the integral term (anti-windup: clamped to max_integral_speed)."""
+        c = self.control
+        if c.ki_xy <= 0 or sp.land:
+            return sp
+        lim = c.max_integral_speed / c.ki_xy
+        i_n = max(-lim, min(lim, self._integral[0] + float(rel_ned[0]) * dt))
+        i_e = max(-lim, min(lim, self._integral[1] + float(rel_ned[1]) * dt))
+        self._integral = (i_n, i_e)
+        vn, ve = clip_xy(sp.vn + c.ki_xy * i_n, sp.ve + c.ki_xy * i_e, c.max_speed_xy)
+        return VelocitySetpoint(vn, ve, sp.vd, sp.yaw_rate, sp.land)
+
+    def _setpoint(self, rel_ned, pad_heading, vehicle_ned, yaw, dt: float) -> VelocitySetpoint:
         c = self.control
         if self.state == "approach":
-            return cone_setpoint(rel_ned, pad_heading, yaw, c)
+            sp = cone_setpoint(rel_ned, pad_heading, yaw, c)
+            return self._integrate(sp, rel_ned, dt)
         if self.state == "pause":
             return HOVER
         if self.state == "climb":

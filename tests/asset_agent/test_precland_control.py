@@ -122,3 +122,14 @@ def test_default_mode_descends_blind_at_once_when_the_target_is_lost():
     cmd = run(seq, 0.1, False, (0.2, 0.0, 2.9))
     assert cmd.state == "blind" and cmd.setpoint.vd > 0 and cmd.setpoint.vn > 0
     assert run(seq, 0.2, True, (0.2, 0.0, 2.8)).state == "approach"
+
+
+def test_integral_action_removes_a_steady_offset_and_is_bounded():
+    cfg = ControlConfig(ki_xy=0.5, max_integral_speed=0.3)
+    seq = LandingSequence(cfg, RetryConfig())
+    speeds = [
+        seq.step(t * 0.1, True, (0.05, 0.0, 5.0), 0.0, (0, 0), 0.0).setpoint.vn for t in range(200)
+    ]
+    assert speeds[0] == pytest.approx(cfg.kp_xy * 0.05)
+    assert speeds[50] > speeds[10] > speeds[0]  # the integral grows with a steady error
+    assert speeds[-1] == pytest.approx(cfg.kp_xy * 0.05 + 0.3)  # clamped (anti-windup)
