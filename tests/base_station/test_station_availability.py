@@ -86,8 +86,10 @@ async def test_weather_sensor_fault_fails_availability(rig: Rig) -> None:
     await rig.inject("/pad", {"mass_g": 1500})
     await rig.inject("/faults/weather_sensor", {"on": True})
     await wait_for(
-        lambda: "WEATHER_SENSOR" in rig.station.telemetry().faults
-        and rig.station.telemetry().uav_present is True,
+        lambda: (
+            "WEATHER_SENSOR" in rig.station.telemetry().faults
+            and rig.station.telemetry().uav_present is True
+        ),
         what="sensor fault and UAV seen",
     )
     result = await run(rig.station, "check_availability")
@@ -168,3 +170,18 @@ async def test_charging_cc_cv_to_completion_with_limit_and_power_source() -> Non
         assert "grid" in sources
         assert (await run(rig.station, "stop_charging")).status is Status.SUCCEEDED
         await wait_for(lambda: rig.station.telemetry().charger.state == "idle")
+
+
+async def test_charger_fault_refuses_charging_and_is_reported(rig: Rig) -> None:
+    await rig.inject("/pad", {"mass_g": 1500, "contacts_seated": True, "uav_soc": 0.5})
+    await rig.inject("/faults/charger", {"on": True})
+    await rig.inject("/faults/grid", {"present": False})
+    await wait_for(lambda: "CHARGER" in rig.station.telemetry().faults, what="charger fault")
+    await wait_for(lambda: rig.station.telemetry().charger.contacts_seated, what="contacts")
+    result = await run(rig.station, "start_charging")
+    assert result.status is Status.REJECTED and "charger fault" in result.reason
+    assert any(
+        e.kind is EventKind.FAULT and "CHARGER" in e.data["faults"]
+        for e in rig.app.coordinator.events.history
+    )
+    await wait_for(lambda: rig.station.telemetry().power.grid_present is False, what="grid off")
