@@ -92,7 +92,8 @@ class Autopilot(SetpointsMixin):
         self._link_event = asyncio.Event()
         self.streams_requested = asyncio.Event()  # set once the stream requests have been sent
         self._rtcm_seq = 0
-        self.statustexts: list[str] = []
+        self.statustexts: list[str] = []  # the latest 200
+        self._texts_seen = 0  # every STATUSTEXT ever received, to tell which came after a command
 
     # --- life cycle ------------------------------------------------------------------------
     async def start(self) -> None:
@@ -147,6 +148,7 @@ class Autopilot(SetpointsMixin):
             text = msg.text if isinstance(msg.text, str) else msg.text.decode(errors="replace")
             text = text.rstrip("\x00")
             self.statustexts.append(text)
+            self._texts_seen += 1
             del self.statustexts[:-200]
             self._notify(Notification("statustext", text, msg.severity))
         elif kind == "MISSION_ITEM_REACHED":
@@ -241,6 +243,7 @@ class Autopilot(SetpointsMixin):
         retries = cfg.command_retries if retries is None else retries
         p = [float(x) for x in params] + [0.0] * (7 - len(params))
         async with self._command_lock:
+            mark = self._texts_seen
             with self.tap(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command) as acks:
                 for confirmation in range(retries + 1):
                     self._link.send(partial(self._command_long, command, confirmation, p))
@@ -254,7 +257,7 @@ class Autopilot(SetpointsMixin):
                             deadline = time.monotonic() + timeout
                             continue
                         if ack.result != MAV_RESULT_ACCEPTED:
-                            raise CommandRejected(command, ack.result, self._recent_reason())
+                            raise CommandRejected(command, ack.result, self._reason_since(mark))
                         return ack.result
                     if not self.state.link_up:
                         raise LinkLost(f"autopilot link lost while waiting for command {command}")
@@ -264,10 +267,13 @@ class Autopilot(SetpointsMixin):
         cfg = self.config
         mav.command_long_send(cfg.target_system, cfg.target_component, command, confirmation, *p)
 
-    def _recent_reason(self) -> str:
-        """The autopilot's latest PreArm/failure text, to explain a rejection."""
-        for text in reversed(self.statustexts[-5:]):
-            if text.startswith(("PreArm", "Arm", "Auto:", "Flight mode")):
+    def _reason_since(self, mark: int) -> str:
+        """The autopilot's latest PreArm/failure text received after `mark`, to explain a rejection."""
+        new = self.statustexts[
+            len(self.statustexts) - min(self._texts_seen - mark, len(self.statustexts)) :
+        ]
+        for text in reversed(new):
+            if text.startswith(("PreArm", "Arm", "Auto:", "Flight mode", "Plnd")):
                 return text
         return ""
 

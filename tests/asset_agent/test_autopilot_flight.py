@@ -165,6 +165,24 @@ async def test_closed_base_blocks_arming(
     with pytest.raises(CommandRejected) as info:
         await autopilot.arm()
     assert "PreArm: Base closed" in info.value.detail
+    pad.open = True
+    await autopilot.set_mode("RTL")
+    with pytest.raises(CommandRejected) as info:
+        await autopilot.arm()
+    assert (
+        info.value.detail == "PreArm: Mode not armable"
+    )  # this attempt's reason, not the last one
+
+
+async def test_silent_autopilot_times_out_a_command(
+    autopilot: Autopilot, vehicle: VehicleServer
+) -> None:
+    from asset_agent.autopilot import AutopilotTimeout
+
+    vehicle.copter.faults.mute_until = math.inf
+    with pytest.raises(AutopilotTimeout):
+        await autopilot.command(400, 1, ack_timeout_s=0.2, retries=1)
+    assert not vehicle.copter.armed
 
 
 async def test_low_battery_blocks_arming(autopilot: Autopilot, vehicle: VehicleServer) -> None:
