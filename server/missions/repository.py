@@ -32,10 +32,11 @@ class MissionRepository(ScopedRepository[Mission]):
 
     async def delete(self, mission: Mission) -> None:
         """Delete a mission in the current unit of work; Conflict while runs still refer to it."""
+        mission_id = mission.id  # the row cannot be read again once a flush failed
         await self.db.delete(mission)
         try:
             await self.db.flush()
         except IntegrityError as err:
             raise Conflict(
-                f"mission {mission.id} is used by runs and cannot be deleted", code="mission_in_use"
+                f"mission {mission_id} is used by runs and cannot be deleted", code="mission_in_use"
             ) from err

@@ -354,3 +354,24 @@ def test_import_refusals_name_every_item(api, tenant: Tenant):
         api.post("/api/v1/missions/import", json=plan, headers=tenant.h("viewer")).status_code
         == 403
     )
+
+
+def test_a_mission_used_by_a_run_cannot_be_deleted(api, tenant: Tenant):
+    mission = api.post(
+        "/api/v1/missions",
+        json={"name": "used", "items": waypoints()},
+        headers=tenant.h("operator"),
+    ).json()
+    base = tenant.create_asset("landing_base")
+    uav = tenant.create_asset("uav", base_id=base["id"])
+    r = api.post(
+        "/api/v1/runs",
+        json={"mission_id": mission["id"], "uav_id": uav["id"], "base_id": base["id"]},
+        headers=tenant.h("operator"),
+    )
+    assert r.status_code == 201, r.text
+    r = api.delete(f"/api/v1/missions/{mission['id']}", headers=tenant.h("operator"))
+    assert r.status_code == 409 and r.json()["error"]["code"] == "mission_in_use"
+    assert (
+        api.get(f"/api/v1/missions/{mission['id']}", headers=tenant.h("viewer")).status_code == 200
+    )
