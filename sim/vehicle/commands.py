@@ -24,6 +24,7 @@ Params = tuple[float, float, float, float, float, float, float]
 NAV_RETURN_TO_LAUNCH, NAV_LAND, NAV_TAKEOFF = 20, 21, 22
 DO_SET_MODE, DO_CHANGE_SPEED, MISSION_START, COMPONENT_ARM_DISARM = 176, 178, 300, 400
 GET_HOME_POSITION, SET_MESSAGE_INTERVAL, REQUEST_MESSAGE = 410, 511, 512
+CONDITION_YAW = 115
 
 
 def _arm_disarm(c: Copter, p: Params, link: Any) -> int:
@@ -67,6 +68,13 @@ def _change_speed(c: Copter, p: Params, link: Any) -> int:
     return ACCEPTED
 
 
+def _condition_yaw(c: Copter, p: Params, link: Any) -> int:
+    if not c.armed:
+        return FAILED
+    c.guidance.condition_yaw(p[0], p[2], bool(p[3]))
+    return ACCEPTED
+
+
 def _message_interval(c: Copter, p: Params, link: Any) -> int:
     if c.streams is None:
         return FAILED
@@ -91,6 +99,7 @@ COMMANDS: dict[int, Callable[[Copter, Params, Any], int]] = {
     DO_SET_MODE: _set_mode,
     MISSION_START: _mission_start,
     DO_CHANGE_SPEED: _change_speed,
+    CONDITION_YAW: _condition_yaw,
     SET_MESSAGE_INTERVAL: _message_interval,
     REQUEST_MESSAGE: _request_message,
     GET_HOME_POSITION: _home,

@@ -325,6 +325,10 @@ class Copter(MissionProtocolMixin):
         if self.mode == GUIDED and self.armed:
             self.guidance.guided_target(msg)
 
+    def _on_set_position_target_global_int(self, msg: Any, link: Any) -> None:
+        if self.mode == GUIDED and self.armed:
+            self.guidance.guided_global_target(msg)
+
     def _on_landing_target(self, msg: Any, link: Any) -> None:
         reading = TargetReading(
             msg.frame, msg.angle_x, msg.angle_y, msg.distance, msg.x, msg.y, msg.z,

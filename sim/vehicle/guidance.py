@@ -35,7 +35,7 @@ from sim.vehicle.constants import (
 if TYPE_CHECKING:
     from sim.vehicle.copter import Copter
 
-POS_IGNORE, VEL_IGNORE = 0b000000111, 0b000111000
+POS_IGNORE, VEL_IGNORE, YAW_IGNORE = 0b000000111, 0b000111000, 0b10000000000
 FRAME_LOCAL_NED, FRAME_LOCAL_OFFSET_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED = 1, 7, 8, 9
 
 
@@ -65,6 +65,7 @@ class Guidance:
         self._taking_off = False
         self._target_seen = False
         self._jumps: dict[int, int] = {}
+        self.yaw_target: float | None = None
 
     # --- entry points --------------------------------------------------------------------
     def hold(self) -> None:
@@ -136,6 +137,8 @@ class Guidance:
             return x * math.cos(yaw) - y * math.sin(yaw), x * math.sin(yaw) + y * math.cos(yaw)
 
         self._taking_off = False
+        if not mask & YAW_IGNORE:
+            self.yaw_target = msg.yaw
         if not mask & POS_IGNORE:
             n, e = rot(msg.x, msg.y)
             d = msg.z
@@ -146,6 +149,30 @@ class Guidance:
         elif not mask & VEL_IGNORE:
             vn, ve = rot(msg.vx, msg.vy)
             self.goal = Goal("vel", vn, ve, msg.vz, expires=c.t + c.config.guided_timeout_s)
+
+    def guided_global_target(self, msg: Any) -> None:
+        """Apply a SET_POSITION_TARGET_GLOBAL_INT in GUIDED (positions in degrees * 1e7)."""
+        c = self.c
+        frame, mask = msg.coordinate_frame, msg.type_mask
+        if frame not in (ms.FRAME_GLOBAL_INT, ms.FRAME_GLOBAL_RELATIVE_ALT_INT, 0, 3):
+            return
+        self._taking_off = False
+        if not mask & YAW_IGNORE:
+            self.yaw_target = msg.yaw
+        if not mask & POS_IGNORE:
+            n, e, _ = c.origin.to_ned(msg.lat_int / 1e7, msg.lon_int / 1e7, c.origin.alt)
+            rel = msg.alt if frame in ms.RELATIVE_FRAMES else msg.alt - c.origin.alt
+            self.goal = Goal("goto", n, e, min(-rel, 0.0))
+        elif not mask & VEL_IGNORE:
+            self.goal = Goal("vel", msg.vx, msg.vy, msg.vz, expires=c.t + c.config.guided_timeout_s)
+
+    def condition_yaw(self, angle_deg: float, direction: float, relative: bool) -> None:
+        """MAV_CMD_CONDITION_YAW: turn to a heading, or by an angle (direction -1 ccw, 1 cw)."""
+        if relative:
+            sign = -1.0 if direction < 0 else 1.0
+            self.yaw_target = self.c.dyn.state.yaw + sign * math.radians(angle_deg)
+        else:
+            self.yaw_target = math.radians(angle_deg)
 
     def start_item(self, seq: int, chain: int = 0) -> None:
         """AUTO: begin mission item `seq` (`chain` counts items stepped over without flying)."""
@@ -236,10 +263,12 @@ class Guidance:
             dyn.set_position_target((n, e, 0.0))
             return
         if g.kind == "vel":
-            dyn.set_velocity_target((g.n, g.e, g.d))
+            dyn.set_velocity_target((g.n, g.e, g.d), yaw=self.yaw_target)
             return
         if g.kind == "goto":
-            dyn.set_position_target((g.n - err[0], g.e - err[1], g.d), speed_h=g.speed)
+            dyn.set_position_target(
+                (g.n - err[0], g.e - err[1], g.d), yaw=self.yaw_target, speed_h=g.speed
+            )
             return
         tn, te = g.n, g.e
         target = c.precland.target_ne(c.t)
@@ -261,7 +290,9 @@ class Guidance:
         )
         if target is not None and offset > max(1.0, 0.3 * alt):
             descend = 0.05
-        dyn.set_position_target((tn - err[0], te - err[1], 1.0), speed_down=descend)
+        dyn.set_position_target(
+            (tn - err[0], te - err[1], 1.0), yaw=self.yaw_target, speed_down=descend
+        )
 
     def _arrived(self, radius: float) -> bool:
         g = self.goal

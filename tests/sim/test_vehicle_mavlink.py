@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import math
 import random
 import socket
 import time
@@ -239,3 +240,30 @@ async def test_garbage_never_stops_the_vehicle(sim: VehicleServer, peer: Peer) -
     peer.conn.mav.command_long_send(1, 1, 400, 0, 0, 0, 0, 0, 0, 0, 0)
     ack = await peer.recv("COMMAND_ACK", command=400)
     assert ack.result == 0 and not sim.copter.armed
+
+
+async def test_guided_global_target_and_condition_yaw(sim: VehicleServer, peer: Peer) -> None:
+    c = sim.copter
+    peer.conn.mav.set_mode_send(1, 1, 4)
+    await peer.recv("COMMAND_ACK", command=11)
+    peer.conn.mav.command_long_send(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert (await peer.recv("COMMAND_ACK", command=400)).result == 0
+    peer.conn.mav.command_long_send(1, 1, 22, 0, 0, 0, 0, 0, 0, 0, 5)
+    assert (await peer.recv("COMMAND_ACK", command=22)).result == 0
+    await wait_until(lambda: c.dyn.state.altitude > 4.5, 10, "takeoff")
+    peer.conn.mav.command_long_send(1, 1, 115, 0, 90, 0, 1, 0, 0, 0, 0)  # CONDITION_YAW east
+    assert (await peer.recv("COMMAND_ACK", command=115)).result == 0
+    await wait_until(lambda: abs(c.dyn.state.yaw - math.pi / 2) < 0.02, 10, "facing east")
+    lat, lon, _ = c.origin.to_geodetic(-10.0, 5.0, 0.0)
+    mask = 0b0000_1101_1111_1000  # position only, keep the yaw
+    peer.conn.mav.set_position_target_global_int_send(
+        0, 1, 1, 6, mask, round(lat * 1e7), round(lon * 1e7), 8.0, 0, 0, 0, 0, 0, 0, 0, 0
+    )
+    # the autopilot flies its estimate: the estimated position reaches the target
+    await wait_until(
+        lambda: (
+            math.dist(c.estimated_position()[:2], (-10.0, 5.0)) < 0.5 and c.dyn.state.altitude > 7.5
+        ),
+        20,
+        f"at the global target (now {c.estimated_position()})",
+    )
