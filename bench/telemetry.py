@@ -152,20 +152,24 @@ async def bench(args: argparse.Namespace) -> dict[str, Any]:
         progress(result["mosquitto"]["skipped"])
     else:
         progress(f"mosquitto: same load, publishers QoS {args.mqtt_qos}, subscribers QoS 0")
-        mq = await run_mosquitto(
-            MQTT_HOST,
-            args.mqtt_port,
-            fleet.names,
-            args.operators,
-            payloads,
-            args.rate,
-            args.warmup,
-            args.seconds,
-            args.mqtt_qos,
-            progress,
-            args.mqtt_pid,
-        )
-        mq["qos"] = {"publish": args.mqtt_qos, "subscribe": 0}
+        try:
+            mq = await run_mosquitto(
+                MQTT_HOST,
+                args.mqtt_port,
+                fleet.names,
+                args.operators,
+                payloads,
+                args.rate,
+                args.warmup,
+                args.seconds,
+                args.mqtt_qos,
+                progress,
+                args.mqtt_pid,
+            )
+            mq["qos"] = {"publish": args.mqtt_qos, "subscribe": 0}
+        except (OSError, RuntimeError, TimeoutError) as err:
+            mq = {"skipped": f"the Mosquitto run failed: {type(err).__name__}: {err}"}
+            progress(mq["skipped"])
         result["mosquitto"] = mq
     result["ratio"] = ratios(result["ours"], result["mosquitto"])
     result["targets"] = targets(result, args)
