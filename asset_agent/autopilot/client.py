@@ -131,6 +131,12 @@ class Autopilot(SetpointsMixin):
 
     # --- incoming --------------------------------------------------------------------------
     def _on_message(self, msg: Any) -> None:
+        try:
+            self._handle(msg)
+        except Exception:  # a malformed message is logged, never kills the adapter
+            log.exception("autopilot message %s not handled", msg.get_type())
+
+    def _handle(self, msg: Any) -> None:
         # only the autopilot itself: a gimbal, camera or another companion on the same
         # system id must not overwrite its mode, armed state or mission progress
         if (msg.get_srcSystem(), msg.get_srcComponent()) != (

@@ -112,3 +112,14 @@ def test_not_a_list() -> None:
     with pytest.raises(InvalidMissionItem) as info:
         items_from_dicts("16,3,...")  # type: ignore[arg-type]
     assert info.value.index is None
+
+
+async def test_a_malformed_message_is_logged_not_raised() -> None:
+    from asset_agent.autopilot import Autopilot
+
+    ap = Autopilot()
+    bad = m.MAVLink_global_position_int_message(0, 1, 2, 3, 4, 5, 6, 7, 8)
+    bad.lat = "garbage"  # a field that cannot be scaled
+    bad._header = m.MAVLink_header(33, srcSystem=1, srcComponent=1)
+    ap._on_message(bad)  # must not raise
+    assert ap.state.lat is None
