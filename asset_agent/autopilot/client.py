@@ -77,9 +77,10 @@ class Autopilot(SetpointsMixin):
     def __init__(self, config: AutopilotConfig | None = None) -> None:
         self.config = config or AutopilotConfig()
         self.state = UavState()
+        self._inbox: asyncio.Queue[Any] = asyncio.Queue()  # fed by the link's reader thread
         self._link = MavlinkLink(
             self.config.url,
-            self._on_message,
+            self._inbox,
             source_system=self.config.source_system,
             source_component=self.config.source_component,
         )
@@ -104,6 +105,7 @@ class Autopilot(SetpointsMixin):
             raise LinkLost(f"cannot open {self.config.url}: {err}") from err
         self._send_heartbeat()
         self._tasks = [
+            asyncio.create_task(self._dispatch(), name="autopilot-dispatch"),
             asyncio.create_task(self._heartbeat_loop(), name="autopilot-heartbeat"),
             asyncio.create_task(self._watchdog(), name="autopilot-watchdog"),
         ]
@@ -130,7 +132,12 @@ class Autopilot(SetpointsMixin):
         return self.state.link_up
 
     # --- incoming --------------------------------------------------------------------------
+    async def _dispatch(self) -> None:
+        while True:
+            self._on_message(await self._inbox.get())
+
     def _on_message(self, msg: Any) -> None:
+        """Apply one message from the autopilot: state, notifications, taps."""
         try:
             self._handle(msg)
         except Exception:  # a malformed message is logged, never kills the adapter

@@ -37,18 +37,18 @@ def parse_connection(url: str) -> tuple[str, int | None]:
 
 
 class MavlinkLink:
-    """Owns the pymavlink connection and the reader thread; messages go to `on_message` in the loop."""
+    """Owns the pymavlink connection and the reader thread, which feeds `queue` in the event loop."""
 
     def __init__(
         self,
         url: str,
-        on_message: Callable[[Any], None],
+        queue: asyncio.Queue[Any],
         *,
         source_system: int = 1,
         source_component: int = MAV_COMP_ID_ONBOARD_COMPUTER,
     ) -> None:
         self.url = url
-        self._on_message = on_message
+        self.queue = queue
         self._source = (source_system, source_component)
         self._conn: Any = None
         self._thread: threading.Thread | None = None
@@ -90,7 +90,7 @@ class MavlinkLink:
             if msg is None or msg.get_type() == "BAD_DATA":
                 continue
             try:
-                loop.call_soon_threadsafe(self._on_message, msg)
+                loop.call_soon_threadsafe(self.queue.put_nowait, msg)
             except RuntimeError:  # the loop is closed: we are shutting down
                 return
 
