@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
 import uuid
 from typing import Any, Literal
@@ -9,10 +10,11 @@ from typing import Any, Literal
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import JSONResponse
 
+from server.assets.models import AssetKind
 from server.assets.repository import AssetRepository
 from server.audit.service import record
 from server.deps import DB, Operator, SettingsDep, Viewer, client_addr
-from server.kit.errors import AppError
+from server.kit.errors import AppError, Unprocessable
 from server.kit.scope import Principal
 from server.missions import qgc, wpl
 from server.missions.models import Mission, MissionKind
@@ -96,7 +98,8 @@ async def list_missions(
 ) -> list[MissionOut]:
     """Missions of the caller's organisation, oldest first."""
     rows = await MissionRepository(db, principal).list_filtered(limit, offset, kind)
-    return [_out(m) for m in rows]
+    # validating and estimating many missions is CPU work: off the event loop
+    return await asyncio.to_thread(lambda: [_out(m) for m in rows])
 
 
 @router.post("/api/v1/missions", status_code=201, response_model=MissionOut)
@@ -269,4 +272,7 @@ async def validate_mission(
     service = _service(db, principal, settings)
     mission = await service.repo.get(mission_id)
     uav = await AssetRepository(db, principal).get(body.uav_id) if body.uav_id else None
-    return ValidationReport.model_validate(service.check(mission, uav))
+    if uav is not None and uav.kind != AssetKind.uav:
+        raise Unprocessable(f"asset {uav.id} is not a UAV", code="not_a_uav")
+    report = await asyncio.to_thread(service.check, mission, uav)
+    return ValidationReport.model_validate(report)

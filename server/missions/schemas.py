@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import uuid
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -13,6 +13,7 @@ from server.missions.items import MissionItem
 from server.missions.models import MissionKind
 
 MAX_ITEMS_IN = 5000
+MAX_RING_POINTS = 1000
 
 
 class HomeIn(BaseModel):
@@ -29,7 +30,10 @@ class Polygon(BaseModel):
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
     type: Literal["Polygon"]
-    coordinates: list[list[list[float]]] = Field(max_length=10, description="[[[lon, lat], ...]]")
+    coordinates: list[Annotated[list[list[float]], Field(max_length=MAX_RING_POINTS)]] = Field(
+        max_length=10,
+        description=f"[[[lon, lat], ...]]; at most {MAX_RING_POINTS} positions a ring",
+    )
 
 
 class CameraIn(BaseModel):

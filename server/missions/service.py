@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import math
 import re
 from dataclasses import dataclass
@@ -226,14 +227,15 @@ class MissionService:
         self.repo = repo
         self.limits = limits
 
-    def _built(
+    async def _built(
         self,
         kind: MissionKind,
         items: list[MissionItem] | None,
         survey: SurveyIn | None,
         home: Home | None,
     ) -> Built:
-        built, problems = build(kind, items, survey, home, self.limits)
+        # a survey of a thousand vertices takes a noticeable fraction of a second: off the event loop
+        built, problems = await asyncio.to_thread(build, kind, items, survey, home, self.limits)
         if problems:
             raise rejected(problems)
         return built
@@ -252,7 +254,7 @@ class MissionService:
         extras: dict[str, Any] | None = None,
     ) -> Mission:
         """A new mission, validated (and compiled, for a survey); raises Unprocessable listing problems."""
-        built = self._built(kind, items, survey, home_of(home))
+        built = await self._built(kind, items, survey, home_of(home))
         mission = Mission(
             organization_id=self.repo.principal.organization_id,
             name=name,
@@ -283,7 +285,7 @@ class MissionService:
             else (SurveyIn.model_validate(mission.survey) if mission.survey else None)
         )
         if {"items", "survey", "home"} & changes.keys():
-            built = self._built(mission.kind, items, survey, home_of(home))
+            built = await self._built(mission.kind, items, survey, home_of(home))
             mission.items = item_dicts(built.items)
             mission.survey = survey.model_dump(mode="json") if survey else None
             mission.survey_plan = built.survey_plan
@@ -333,7 +335,10 @@ class MissionService:
         return await self.repo.get(mission_id)
 
     def check(self, mission: Mission, uav: Asset | None) -> dict[str, Any]:
-        """Every problem of a stored mission, and its flight against the UAV's endurance."""
+        """Every problem of a stored mission, and its flight against the UAV's endurance.
+
+        Pure computation on loaded rows: callers on the event loop run it with asyncio.to_thread.
+        """
         problems: list[Problem] = []
         survey = SurveyIn.model_validate(mission.survey) if mission.survey else None
         items = items_of(mission.items) if mission.kind == MissionKind.waypoints else None

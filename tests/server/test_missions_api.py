@@ -214,6 +214,12 @@ def test_survey_geometry_errors(api, tenant: Tenant):
         r = api.post("/api/v1/missions", json=body, headers=tenant.h("operator"))
         assert r.status_code == 422, (what, r.text)
         assert r.json()["error"]["details"][0]["what"].startswith(what), r.json()
+    body = survey_body()
+    body["survey"]["polygon"]["coordinates"] = [
+        [[LON0 + 1e-3 * math.cos(k / 160), LAT0 + 1e-3 * math.sin(k / 160)] for k in range(1001)]
+    ]
+    r = api.post("/api/v1/missions", json=body, headers=tenant.h("operator"))
+    assert r.status_code == 422 and r.json()["error"]["code"] == "validation_error"
     r = api.post("/api/v1/missions", json=survey_body(altitude_m=300), headers=tenant.h("operator"))
     assert r.status_code == 422 and r.json()["error"]["details"][0]["where"] == "survey.altitude_m"
     r = api.post(
