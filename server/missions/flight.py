@@ -35,6 +35,7 @@ class _Walk:
         self.time = 0.0
 
     def fly_to(self, lat: float, lon: float, alt: float | None) -> None:
+        """Fly straight to a point (alt None: keep the altitude); climb and cruise overlap."""
         horizontal = haversine_m(self.pos[0], self.pos[1], lat, lon)
         target = self.alt if alt is None else alt
         climb = target - self.alt
@@ -44,6 +45,7 @@ class _Walk:
         self.pos, self.alt = (lat, lon), target
 
     def land_here(self) -> None:
+        """Descend to the ground where the vehicle is, then land."""
         self.distance += self.alt
         self.time += self.alt / self.model.descent_mps + self.model.landing_s
         self.alt = 0.0

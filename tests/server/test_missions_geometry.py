@@ -324,3 +324,13 @@ def test_compiled_items_are_what_the_agent_and_the_simulated_autopilot_accept():
         list(compile_survey(SurveySpec(SQUARE, 75, 50, 70, 60, 50, 6.0)).items)
     )
     assert items_from_dicts(with_trigger)[3].command == 206
+
+
+def test_limits_come_from_settings_when_they_carry_them():
+    from types import SimpleNamespace
+
+    from server.missions.service import limits_from
+
+    assert limits_from(SimpleNamespace()) == MissionLimits()
+    custom = limits_from(SimpleNamespace(mission_max_alt_m=60, mission_max_area_m2=1e6))
+    assert custom.max_alt_m == 60 and custom.max_area_m2 == 1e6 and custom.min_alt_m == 2
