@@ -76,15 +76,17 @@ def _condition_yaw(c: Copter, p: Params, link: Any) -> int:
 
 
 def _message_interval(c: Copter, p: Params, link: Any) -> int:
-    if c.streams is None:
+    streams = c.streams_for(link)
+    if streams is None:
         return FAILED
-    return ACCEPTED if c.streams.set_interval(int(p[0]), p[1]) else FAILED
+    return ACCEPTED if streams.set_interval(int(p[0]), p[1]) else FAILED
 
 
 def _request_message(c: Copter, p: Params, link: Any) -> int:
-    if c.streams is None:
+    streams = c.streams_for(link)
+    if streams is None:
         return FAILED
-    return ACCEPTED if c.streams.send_once(int(p[0])) else FAILED
+    return ACCEPTED if streams.send_once(int(p[0])) else FAILED
 
 
 def _home(c: Copter, p: Params, link: Any) -> int:

@@ -358,9 +358,11 @@ class Copter(MissionProtocolMixin):
             self.gnss.correction(self.wall, False)
 
     def _on_request_data_stream(self, msg: Any, link: Any) -> None:
-        if self.streams is not None:
-            self.streams.request_data_stream(
-                msg.req_stream_id, msg.req_message_rate, msg.start_stop
-            )
+        streams = self.streams_for(link)
+        if streams is not None:
+            streams.request_data_stream(msg.req_stream_id, msg.req_message_rate, msg.start_stop)
 
-    streams: Any = None  # the link layer's StreamScheduler, set by the server
+    @staticmethod
+    def streams_for(link: Any) -> Any:
+        """The stream scheduler of a link (each link has its own rates), or None."""
+        return getattr(link, "streams", None)

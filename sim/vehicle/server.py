@@ -1,14 +1,16 @@
 """The simulated autopilot's I/O shell: MAVLink 2 over TCP and UDP, and the simulation loop.
 
 Addressing:
-- TCP: a server (like ArduPilot SITL's 5760); every connected client gets the streams.
+- TCP: a server (like ArduPilot SITL's 5760); every connected client gets the streams, at
+  the rates it asked for (SET_MESSAGE_INTERVAL / REQUEST_DATA_STREAM are per link, as
+  ArduPilot keeps them per channel).
 - UDP: the vehicle listens on one port and sends to whoever last sent it a datagram (the
   companion connects with pymavlink ``udpout:127.0.0.1:PORT`` and must send first, e.g. its
   own HEARTBEAT). Until someone has sent, nothing goes out on UDP.
 
 Telemetry rates and the mission-protocol timers run on wall time; flight runs on the
-`SimClock` (speed factor). Replies go to the link the request came on; streams, STATUSTEXT
-and MISSION_ITEM_REACHED go to every link.
+`SimClock` (speed factor). Replies go to the link the request came on; STATUSTEXT and
+MISSION_ITEM_REACHED go to every link.
 """
 
 from __future__ import annotations
@@ -41,11 +43,12 @@ def _no_wind(t: float) -> tuple[float, float]:
 
 @dataclass(eq=False)
 class Link:
-    """One peer: a TCP connection or the UDP endpoint (sending to its last sender)."""
+    """One peer: a TCP connection or the UDP endpoint (sending to its last sender), with its own rates."""
 
     name: str
     send_bytes: Callable[[bytes], None]
     mav: Any = field(default=None)
+    streams: StreamScheduler = field(default_factory=lambda: StreamScheduler(time.monotonic()))
 
     def __post_init__(self) -> None:
         self.mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
@@ -100,8 +103,6 @@ class VehicleServer:
         self.wind_ne = wind_ne
         self.step_s = step_s
         self.own_loop = own_loop  # False: the world calls `step(dt_sim)` from its loop
-        self.streams = StreamScheduler(time.monotonic())
-        copter.streams = self.streams
         self._want_tcp, self._want_udp = tcp_port, udp_port
         self.tcp_port = 0
         self.udp_port = 0
@@ -111,6 +112,11 @@ class VehicleServer:
         self._task: asyncio.Task[None] | None = None
         self._writers: set[asyncio.StreamWriter] = set()
         self.received = 0
+
+    @property
+    def udp_link(self) -> Link | None:
+        """The UDP peer link (its stream rates are what UDP clients asked for)."""
+        return self._udp.link if self._udp else None
 
     def muted(self) -> bool:
         """True while the fault 'stop answering MAVLink' is active."""
@@ -213,9 +219,18 @@ class VehicleServer:
         for _ in range(n):
             t = self.copter.t + dt_sim / n
             self.copter.tick(dt_sim / n, wall, self.wind_ne(t))
-        for msg_id in self.streams.due(wall):
-            self.copter.send(build(self.copter, msg_id))
         self._flush()
+        if self.muted():
+            return
+        built: dict[int, Any] = {}
+        for link in list(self._links):
+            for msg_id in link.streams.due(wall):
+                if msg_id not in built:
+                    built[msg_id] = build(self.copter, msg_id)
+                try:
+                    link.send(built[msg_id])
+                except Exception:
+                    log.warning("send to %s failed", link.name, exc_info=True)
 
 
 @contextlib.asynccontextmanager

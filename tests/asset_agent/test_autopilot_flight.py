@@ -333,9 +333,11 @@ async def test_set_message_interval_is_honoured(
     autopilot: Autopilot, vehicle: VehicleServer
 ) -> None:
     await autopilot.set_message_interval(30, 25.0)  # ATTITUDE at 25 Hz
-    assert vehicle.streams.intervals[30] == pytest.approx(0.04)
+    link = vehicle.udp_link
+    assert link is not None
+    assert link.streams.intervals[30] == pytest.approx(0.04)
     await autopilot.set_message_interval(30, 0)  # stop ATTITUDE
-    assert vehicle.streams.intervals[30] is None
+    assert link.streams.intervals[30] is None
     with autopilot.tap(lambda m: m.get_type() in ("ATTITUDE", "HEARTBEAT")) as q:
         heartbeats = 0
         attitudes = 0

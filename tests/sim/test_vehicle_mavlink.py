@@ -156,10 +156,16 @@ async def test_autopilot_re_requests_then_cancels_an_abandoned_upload(peer: Peer
     assert ack.type == 15  # MAV_MISSION_OPERATION_CANCELLED after the upload timeout
 
 
-async def test_tcp_clients_get_streams_and_replies(sim: VehicleServer) -> None:
+async def test_tcp_clients_get_streams_and_replies(sim: VehicleServer, peer: Peer) -> None:
     p = Peer(f"tcp:127.0.0.1:{sim.tcp_port}")
     try:
         await p.recv("HEARTBEAT")
+        # rates are per link: the TCP client stops ATTITUDE, the UDP peer keeps it
+        p.conn.mav.command_long_send(1, 1, 511, 0, 30, -1, 0, 0, 0, 0, 0)
+        assert (await p.recv("COMMAND_ACK", command=511)).result == 0
+        await p.recv("HEARTBEAT")
+        assert (await p.count(("ATTITUDE",), "HEARTBEAT", 2))["ATTITUDE"] == 0
+        await peer.recv("ATTITUDE")
         p.conn.mav.command_long_send(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
         assert (await p.recv("COMMAND_ACK", command=400)).result == 0
         await p.recv("HEARTBEAT", base_mode=1 | 16 | 128)
