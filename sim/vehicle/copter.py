@@ -10,7 +10,6 @@ GNSS error; the dynamics fly the truth, so a vehicle lands where its GNSS says t
 from __future__ import annotations
 
 import math
-import random
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -108,7 +107,6 @@ class Copter(MissionProtocolMixin):
         self.gnss = GnssModel(cfg.gnss, seed=cfg.seed)
         self.precland = PrecisionLanding()
         self.guidance = Guidance(self)
-        self.rng = random.Random(cfg.seed)
         self.faults = Faults()
         self.t = 0.0  # simulated seconds since boot
         self.wall = 0.0
@@ -121,7 +119,7 @@ class Copter(MissionProtocolMixin):
         self.upload_link: Any = None
         self.outbox: list[tuple[Any, Any]] = []
         self.reading: GnssReading = self.gnss.reading(0.0)
-        self._reassembler_seq: dict[Any, Any] = {}
+        self._reassemblers: dict[Any, Any] = {}
         self._text_times: dict[str, float] = {}
         self._was_landed = True
         self._blocked_told = False
@@ -343,7 +341,7 @@ class Copter(MissionProtocolMixin):
             self.text(WARNING, reason, throttle_s=2.0)
 
     def _on_gps_rtcm_data(self, msg: Any, link: Any) -> None:
-        reassembler = self._reassembler_seq.setdefault(link, MavlinkReassembler())
+        reassembler = self._reassemblers.setdefault(link, MavlinkReassembler())
         message = reassembler.push(msg.flags, bytes(msg.data[: msg.len]))
         if message is None:
             return
