@@ -8,7 +8,7 @@ from collections.abc import Callable
 from functools import partial
 from typing import Any
 
-from protocol.rtcm import mavlink_fragments
+from protocol.rtcm import MAVLINK_MAX_MESSAGE, mavlink_fragments
 
 log = logging.getLogger(__name__)
 
@@ -28,25 +28,31 @@ class SetpointsMixin:
         raise NotImplementedError
 
     def inject_rtcm(self, frame: bytes) -> int:
-        """Send one RTCM3 frame as GPS_RTCM_DATA fragments; returns the fragment count.
+        """Send RTCM3 bytes (normally one frame) as GPS_RTCM_DATA fragments; the fragment count.
 
-        A frame too long for four fragments (>= 720 bytes) or a failed send is logged and
-        counted as 0 fragments: corrections are a stream, one lost frame is not an error.
+        Up to 719 bytes go as one message (fragmented per the MAVLink rules); longer input is
+        cut into 719-byte messages sent in order, which the autopilot passes on to its GNSS
+        receiver as one byte stream. A failed send is logged and counted as 0: corrections
+        are a stream, one lost frame is not an error.
         """
         try:
-            fragments = mavlink_fragments(bytes(frame), self._rtcm_seq)
-        except (ValueError, TypeError) as err:
-            log.warning("RTCM frame not injected: %s", err)
+            data = bytes(frame)
+        except TypeError as err:
+            log.warning("RTCM data not injected: %s", err)
             return 0
-        self._rtcm_seq = (self._rtcm_seq + 1) % 32
+        size = MAVLINK_MAX_MESSAGE - 1
+        sent = 0
         try:
-            for flags, data in fragments:
-                padded = data + bytes(180 - len(data))
-                self.send(partial(_rtcm, flags, len(data), padded))
+            for start in range(0, len(data), size):
+                fragments = mavlink_fragments(data[start : start + size], self._rtcm_seq)
+                self._rtcm_seq = (self._rtcm_seq + 1) % 32
+                for flags, chunk in fragments:
+                    padded = chunk + bytes(180 - len(chunk))
+                    self.send(partial(_rtcm, flags, len(chunk), padded))
+                    sent += 1
         except (OSError, RuntimeError) as err:
-            log.warning("RTCM frame not injected: %s", err)
-            return 0
-        return len(fragments)
+            log.warning("RTCM data not injected: %s", err)
+        return sent
 
     def send_landing_target(
         self,

@@ -19,6 +19,13 @@ class PrearmFault(BaseModel):
     reason: str | None = Field(default="Injected failure", max_length=40)
 
 
+class GnssBias(BaseModel):
+    """A steady GNSS position error, metres north and east."""
+
+    north_m: float = Field(default=0.0, ge=-100, le=100)
+    east_m: float = Field(default=0.0, ge=-100, le=100)
+
+
 class MuteFault(BaseModel):
     """Stop answering MAVLink for `seconds` wall seconds; null means until cleared."""
 
@@ -126,6 +133,12 @@ def vehicle_router(server: VehicleServer, prefix: str = "/vehicle") -> APIRouter
         c.gnss.has_fix = not body.enabled
         return faults(server)
 
+    @router.post("/faults/gnss_bias")
+    async def gnss_bias(body: GnssBias) -> dict[str, Any]:
+        """Add a steady error to the reported position (the vehicle then lands that far off)."""
+        c.gnss.bias_ne_m = (body.north_m, body.east_m)
+        return truth(server)
+
     @router.post("/battery")
     async def battery(body: BatteryOverride) -> dict[str, Any]:
         """Override the battery level."""
@@ -139,6 +152,7 @@ def vehicle_router(server: VehicleServer, prefix: str = "/vehicle") -> APIRouter
         c.faults.mute_until = 0.0
         c.faults.drop_mission = False
         c.gnss.has_fix = True
+        c.gnss.bias_ne_m = (0.0, 0.0)
         return faults(server)
 
     return router

@@ -119,7 +119,7 @@ class Copter(MissionProtocolMixin):
         self.upload_link: Any = None
         self.outbox: list[tuple[Any, Any]] = []
         self.reading: GnssReading = self.gnss.reading(0.0)
-        self._reassemblers: dict[Any, Any] = {}
+        self._rtcm_inputs: dict[Any, tuple[MavlinkReassembler, Reframer]] = {}
         self._text_times: dict[str, float] = {}
         self._was_landed = True
         self._blocked_told = False
@@ -341,18 +341,18 @@ class Copter(MissionProtocolMixin):
             self.text(WARNING, reason, throttle_s=2.0)
 
     def _on_gps_rtcm_data(self, msg: Any, link: Any) -> None:
-        reassembler = self._reassemblers.setdefault(link, MavlinkReassembler())
+        # as a GNSS receiver does: the injected bytes are one stream, re-framed and CRC-checked
+        # (a frame longer than one GPS_RTCM_DATA message arrives in consecutive messages)
+        reassembler, reframer = self._rtcm_inputs.setdefault(
+            link, (MavlinkReassembler(), Reframer())
+        )
         message = reassembler.push(msg.flags, bytes(msg.data[: msg.len]))
         if message is None:
             return
-        if frame_ok(message):
-            self.gnss.correction(self.wall, True)
-            return
-        reframer = Reframer()
-        good = list(reframer.feed(message))
-        for _ in good:
-            self.gnss.correction(self.wall, True)
-        if not good:
+        bad_before = reframer.bad_frames
+        for frame in reframer.feed(message):
+            self.gnss.correction(self.wall, frame_ok(frame))
+        for _ in range(reframer.bad_frames - bad_before):
             self.gnss.correction(self.wall, False)
 
     def _on_request_data_stream(self, msg: Any, link: Any) -> None:

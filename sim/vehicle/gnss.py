@@ -53,6 +53,10 @@ class GnssModel:
         self._valid: deque[float] = deque()
         self._flow_since: float | None = None
         self.has_fix = True  # fault injection: False -> no fix
+        self.bias_ne_m = (
+            0.0,
+            0.0,
+        )  # fault injection: a steady position error (multipath, wrong datum)
         self.valid_frames = 0
         self.bad_frames = 0
 
@@ -103,7 +107,11 @@ class GnssModel:
         fix = self.fix_type(now)
         s = self.sigma(fix)
         u = self._smooth
-        err = (u[0] * s, u[1] * s, u[2] * s * p.vertical_factor)
+        err = (
+            u[0] * s + self.bias_ne_m[0],
+            u[1] * s + self.bias_ne_m[1],
+            u[2] * s * p.vertical_factor,
+        )
         rtk = fix >= FIX_RTK_FLOAT
         sats = 0 if fix == FIX_NONE else p.satellites_rtk if rtk else p.satellites
         hdop = 99.99 if fix == FIX_NONE else 0.6 if rtk else 0.9

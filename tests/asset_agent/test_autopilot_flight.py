@@ -232,12 +232,12 @@ async def test_rtk_corrections_turn_the_fix_to_rtk_fixed_and_bad_crc_does_not(
     bad[-1] ^= 0xFF
     for _ in range(10):
         assert autopilot.inject_rtcm(bytes(bad)) == 3
-    assert (
-        autopilot.inject_rtcm(build_frame(bytes(800))) == 0
-    )  # too long for GPS_RTCM_DATA: dropped
     await wait_for(lambda: gnss.bad_frames >= 10, 5, "bad frames seen")
     assert gnss.valid_frames == 0
     assert gnss.fix_type(vehicle.copter.wall) == 3
+    # a 1029-byte frame is longer than one GPS_RTCM_DATA message (719 bytes): sent in two
+    assert autopilot.inject_rtcm(build_frame(bytes(1023))) == 4 + 2
+    await wait_for(lambda: gnss.valid_frames == 1, 5, "the long frame re-assembled")
     seen_fixes: set[int] = set()
 
     def record() -> bool:
