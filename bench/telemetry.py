@@ -16,8 +16,9 @@ goes through the public API. Then the same envelopes go through Mosquitto on 127
 run after a drain of up to 15 s. A run is sound when nothing was lost and the generator kept its
 schedule (send lag p99 within one period); the ratio to Mosquitto is judged only against a sound
 reference. The server's CPU comes from /proc/<pid>/stat, as does Mosquitto's (`pgrep -x mosquitto`);
-the output also says how much CPU other processes took, since the machine is shared. A benchmark never fails a build: it exits 0 with the figures even
-when targets are missed, and non-zero only when it could not run at all.
+the output also says how much CPU other processes took, since the machine is shared. A benchmark
+never fails a build: it exits 0 with the figures even when targets are missed, and non-zero only
+when it could not run at all.
 """
 
 from __future__ import annotations
