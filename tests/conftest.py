@@ -100,7 +100,9 @@ def test_settings(database_url: str, **overrides: Any):  # type: ignore[no-untyp
 
     base = dict(database_url=database_url, environment="test", migrate_on_start=False,
                 argon2_time_cost=1, argon2_memory_kib=8192, argon2_parallelism=1,
-                config_scrypt_log_n=12, login_max_failures_address=10_000, log_format="console")
+                config_scrypt_log_n=12, login_max_failures_address=10_000, log_format="console",
+                # the simulated world runs 10x: a UAV on the pad is confirmed within ~2 s wall
+                run_timeouts={"confirming": 8.0})
     base.update(overrides)
     return Settings(**base)
 
@@ -111,12 +113,13 @@ test_settings.__test__ = False  # type: ignore[attr-defined]
 class LiveServer:
     """An `aerobase server` app served by uvicorn on a real socket, in a background thread."""
 
-    def __init__(self, settings: Any) -> None:
+    def __init__(self, settings: Any, port: int | None = None) -> None:
         import uvicorn
 
         from server.app import create_app
 
-        self.port = free_port()
+        self.settings = settings
+        self.port = port or free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         settings.port = self.port
         self.app = create_app(settings)
@@ -125,6 +128,10 @@ class LiveServer:
                                 forwarded_allow_ips="127.0.0.1", lifespan="on")
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, name=f"server-{self.port}", daemon=True)
+
+    def restarted(self) -> LiveServer:
+        """A new server process state (new app, empty memory) on the same port; call after stop()."""
+        return LiveServer(self.settings, self.port).start()
 
     def start(self) -> LiveServer:
         self.thread.start()

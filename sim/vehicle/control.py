@@ -85,6 +85,7 @@ def faults(server: VehicleServer) -> dict[str, Any]:
         "mute_remaining_s": None if math.isinf(remaining) else max(0.0, remaining),
         "drop_mission": f.drop_mission,
         "no_gnss_fix": not server.copter.gnss.has_fix,
+        "gnss_bias_ne_m": list(server.copter.gnss.bias_ne_m),
     }
 
 

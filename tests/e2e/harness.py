@@ -89,7 +89,7 @@ class Platform:
 
 @contextlib.asynccontextmanager
 async def platform(server_url: str, tenant: Tenant, tmp: Path, *, seed: int = 21,
-                   speed: float = SPEED) -> AsyncIterator[Platform]:
+                   speed: float = SPEED, agent_server_url: str | None = None) -> AsyncIterator[Platform]:
     """World + daemons connected to the server at `server_url`, assets registered in `tenant`."""
     world = full_world(WorldConfig.for_tests(speed=speed, seed=seed))
     async with world:
@@ -108,7 +108,7 @@ async def platform(server_url: str, tenant: Tenant, tmp: Path, *, seed: int = 21
             sconf = sconf.model_copy(update={"rtk": sconf.rtk.model_copy(update={"tcp_port": world.ports["gnss"]})})
             base_app = setup_base(sconf)
             aconf = AgentConfig.model_validate({
-                "server": {"state_file": str(tmp / "agent.db")},
+                "server": {"state_file": str(tmp / "agent.db"), "url": agent_server_url or server_url},
                 "autopilot": {"url": f"udpout:127.0.0.1:{world.ports['mavlink_udp']}", "link_timeout_s": 2.0},
                 "telemetry": {"rate_hz": 5}})
             agent = setup_agent(aconf, ucfg)

@@ -17,3 +17,147 @@ async def test_a_run_walks_the_whole_sequence_and_completes(live_server, tenant:
         assert not p.world.base.can_vehicle_leave()  # closed again
         report = (await p.api.get(f"/api/v1/runs/{run_id}/report", headers=tenant.h("viewer"))).json()
         assert report["flight_time_s"] > 0 and len(report["track"]) > 10
+
+
+async def test_wind_over_the_limit_aborts_at_the_check_and_nothing_moves(live_server, tenant: Tenant, tmp_path):
+    async with platform(live_server.url, tenant, tmp_path) as p:
+        p.world.weather.force(wind_mps=11.0, gust_mps=14.2)
+        await _base_sees(p, lambda row: (row.get("weather.gust_m_s") or 0) > 12)
+        moved_before = len(p.world.base.command_log)
+        run_id = await p.start_run()
+        body = await p.wait_state(run_id, FINAL, 60)
+        assert body["state"] == "aborted" and body["cause"] == "not_available"
+        assert "gust" in body["reason"] and "14.2" in body["reason"] and "12" in body["reason"]
+        assert [t["to_state"] for t in body["timeline"]] == ["checking", "aborted"]
+        assert len(p.world.base.command_log) == moved_before  # not a single command coil written
+
+
+async def test_panel_stall_while_opening_fails_lift_never_raised_panels_driven_back(live_server, tenant: Tenant,
+                                                                                    tmp_path):
+    async with platform(live_server.url, tenant, tmp_path) as p:
+        p.world.base.inject_stall("panels")
+        run_id = await p.start_run()
+        body = await p.wait_state(run_id, FINAL, 90)
+        assert body["state"] == "failed" and body["cause"] == "opening_failed", body["reason"]
+        assert "opening the base failed" in body["reason"] and "closed" in body["reason"]
+        coils = [c.coil for c in p.world.base.command_log]
+        assert "LIFT_UP" not in coils  # the lift never went up on a half-open base
+        # the run then drives the panels back: its close command is issued (and answered: done, or refused
+        # with the reason while the stall fault is latched)
+        close = await _base_command(p, "close")
+        assert close["status"] in ("succeeded", "rejected", "failed"), close
+        if close["status"] != "succeeded":
+            assert close["reason"]
+
+
+async def test_uav_landing_off_the_pad_fails_keeps_the_panels_open_and_alerts(live_server, tenant: Tenant,
+                                                                             tmp_path):
+    """In flight the UAV's GNSS picks up a 2 m steady error (multipath): it lands 2 m beside the pad and
+    the scale never sees it. The run fails, the panels stay open, operators are alerted."""
+    async with platform(live_server.url, tenant, tmp_path) as p:
+        vehicle = next(part for part in p.world.parts if part.name == "vehicle")
+        run_id = await p.start_run()
+        await p.wait_state(run_id, ("flying",), 60)
+        await _until(lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out")
+        vehicle.server.copter.gnss.bias_ne_m = (2.0, 0.0)
+        body = await p.wait_state(run_id, FINAL, 150)
+        assert body["state"] == "failed" and body["cause"] == "landing_not_confirmed", body["reason"]
+        assert body["alert"] and "panels stay open" in body["reason"]
+        assert p.world.base.pad_mass_g == 0  # the UAV is not on the lift...
+        assert p.world.base.can_vehicle_leave()  # ...so nothing closed: panels open, lift up
+
+
+async def test_uav_link_lost_in_flight_the_run_waits_then_completes(live_server, tenant: Tenant, tmp_path):
+    """The agent's server link is cut while the UAV flies its survey legs; the autopilot goes on, the run
+    waits (it neither fails nor moves on), and once the link is back the buffered telemetry and events
+    arrive and the run completes. (RTK corrections also stop during the cut: the link is restored before
+    the return leg so the fix is RTK again for the landing on the pad.)"""
+    from tests.netproxy import TcpProxy
+
+    proxy = await TcpProxy("127.0.0.1", live_server.port).start()
+    try:
+        async with platform(live_server.url, tenant, tmp_path,
+                            agent_server_url=f"http://127.0.0.1:{proxy.port}") as p:
+            run_id = await p.start_run()
+            await p.wait_state(run_id, ("flying",), 60)
+            await _until(lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out")
+            proxy.cut()
+            cut_seq = p.agent.link.stats.sent
+            # the UAV flies on by itself: it reaches the next legs of its mission with no server
+            await _until(lambda: (p.agent.autopilot.state.mission_current or 0) >= 3, 60,
+                         "the UAV to fly its legs while the server link is down")
+            during = await p.run_state(run_id)
+            assert during["state"] == "flying", during["state"]  # waiting, not failed
+            assert not p.agent.link.connected and p.agent.link.stats.queued > 0
+            proxy.restore()
+            body = await p.wait_state(run_id, FINAL, 120)
+            assert body["state"] == "completed", (body["reason"], body["timeline"])
+            assert p.agent.link.stats.sent > cut_seq
+    finally:
+        await proxy.stop()
+
+
+async def test_server_killed_while_flying_resumes_and_completes(database_url, superuser_email, tmp_path):
+    """The server process dies mid-flight; a new one on the same database resumes the run."""
+    import asyncio
+
+    import httpx
+
+    from tests.conftest import LiveServer, test_settings
+
+    server = LiveServer(test_settings(database_url)).start()
+    restarted = None
+    try:
+        with httpx.Client(base_url=server.url) as sync_api:
+            tenant = Tenant(sync_api, superuser_email, "restart")
+            async with platform(server.url, tenant, tmp_path) as p:
+                run_id = await p.start_run()
+                await p.wait_state(run_id, ("flying",), 60)
+                await _until(lambda: p.world.base.pad_mass_g == 0, 60, "the UAV to take off")
+                await asyncio.to_thread(server.stop)
+                restarted = await asyncio.to_thread(server.restarted)
+                body = await p.wait_state(run_id, FINAL, 150)
+                assert body["state"] == "completed", (body["reason"], body["timeline"])
+                states = [t["to_state"] for t in body["timeline"]]
+                assert states.count("flying") == 1  # resumed where it stood, not restarted from the top
+    finally:
+        await asyncio.to_thread((restarted or server).stop)
+
+
+async def _until(predicate, limit_s: float, what: str) -> None:  # type: ignore[no-untyped-def]
+    import asyncio
+    import time
+
+    deadline = time.monotonic() + limit_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        await asyncio.sleep(0.05)
+
+
+async def _base_sees(p, predicate, limit_s: float = 20):  # type: ignore[no-untyped-def]
+    import asyncio
+    import time
+
+    deadline = time.monotonic() + limit_s
+    while time.monotonic() < deadline:
+        r = await p.api.get(f"/api/v1/assets/{p.ids['base_id']}/telemetry/latest", headers=p.tenant.h("viewer"))
+        if r.status_code == 200 and predicate(r.json()):
+            return
+        await asyncio.sleep(0.1)
+    raise AssertionError("the base never reported it")
+
+
+async def _base_command(p, name: str, limit_s: float = 30):  # type: ignore[no-untyped-def]
+    import asyncio
+    import time
+
+    deadline = time.monotonic() + limit_s
+    while time.monotonic() < deadline:
+        cmds = (await p.api.get(f"/api/v1/assets/{p.ids['base_id']}/commands", headers=p.tenant.h("viewer"))).json()
+        found = [c for c in cmds if c["name"] == name and c["status"] in ("succeeded", "rejected", "failed",
+                                                                            "timed_out")]
+        if found:
+            return found[0]
+        await asyncio.sleep(0.1)
+    raise AssertionError(f"no finished {name} command at the base")
