@@ -191,13 +191,15 @@ async def test_control_routes_truth_and_faults(sim: VehicleServer, peer: Peer) -
             "battery_pct"
         ] == 42
         assert (await peer.recv("SYS_STATUS", battery_remaining=42)).battery_remaining == 42
+        await http.post("/vehicle/faults/gnss_bias", json={"north_m": 2.0, "east_m": 0.0})
+        assert (await http.get("/vehicle/faults")).json()["gnss_bias_ne_m"] == [2.0, 0.0]
         assert (await http.post("/vehicle/faults/mute", json={"seconds": 30})).json()["muted"]
         assert sim.muted()
         assert (await http.post("/vehicle/battery", json={"percent": 142})).status_code == 422
         cleared = (await http.post("/vehicle/faults/clear")).json()
         assert cleared == {
             "prearm_failure": None, "muted": False, "mute_remaining_s": 0.0,
-            "drop_mission": False, "no_gnss_fix": False,
+            "drop_mission": False, "no_gnss_fix": False, "gnss_bias_ne_m": [0.0, 0.0],
         }  # fmt: skip
         await peer.recv("HEARTBEAT")
 

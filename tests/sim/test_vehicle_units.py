@@ -197,3 +197,29 @@ def test_mission_flight_steps_over_passive_items_and_jumps() -> None:
             break
     assert reached == [1, 3, 3, 3, 5]
     assert not c.armed and c.dyn.state.landed
+
+
+def test_gnss_bias_moves_the_landing_point() -> None:
+    from sim.vehicle.copter import Copter, CopterConfig
+    from sim.vehicle.standalone import OpenPad
+
+    pad = OpenPad()
+    c = Copter(pad, CopterConfig(seed=4))
+    c.set_mode(4)
+    c.arm()
+    c.guidance.takeoff(5)
+    wall = 0.0
+    for i in range(6000):
+        wall += 0.05
+        if i % 4 == 0:
+            c.gnss.correction(wall, True)  # RTK: the bias dominates the error
+        if i == 100:
+            c.gnss.bias_ne_m = (2.0, 0.0)  # multipath: the vehicle believes it is 2 m north
+            c.set_mode(6)
+        c.tick(0.05, wall)
+        c.outbox.clear()
+        if i > 100 and not c.armed:
+            break
+    n, e, _ = c.dyn.state.position
+    assert abs(n + 2.0) < 0.1 and abs(e) < 0.1  # landed 2 m south of the pad, off it
+    assert pad.mass_g == 0 and not pad.contacts_seated
