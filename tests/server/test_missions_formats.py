@@ -2,13 +2,10 @@
 
 from __future__ import annotations
 
-import copy
 import json
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from server.missions.items import COMMANDS, MissionItem
 from server.missions.qgc import ImportRejected, export_plan, parse_plan
@@ -334,86 +331,3 @@ def test_wpl_names_every_line_it_cannot_take():
         parse_wpl("QGC WPL 100\n")
     with pytest.raises(ImportRejected):
         parse_wpl("")
-
-
-@settings(max_examples=150, deadline=None)
-@given(
-    st.recursive(
-        st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=5),
-        lambda c: st.lists(c, max_size=4) | st.dictionaries(st.text(max_size=8), c, max_size=4),
-        max_leaves=30,
-    )
-)
-def test_arbitrary_json_never_crashes_the_plan_reader(document):
-    for doc in (
-        document,
-        wrap([document]),
-        wrap([{"type": "SimpleItem", **document}])
-        if isinstance(document, dict)
-        else wrap([document]),
-    ):
-        try:
-            parse_plan(copy.deepcopy(doc))
-        except ImportRejected as err:
-            assert err.problems
-
-
-@settings(max_examples=150, deadline=None)
-@given(st.text(max_size=300))
-def test_arbitrary_text_never_crashes_the_wpl_reader(text):
-    for doc in (
-        text,
-        f"{HEADER}\n{text}",
-        f"{HEADER}\n0\t1\t0\t16\t0\t0\t0\t0\t1\t2\t3\t1\n1 {text}",
-    ):
-        try:
-            parse_wpl(doc)
-        except ImportRejected as err:
-            assert err.problems
-
-
-finite = st.floats(-1e6, 1e6, allow_nan=False)
-
-
-@st.composite
-def missions(draw):
-    """Random lists of supported items, with valid DO_JUMP targets."""
-    n = draw(st.integers(1, 12))
-    out = []
-    for _ in range(n):
-        command = draw(st.sampled_from(sorted(COMMANDS)))
-        spec = COMMANDS[command]
-        frame = draw(st.sampled_from([0, 3, 10] if spec.nav and spec.positional else [0, 2, 3, 10]))
-        params = tuple(draw(st.one_of(st.none(), finite)) for _ in range(4))
-        if command == 177:
-            params = (float(draw(st.integers(1, n))), float(draw(st.integers(-1, 5))), 0.0, 0.0)
-        out.append(
-            MissionItem(
-                command=command,
-                frame=frame,
-                params=params,
-                lat=draw(st.floats(-90, 90)),
-                lon=draw(st.floats(-180, 180)),
-                alt=draw(st.floats(-1000, 10000)),
-                autocontinue=draw(st.booleans()),
-            )
-        )
-    return out
-
-
-@settings(max_examples=100, deadline=None)
-@given(
-    missions(),
-    st.one_of(
-        st.none(), st.builds(Home, st.floats(-89, 89), st.floats(-179, 179), st.floats(-100, 5000))
-    ),
-)
-def test_round_trips_are_lossless_for_any_supported_mission(items, home):
-    plan = parse_plan(json.loads(json.dumps(export_plan(items, home, 5.0))))
-    assert plan.items == items
-    if home is not None:
-        assert plan.home == home
-    text = parse_wpl(export_wpl(items, home))
-    assert text.items == items
-    if home is not None and (home.lat, home.lon) != (0.0, 0.0):
-        assert text.home == home
