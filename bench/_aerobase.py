@@ -27,7 +27,7 @@ from pathlib import Path
 import httpx
 from websockets.asyncio.client import ClientConnection, connect
 
-from bench._load import Payloads, Recorder, drain, figures, pace, process_cpu
+from bench._load import Payloads, Recorder, drain, figures, mark, pace, process_cpu
 from protocol.codec import MAX_MESSAGE_BYTES, encode
 from protocol.configfile import decrypt_config
 from protocol.messages import HelloPayload, envelope
@@ -348,6 +348,7 @@ async def run_ours(
     try:
         marks = await pace(n, rate, warmup, seconds, rec, send, progress, pid)
         drained = await drain(rec, 15.0)
+        marks["end"] = mark(rec, pid)
     finally:
         stopping = True
         for task in readers:

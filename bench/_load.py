@@ -154,7 +154,7 @@ async def pace(
     start = time.perf_counter() + 0.2
     t_open, t_close = start + warmup, start + warmup + seconds
     rec.window = (t_open, t_close)
-    marks: dict = {}
+    marks: dict = {"start": mark(rec, pid)}
 
     async def asset_loop(i: int) -> None:
         next_t = start + period * i / n
@@ -171,7 +171,7 @@ async def pace(
 
     async def marker() -> None:
         await asyncio.sleep(max(0.0, t_open - time.perf_counter()))
-        marks["open"] = _mark(rec, pid)
+        marks["open"] = mark(rec, pid)
         last = time.perf_counter()
         while time.perf_counter() < t_close:
             await asyncio.sleep(min(1.0, max(0.0, t_close - time.perf_counter())))
@@ -181,13 +181,14 @@ async def pace(
                     f"  {last - t_open:4.1f}/{seconds:g} s: sent {rec.total_sent()}, acked {sum(rec.acked)}, "
                     f"delivered {sum(rec.delivered)}"
                 )
-        marks["close"] = _mark(rec, pid)
+        marks["close"] = mark(rec, pid)
 
     await asyncio.gather(marker(), *(asset_loop(i) for i in range(n)))
     return marks
 
 
-def _mark(rec: Recorder, pid: int | None) -> dict:
+def mark(rec: Recorder, pid: int | None) -> dict:
+    """Time, counters and CPU (server, generator, machine) now."""
     return {
         "cpu_server": None if pid is None else process_cpu(pid),
         "t": time.perf_counter(),
@@ -251,8 +252,18 @@ def percentile(values: array | list[float], q: float) -> float | None:
 
 
 def figures(rec: Recorder, marks: dict, drained_s: float) -> dict:
-    """The figures of one run, in ms, messages/s and CPU seconds per 1,000 messages."""
+    """The figures of one run, in ms, messages/s and CPU seconds per 1,000 messages.
+
+    `marks` holds `start` (before the first send), `open` and `close` (the measured window) and
+    `end` (after the drain).
+    """
     o, c = marks["open"], marks["close"]
+    s0, e = marks["start"], marks["end"]
+    run_cpu = (
+        None
+        if s0["cpu_server"] is None or e["cpu_server"] is None
+        else e["cpu_server"] - s0["cpu_server"]
+    )
     acked_window = c["acked"] - o["acked"]
     delivered_window = c["delivered"] - o["delivered"]
     window_s = c["t"] - o["t"]
@@ -284,6 +295,9 @@ def figures(rec: Recorder, marks: dict, drained_s: float) -> dict:
         if cpu is None or acked_window <= 0
         else round(cpu / acked_window * 1000, 4),
         "cpu_s": None if cpu is None else round(cpu, 2),
+        "cpu_s_per_1000_whole_run": None
+        if run_cpu is None or e["acked"] <= 0
+        else round(run_cpu / e["acked"] * 1000, 4),
         "lost_ingest": total - sum(rec.acked),
         "lost_delivery": total * rec.operators - sum(rec.delivered),
         "errors": rec.errors,

@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import paho.mqtt.client as mqtt
 
-from bench._load import Payloads, Recorder, drain, figures, pace
+from bench._load import Payloads, Recorder, drain, figures, mark, pace
 
 Progress = Callable[[str], None]
 
@@ -215,6 +215,7 @@ async def run_mosquitto(
     try:
         marks = await pace(n, rate, warmup, seconds, rec, send, progress, pid)
         drained = await drain(rec, 15.0)
+        marks["end"] = mark(rec, pid)
     finally:
         for client in [*pubs, *subs]:
             client.disconnect()

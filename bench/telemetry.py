@@ -258,6 +258,7 @@ def report(res: dict[str, Any]) -> str:
         ("latency max (ms)", lambda d: _f(d["latency_ms"]["max"])),
         ("server CPU s per 1,000 msgs", lambda d: _f(d["cpu_s_per_1000"])),
         ("server CPU s in window", lambda d: _f(d["cpu_s"])),
+        ("server CPU s per 1,000, start to drained", lambda d: _f(d["cpu_s_per_1000_whole_run"])),
         ("lost: sent - acked", lambda d: _f(d["lost_ingest"])),
         ("lost: sent x M - delivered", lambda d: _f(d["lost_delivery"])),
         ("error replies", lambda d: _f(d["errors"])),
