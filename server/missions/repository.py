@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from sqlalchemy.exc import IntegrityError
 
 from server.kit.errors import Conflict
@@ -22,7 +24,10 @@ class MissionRepository(ScopedRepository[Mission]):
         stmt = self.select().order_by(Mission.created_at, Mission.id).limit(limit).offset(offset)
         if kind:
             stmt = stmt.where(Mission.kind == kind)
-        return list((await self.db.execute(stmt)).scalars())
+        rows: Any = (
+            await self.db.execute(stmt)
+        ).scalars()  # Select[tuple[M]] types scalars as tuples
+        return list(rows)
 
     async def add(self, mission: Mission) -> Mission:
         """Insert a mission into the current unit of work."""
