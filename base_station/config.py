@@ -38,8 +38,10 @@ Example `base.toml` (every key optional; these are the defaults)::
     current_limit_ma = 5000
 
     [server]
-    url = "ws://127.0.0.1:8000/api/v1/ws"
-    config_file = ""      # the encrypted asset configuration file
+    config_file = ""      # the encrypted asset configuration file ("" = no server link)
+    password_file = ""    # else AEROBASE_ASSET_PASSWORD, else a prompt
+    state_file = "~/.aerobase/base-link.db"
+    url = ""              # overrides the server URL in the asset file
 
     [rtk]
     tcp_host = "127.0.0.1"  # or serial_device = "/dev/ttyACM0"
@@ -115,10 +117,12 @@ class ChargeConfig(_Section):
 
 
 class ServerConfig(_Section):
-    """The server link (wired by protocol/link.py)."""
+    """The server link: the encrypted asset file (empty: run without a server) and the link's state."""
 
-    url: str = "ws://127.0.0.1:8000/api/v1/ws"
-    config_file: str = ""
+    config_file: str = ""  # e.g. "~/.aerobase/asset.enc"; password from password_file or AEROBASE_ASSET_PASSWORD
+    password_file: str = ""  # mode 0600
+    state_file: str = "~/.aerobase/base-link.db"  # the link's outbox, session and command ledger
+    url: str = ""  # overrides the server URL written in the asset file
 
 
 class RtkConfig(_Section):

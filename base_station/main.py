@@ -41,9 +41,24 @@ def setup(config: StationConfig) -> App:
     return App(config, coordinator, Station(coordinator, config))
 
 
-def server_link() -> LinkRunner | None:
-    """THE place where the server link (protocol/link.py) is wired; None until it exists."""
-    return None
+def server_link(config: StationConfig) -> LinkRunner | None:
+    """THE place where the server link (protocol/link.py) is wired; None without an asset file.
+
+    Raises ConfigFileError / PasswordSourceError (one-line messages) when the file cannot be read.
+    """
+    if not config.server.config_file:
+        log.warning("no [server] config_file: running without a server link")
+        return None
+    from pathlib import Path
+
+    from base_station.server_link import link_runner, make_link
+    from protocol.configfile_cli import load_config as load_asset
+
+    asset = load_asset(Path(config.server.config_file).expanduser(), config.server.password_file or None)
+    if asset.kind != "landing_base":
+        raise ValueError(f"{config.server.config_file} is a {asset.kind}'s file, not a landing base's")
+    state = Path(config.server.state_file).expanduser()
+    return link_runner(make_link(asset, state, config.server.url or None))
 
 
 async def run(app: App, stop: asyncio.Event | None = None, link: LinkRunner | None = None) -> None:
@@ -79,6 +94,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (OSError, ValueError) as err:
         log.error("cannot load configuration %s: %s", args.config, err)
         return 2
+    from protocol.configfile import ConfigFileError
+    from protocol.configfile_cli import PasswordSourceError
+
+    try:
+        link = server_link(config)
+    except (OSError, ValueError, ConfigFileError, PasswordSourceError) as err:
+        log.error("cannot open the asset configuration file: %s", err)
+        return 1
     app = setup(config)
 
     async def _main() -> None:
@@ -87,7 +110,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError):
                 loop.add_signal_handler(sig, stop.set)
-        await run(app, stop, server_link())
+        await run(app, stop, link)
 
     asyncio.run(_main())
     return 0
