@@ -257,7 +257,7 @@ class Autopilot(SetpointsMixin):
         p = [float(x) for x in params] + [0.0] * (7 - len(params))
         async with self._command_lock:
             mark = self._texts_seen
-            with self.tap(lambda m: m.get_type() == "COMMAND_ACK" and m.command == command) as acks:
+            with self.tap(lambda m: self._ack_for_us(m, command)) as acks:
                 for confirmation in range(retries + 1):
                     self._link.send(partial(self._command_long, command, confirmation, p))
                     deadline = time.monotonic() + timeout
@@ -275,6 +275,17 @@ class Autopilot(SetpointsMixin):
                     if not self.state.link_up:
                         raise LinkLost(f"autopilot link lost while waiting for command {command}")
         raise AutopilotTimeout(f"no COMMAND_ACK for command {command} after {retries + 1} tries")
+
+    def _ack_for_us(self, msg: Any, command: int) -> bool:
+        """A COMMAND_ACK for `command` addressed to us (or to nobody in particular)."""
+        if msg.get_type() != "COMMAND_ACK" or msg.command != command:
+            return False
+        target = getattr(msg, "target_system", 0)
+        component = getattr(msg, "target_component", 0)
+        cfg = self.config
+        return target == 0 or (
+            target == cfg.source_system and component in (0, cfg.source_component)
+        )
 
     def _command_long(self, command: int, confirmation: int, p: list[float], mav: Any) -> None:
         cfg = self.config

@@ -123,3 +123,13 @@ async def test_a_malformed_message_is_logged_not_raised() -> None:
     bad._header = m.MAVLink_header(33, srcSystem=1, srcComponent=1)
     ap._on_message(bad)  # must not raise
     assert ap.state.lat is None
+
+
+async def test_command_acks_for_another_ground_station_are_not_ours() -> None:
+    from asset_agent.autopilot import Autopilot
+
+    ap = Autopilot()
+    assert ap._ack_for_us(m.MAVLink_command_ack_message(400, 0), 400)  # not addressed: ours
+    assert ap._ack_for_us(m.MAVLink_command_ack_message(400, 0, 0, 0, 1, 191), 400)
+    assert not ap._ack_for_us(m.MAVLink_command_ack_message(400, 0, 0, 0, 255, 190), 400)  # a GCS
+    assert not ap._ack_for_us(m.MAVLink_command_ack_message(176, 0), 400)
