@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/aerobase server
+	$(BIN)/aerobase demo
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

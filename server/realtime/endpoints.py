@@ -289,8 +289,13 @@ async def operator_socket(ws: WebSocket) -> None:
     sender = _Sender(ws, max_queue=5000)
     hub.register_closer(principal.session_id, sender.close)
     handlers: dict[uuid.UUID, Any] = {}
+    recent: deque[str] = deque(maxlen=256)  # a run's progress is published on its UAV's and its base's channel
 
     def forward(message: dict[str, Any]) -> None:
+        mid = str(message.get("id", ""))
+        if mid and mid in recent:
+            return
+        recent.append(mid)
         if not sender.send_text(json.dumps(message, separators=(",", ":"))):
             hub.counters.operator_dropped += 1
 
