@@ -182,11 +182,11 @@ def _param_problems(
                 )
             )
     elif item.command == DO_CHANGE_SPEED:
-        if p2 is not None and p2 != -1 and not 0 < p2 <= limits.max_speed_mps:
+        if p2 is None or not 0 < p2 <= limits.max_speed_mps:
             out.append(
                 Problem(
                     f"{at}.params[1]",
-                    "speed out of range (m/s; -1 = unchanged)",
+                    "speed out of range (m/s)",
                     p2,
                     limits.max_speed_mps,
                     index=i,

@@ -7,9 +7,10 @@ from __future__ import annotations
 import json
 
 from asset_agent.autopilot import Autopilot, items_from_dicts
-from server.missions.items import item_dicts
+from server.missions.items import COMMANDS, MissionItem, item_dicts
 from server.missions.qgc import parse_plan
 from server.missions.survey import SurveySpec, compile_survey
+from server.missions.validate import MissionLimits, validate_items
 from sim.vehicle.server import VehicleServer
 from tests.asset_agent.conftest import autopilot, pad, vehicle  # noqa: F401  (fixtures)
 from tests.server.test_missions_formats import SIMPLE_SQUARE_PLAN
@@ -36,7 +37,32 @@ async def test_an_imported_qgroundcontrol_plan_uploads(
 
 
 async def test_a_compiled_survey_uploads(autopilot: Autopilot, vehicle: VehicleServer):
-    spec = SurveySpec(AREA, 40, 30, 70, 60, 30, 5.0, takeoff=PAD, camera_trigger=False)
-    dicts = item_dicts(list(compile_survey(spec).items))
-    assert len(dicts) > 10
-    await _round_trip(autopilot, dicts)
+    for trigger in (True, False):
+        spec = SurveySpec(AREA, 40, 30, 70, 60, 30, 5.0, takeoff=PAD, camera_trigger=trigger)
+        dicts = item_dicts(list(compile_survey(spec).items))
+        assert (206 in [d["command"] for d in dicts]) == trigger
+        await _round_trip(autopilot, dicts)
+
+
+async def test_every_supported_command_uploads(autopilot: Autopilot, vehicle: VehicleServer):
+    items = [MissionItem(command=22, params=(0, 0, 0, None), lat=PAD[0], lon=PAD[1], alt=20)]
+    for command, spec in sorted(COMMANDS.items()):
+        if command == 177:
+            items.append(MissionItem(command=command, frame=2, params=(2, 1, 0, 0)))
+        elif command == 178:
+            items.append(MissionItem(command=command, frame=2, params=(1, 6, -1, 0)))
+        elif spec.positional:
+            items.append(
+                MissionItem(
+                    command=command,
+                    frame=3,
+                    params=(1, 0, 5, None),
+                    lat=PAD[0] + 1e-4,
+                    lon=PAD[1],
+                    alt=25,
+                )
+            )
+        else:
+            items.append(MissionItem(command=command, frame=2, params=(1, 0, 0, 0)))
+    assert validate_items(items, MissionLimits()) == []
+    await _round_trip(autopilot, item_dicts(items))
