@@ -96,6 +96,13 @@ class Faults:
         return wall < self.mute_until
 
 
+def _ack(request: Any, command: int, result: int) -> Any:
+    """COMMAND_ACK addressed to the sender of `request`, as ArduPilot fills it."""
+    return mavlink.MAVLink_command_ack_message(
+        command, result, 0, 0, request.get_srcSystem(), request.get_srcComponent()
+    )
+
+
 class Copter(MissionProtocolMixin):
     """One ArduPilot-Copter-like vehicle on its base."""
 
@@ -308,16 +315,16 @@ class Copter(MissionProtocolMixin):
     def _on_command_long(self, msg: Any, link: Any) -> None:
         p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
         result = run_command(self, msg.command, p, link)
-        self.send(mavlink.MAVLink_command_ack_message(msg.command, result), link)
+        self.send(_ack(msg, msg.command, result), link)
 
     def _on_command_int(self, msg: Any, link: Any) -> None:
         p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x / 1e7, msg.y / 1e7, msg.z)
         result = run_command(self, msg.command, p, link)
-        self.send(mavlink.MAVLink_command_ack_message(msg.command, result), link)
+        self.send(_ack(msg, msg.command, result), link)
 
     def _on_set_mode(self, msg: Any, link: Any) -> None:
         ok = self.set_mode(msg.custom_mode)
-        self.send(mavlink.MAVLink_command_ack_message(11, ACCEPTED if ok else FAILED), link)
+        self.send(_ack(msg, 11, ACCEPTED if ok else FAILED), link)
 
     def _on_set_position_target_local_ned(self, msg: Any, link: Any) -> None:
         if self.mode == GUIDED and self.armed:
