@@ -53,6 +53,12 @@ class Settings(BaseSettings):
     run_engine: bool = True  # drive runs and fire schedules in this process (every replica may)
     schedule_grace_s: float = Field(default=60.0, ge=0, description="a due time later than this is 'missed'")
 
+    # mission validation limits
+    mission_min_alt_m: float = Field(default=2.0, ge=0)
+    mission_max_alt_m: float = Field(default=120.0, gt=0)
+    mission_max_area_m2: float = Field(default=4_000_000.0, gt=0)
+    mission_max_items: int = Field(default=1000, ge=1)
+
     # failed-login rate limits
     login_window_s: int = Field(default=15 * 60, ge=1)
     login_max_failures_account: int = Field(default=5, ge=1)

@@ -70,7 +70,10 @@ async def fleet_report(principal: Viewer, db: DB, start: datetime | None = None,
                        end: datetime | None = None) -> FleetReport:
     """Runs in [start, end): success rate, failures by cause, mean flight time, per asset."""
     end = end or utcnow()
-    start = start or end - timedelta(days=30)
+    try:
+        start = start or end - timedelta(days=30)
+    except OverflowError as err:
+        raise Unprocessable("end is too early for the default 30-day window; give start") from err
     if start.tzinfo is None or end.tzinfo is None or start >= end:
         raise Unprocessable("start and end need a time zone and start must be before end")
     runs = await RunRepository(db, principal).in_window(start, end)

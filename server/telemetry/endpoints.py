@@ -34,7 +34,10 @@ class EventOut(BaseModel):
 
 def _range(start: datetime | None, end: datetime | None) -> tuple[datetime, datetime]:
     end = end or utcnow()
-    start = start or end - timedelta(hours=1)
+    try:
+        start = start or end - timedelta(hours=1)
+    except OverflowError as err:
+        raise Unprocessable("end is too early for the default one-hour window; give start") from err
     if start.tzinfo is None or end.tzinfo is None:
         raise Unprocessable("start and end need a time zone (e.g. 2026-11-22T10:00:00Z)")
     if start >= end:
