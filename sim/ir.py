@@ -5,7 +5,12 @@ convention) and reports the beacon's direction as two angles: angle_x = atan2(x,
 angle_y = atan2(y, z), with Gaussian noise, when the beacon is within the field of view and the
 detection range; otherwise it reports "not detected".
 
-Datagram (one reading, 28 bytes, little-endian), sent to a configured (host, port)::
+Where readings go: either to a configured (host, port), or — when the sensor is given no
+destination — to every address that has sent any datagram to the sensor's own UDP port (a
+subscription, as a MAVLink UDP endpoint replies to whoever talks to it; at most 8, kept until the
+sensor stops). In the world the sensor serves on `world.ports["ir"]`.
+
+Datagram (one reading, 28 bytes, little-endian)::
 
     struct "<4sBBHIdff": magic b"ABIR", version 1, flags (bit 0: beacon detected), reserved 0,
                          seq (uint32), capture_ts (float64 seconds on the world's clock),
@@ -72,33 +77,55 @@ def encode_reading(seq: int, capture_ts: float, detected: bool, ax: float, ay: f
     )
 
 
+class _Subscriptions(asyncio.DatagramProtocol):
+    """Remembers who sent us a datagram: they get the readings."""
+
+    MAX = 8
+
+    def __init__(self) -> None:
+        self.addrs: list[tuple[str, int]] = []
+
+    def datagram_received(self, data: bytes, addr) -> None:
+        """Subscribe the sender."""
+        addr = (addr[0], addr[1])
+        if addr not in self.addrs:
+            self.addrs = [*self.addrs, addr][-self.MAX :]
+            log.info("IR sensor: subscriber %s", addr)
+
+
 class IrBeaconSensor:
-    """Sends a reading every 1/rate_hz simulated seconds to `dest` over UDP."""
+    """Sends a reading every 1/rate_hz simulated seconds over UDP, to `dest` or to subscribers."""
 
     def __init__(
         self,
         pose_fn: Callable[[], Pose],
         clock,
-        dest: tuple[str, int],
+        dest: tuple[str, int] | None = None,
         config: IrSensorConfig | None = None,
         seed: int = 0,
+        host: str = "127.0.0.1",
+        port: int = 0,
     ) -> None:
         self.pose_fn = pose_fn
         self.clock = clock
         self.dest = dest
         self.config = config or IrSensorConfig()
+        self.host, self.port = host, port
         self.sent = 0
         self._rng = np.random.default_rng(seed)
+        self._subs = _Subscriptions()
         self._transport: asyncio.DatagramTransport | None = None
         self._task: asyncio.Task | None = None
 
-    async def start(self) -> None:
-        """Open the socket and start sending."""
+    async def start(self) -> int:
+        """Bind the sensor's UDP port and start sending; returns the bound port."""
         loop = asyncio.get_running_loop()
         self._transport, _ = await loop.create_datagram_endpoint(
-            asyncio.DatagramProtocol, local_addr=("127.0.0.1", 0)
+            lambda: self._subs, local_addr=(self.host, self.port)
         )
+        self.port = self._transport.get_extra_info("sockname")[1]
         self._task = asyncio.create_task(self._run(), name="ir-sensor")
+        return self.port
 
     async def stop(self) -> None:
         """Stop sending and close the socket."""
@@ -122,8 +149,51 @@ class IrBeaconSensor:
                 ts = self.clock.now()
                 detected, ax, ay = ir_reading(self.pose_fn(), self.config, self._rng)
                 assert self._transport is not None
-                self._transport.sendto(encode_reading(seq, ts, detected, ax, ay), self.dest)
+                data = encode_reading(seq, ts, detected, ax, ay)
+                for addr in [self.dest] if self.dest else self._subs.addrs:
+                    self._transport.sendto(data, addr)
                 seq += 1
                 self.sent += 1
             except Exception:
                 log.exception("IR reading failed; skipping")
+
+
+class IrPart:
+    """The IR-beacon sensor as a world part: serves on an OS-chosen UDP port, recorded in
+    `world.ports["ir"]`; readings go to whoever subscribes. `pose_fn` is the vehicle's true pose
+    relative to the pad centre (camera height as `up`)."""
+
+    name = "ir"
+
+    def __init__(
+        self, pose_fn: Callable[[], Pose], config: IrSensorConfig | None = None, port: int = 0
+    ) -> None:
+        self.pose_fn = pose_fn
+        self.config = config
+        self.port = port
+        self.sensor: IrBeaconSensor | None = None
+
+    async def start(self, world) -> None:
+        """Start the sensor on the world's clock."""
+        self.sensor = IrBeaconSensor(
+            self.pose_fn,
+            world.clock,
+            None,
+            self.config,
+            world.config.seed,
+            world.config.host,
+            self.port,
+        )
+        world.ports["ir"] = await self.sensor.start()
+
+    async def stop(self) -> None:
+        """Stop the sensor."""
+        if self.sensor is not None:
+            await self.sensor.stop()
+
+    def step(self, dt_sim: float) -> None:
+        """Nothing to integrate: the sensor samples the pose on its own schedule."""
+
+    def routers(self) -> list:
+        """No control endpoints."""
+        return []

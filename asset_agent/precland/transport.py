@@ -131,6 +131,11 @@ class IrReceiver(asyncio.DatagramProtocol):
         )
         return self._transport.get_extra_info("sockname")[1]
 
+    def subscribe(self, host: str, port: int) -> None:
+        """Ask a sensor that serves subscribers (the simulated one) to send readings here."""
+        assert self._transport is not None, "start() first"
+        self._transport.sendto(IR_MAGIC, (host, port))
+
     def datagram_received(self, data: bytes, addr) -> None:
         """Queue a well-formed reading."""
         reading = parse_ir(data)
