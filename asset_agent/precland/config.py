@@ -167,7 +167,8 @@ class RetryConfig(_Model):
     climb_speed: float = 0.8
     reached_tolerance_m: float = 0.2
     max_attempts: int = 3
-    blind_descent: float = 0.3
+    blind_descent: float = 0.5  # ArduPilot's LAND_SPEED; blind, speed limits the GNSS drift
+    blind_slow_final: bool = False  # slowing down blind only lets the GNSS drift grow
 
 
 class PrecisionLandingConfig(_Model):

@@ -1,6 +1,6 @@
 """The landing sequence with the thesis's cautious retries, as a table-driven state machine.
 
-approach ─lost→ pause (cautious) or blind (default)      pause ─target→ approach
+approach ─lost→ pause (cautious, attempts left) or blind  pause ─target→ approach
 pause ─timeout→ climb (attempts left) or blind             climb ─target→ approach
 climb ─reached→ pause                                      blind ─target→ approach
 any ─touchdown→ landed
@@ -97,7 +97,10 @@ class LandingSequence:
             if self.state != "approach":
                 self._fire("target", now)
         elif self.state == "approach":
-            self._fire("lost" if self.retry.cautious else "lost_default", now)
+            # cautious: pause and retry while attempts remain; the last loss goes blind at once
+            # (another pause would only let the GNSS drift grow before the same blind descent)
+            retry = self.retry.cautious and self.attempts < self.retry.max_attempts
+            self._fire("lost" if retry else "lost_default", now)
         elif self.state == "pause" and now - self._since >= self.retry.pause_s:
             if self.attempts < self.retry.max_attempts:
                 self.attempts += 1
@@ -153,6 +156,6 @@ class LandingSequence:
         # blind: steer to the estimate, descend slowly
         vn, ve = clip_xy(c.kp_xy * float(rel_ned[0]), c.kp_xy * float(rel_ned[1]), c.max_speed_xy)
         vd = self.retry.blind_descent
-        if float(rel_ned[2]) < c.touchdown_height + c.slow_height:
+        if self.retry.blind_slow_final and float(rel_ned[2]) < c.touchdown_height + c.slow_height:
             vd = min(vd, c.slow_descent)
         return VelocitySetpoint(vn, ve, vd)

@@ -102,7 +102,10 @@ def test_cautious_retry_pause_climb_back_retry_then_blind():
     assert run(seq, 7.1, False, (0.0, 0.0, 1.0)).attempts == 2
     assert run(seq, 8.0, False, (0.0, 0.0, 2.5), (5.0, 5.0)).state == "pause"
     cmd = run(seq, 10.1, False, (0.0, 0.0, 2.5), (5.0, 5.0))
-    assert cmd.state == "blind" and cmd.setpoint.vd == pytest.approx(0.3)
+    assert cmd.state == "blind" and cmd.setpoint.vd == pytest.approx(RetryConfig().blind_descent)
+    # seen again, then lost with no attempts left: straight to blind, no more pausing
+    assert run(seq, 10.2, True, (0.0, 0.0, 2.4), (5.0, 5.0)).state == "approach"
+    assert run(seq, 10.3, False, (0.0, 0.0, 2.3), (5.0, 5.0)).state == "blind"
     assert run(seq, 11.0, False, (0.0, 0.0, 0.26)).state == "landed"
     assert run(seq, 12.0, True, (0.0, 0.0, 0.26)).setpoint.land
 
