@@ -235,7 +235,7 @@ def machine_busy() -> tuple[int, int]:
 
 
 def _other_cpu(o: dict, c: dict, server_cpu: float | None) -> float | None:
-    """CPU seconds the rest of the machine (other processes) used in the window."""
+    """CPU seconds the rest of the machine (other processes, kernel softirq) used in the window."""
     if server_cpu is None:
         return None
     busy_s = (c["machine"][0] - o["machine"][0]) / os.sysconf("SC_CLK_TCK")

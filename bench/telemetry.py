@@ -265,7 +265,7 @@ def report(res: dict[str, Any]) -> str:
         ("generator CPU s in window", lambda d: _f(d["generator_cpu_s"])),
         ("generator send lag p99 (ms)", lambda d: _f(d["generator_send_lag_ms_p99"])),
         ("machine busy in window (%)", lambda d: _f(d["machine_busy_pct"])),
-        ("other processes' CPU s in window", lambda d: _f(d["other_processes_cpu_s"])),
+        ("CPU s of other processes + kernel", lambda d: _f(d["other_processes_cpu_s"])),
         ("server CPU idle, all connected (% core)", lambda d: _f(d.get("idle_cpu_pct_of_core"))),
         ("sockets closed by the server", lambda d: _closed(d.get("sockets_closed_by_server"))),
     ]
