@@ -14,7 +14,8 @@ async def test_a_run_walks_the_whole_sequence_and_completes(live_server, tenant:
         assert [t["to_state"] for t in body["timeline"]] == [
             "checking", "opening", "uploading", "flying", "landing", "confirming", "closing", "charging",
             "completed"]
-        assert not p.world.base.can_vehicle_leave()  # closed again
+        assert not body["alert"], body["reason"]  # charging started: the contacts are seated
+        assert p.world.base.contacts_seated and not p.world.base.can_vehicle_leave()  # on the pad, closed again
         report = (await p.api.get(f"/api/v1/runs/{run_id}/report", headers=tenant.h("viewer"))).json()
         assert report["flight_time_s"] > 0 and len(report["track"]) > 10
 
