@@ -62,15 +62,21 @@ async def _report(agent: Agent, stop: asyncio.Event) -> None:
     period = 1.0 / agent.config.telemetry.rate_hz
     notes = agent.autopilot.subscribe()
     try:
+        failures = 0
         while not stop.is_set():
-            state = agent.autopilot.state
-            events = agent.tracker.update(state)
-            while not notes.empty():
-                events += agent.tracker.notification(notes.get_nowait())
-            for event in events:
-                await agent.link.send_event(to_event(event))
-            if state.link_up:
-                await agent.link.send_telemetry(to_telemetry(state))
+            try:
+                state = agent.autopilot.state
+                events = agent.tracker.update(state)
+                while not notes.empty():
+                    events += agent.tracker.notification(notes.get_nowait())
+                for event in events:
+                    await agent.link.send_event(to_event(event))
+                if state.link_up:
+                    await agent.link.send_telemetry(to_telemetry(state))
+            except Exception:  # a bad sample is logged and skipped; the daemon keeps reporting
+                failures += 1
+                if failures <= 3 or failures % 100 == 0:
+                    log.exception("report %d failed", failures)
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(stop.wait(), period)
     finally:

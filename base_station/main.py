@@ -74,8 +74,11 @@ async def run(app: App, stop: asyncio.Event | None = None, link: LinkRunner | No
     finally:
         if link_task is not None:
             link_task.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await link_task
+            with contextlib.suppress(asyncio.CancelledError):
+                try:
+                    await link_task
+                except Exception:
+                    log.exception("the server link ended with an error")
         await app.station.shutdown()
         await app.coordinator.stop()
 

@@ -54,7 +54,7 @@ def to_protocol(t: StationTelemetry, rtk: Rtk | None = None) -> LandingBaseTelem
         charger=None if c is None else Charger(
             state=c.state if c.state in ("idle", "charging", "complete", "fault") else "idle",  # type: ignore[arg-type]
             enabled=c.enabled, contact=c.contacts_seated, current_a=c.current_ma / 1000, voltage_v=c.voltage_v,
-            uav_battery_pct=c.uav_battery_pct),
+            uav_battery_pct=None if c.uav_battery_pct is None else min(100.0, max(0.0, c.uav_battery_pct))),
         power=None if p is None else Power(
             source=p.source if p.source in ("grid", "solar", "battery") else None,  # type: ignore[arg-type]
             battery_pct=min(100.0, max(0.0, p.base_battery_pct)), battery_v=p.base_battery_voltage_v,
@@ -95,23 +95,32 @@ def link_runner(link: Link):  # type: ignore[no-untyped-def]
     async def serve(station: Station, config: StationConfig) -> None:
         for name in station.commands:
             link.on_command(name, command_handler(station, name))
+        await link.start()
         reader = None
         if config.rtk.tcp_port or config.rtk.serial_device:
             reader = RtkReader(ReaderConfig(source=source_url(**config.rtk.model_dump())), on_frame=link.send_rtcm)
             reader.start()
-        await link.start()
         events = station.subscribe()
 
         async def forward_events() -> None:
             async for event in events:
-                await link.send_event(to_event(event))
+                try:
+                    await link.send_event(to_event(event))
+                except Exception:
+                    log.exception("event %s could not be sent", event.kind)
 
         forwarder = asyncio.create_task(forward_events())
         try:
             period = 1.0 / config.telemetry_hz
+            failures = 0
             while True:
-                rtk = to_telemetry(reader.stats()) if reader else None
-                await link.send_telemetry(to_protocol(station.telemetry(), rtk))
+                try:
+                    rtk = to_telemetry(reader.stats()) if reader else None
+                    await link.send_telemetry(to_protocol(station.telemetry(), rtk))
+                except Exception:  # one bad sample must not take the link down with it
+                    failures += 1
+                    if failures <= 3 or failures % 100 == 0:
+                        log.exception("telemetry sample %d could not be sent", failures)
                 await asyncio.sleep(period)  # the telemetry rate itself
         finally:
             forwarder.cancel()

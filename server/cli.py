@@ -35,7 +35,7 @@ def server_main(argv: Sequence[str] | None = None) -> int:
     settings = Settings(**overrides)
     configure_logging(settings.log_format, settings.log_level)
     uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_config=None,
-                ws_max_size=1 << 20, proxy_headers=True)
+                ws_max_size=1 << 20, ws_per_message_deflate=False, proxy_headers=True)
     return 0
 
 

@@ -124,7 +124,7 @@ class LiveServer:
         settings.port = self.port
         self.app = create_app(settings)
         config = uvicorn.Config(self.app, host="127.0.0.1", port=self.port, log_config=None,
-                                ws_max_size=1 << 20, proxy_headers=True,
+                                ws_max_size=1 << 20, ws_per_message_deflate=False, proxy_headers=True,
                                 forwarded_allow_ips="127.0.0.1", lifespan="on")
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(target=self.server.run, name=f"server-{self.port}", daemon=True)

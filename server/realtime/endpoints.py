@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import json
 import logging
+import random
 import time
 import uuid
 from collections import deque
@@ -37,7 +38,8 @@ from server.realtime.ingest import Item
 
 log = logging.getLogger(__name__)
 router = APIRouter()
-HEARTBEAT_S = 10.0
+HEARTBEAT_S = 15.0  # the asset session idles out after 60 s without one
+COMMAND_SWEEP_S = 20.0
 PRESENCE_TTL_S = 30.0
 DURABLE = ("telemetry", "event", "command_result")
 
@@ -213,7 +215,8 @@ class _AssetConn:
                 self.last_seq = msg.seq
                 data = msg.model_dump(mode="json")
                 data["payload"]["asset_id"] = str(asset_id)
-                await broker.publish(f"asset.{asset_id}", data)
+                # encoded once here, not once per operator socket
+                await broker.publish(f"asset.{asset_id}", {"id": data["id"], "text": json.dumps(data, separators=(",", ":"))})
                 fut = ingest.submit(Item(self.stream, asset_id, org_id, msg.seq, msg.type, msg.ts,
                                          data["payload"], getattr(msg, "re", None)))
                 self.pending.append((msg.seq, fut))
@@ -246,8 +249,10 @@ async def _heartbeat(app: Any, principal: Principal, key: str, owner: str, sende
     """Keep the session alive and the presence claim ours while the socket lives."""
     from server.auth.service import SessionService
 
+    rng = random.Random()
     while True:
-        await asyncio.sleep(HEARTBEAT_S)
+        # jittered so that a thousand sockets opened together do not all write at once
+        await asyncio.sleep(HEARTBEAT_S * rng.uniform(0.8, 1.2))
         async with app.state.sessionmaker() as db:
             alive = await SessionService(db, app.state.settings).touch(principal.session_id)
             await db.commit()
@@ -260,7 +265,9 @@ async def _heartbeat(app: Any, principal: Principal, key: str, owner: str, sende
 
 
 async def _deliver_commands(app: Any, asset_id: uuid.UUID, sender: _Sender, wake: asyncio.Event) -> None:
-    """Send queued commands (from the database) now, whenever nudged, and every 2 s."""
+    """Send queued commands (from the database) now and whenever nudged through the broker; a slow,
+    jittered sweep covers a nudge lost in a broker hiccup."""
+    rng = random.Random()
     while True:
         async with app.state.sessionmaker() as db:
             for cmd in await commands.due_for_delivery(db, asset_id):
@@ -271,7 +278,7 @@ async def _deliver_commands(app: Any, asset_id: uuid.UUID, sender: _Sender, wake
             await db.commit()
         wake.clear()
         with contextlib.suppress(TimeoutError):
-            await asyncio.wait_for(wake.wait(), 2.0)
+            await asyncio.wait_for(wake.wait(), COMMAND_SWEEP_S * rng.uniform(0.5, 1.5))
 
 
 @router.websocket("/ws/operator")
@@ -296,7 +303,8 @@ async def operator_socket(ws: WebSocket) -> None:
         if mid and mid in recent:
             return
         recent.append(mid)
-        if not sender.send_text(json.dumps(message, separators=(",", ":"))):
+        text = message.get("text") if isinstance(message.get("text"), str) else json.dumps(message, separators=(",", ":"))
+        if not sender.send_text(text):
             hub.counters.operator_dropped += 1
 
     send_task = asyncio.create_task(sender.run())

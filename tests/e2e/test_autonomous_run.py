@@ -77,7 +77,8 @@ async def test_uav_link_lost_in_flight_the_run_waits_then_completes(live_server,
 
     proxy = await TcpProxy("127.0.0.1", live_server.port).start()
     try:
-        async with platform(live_server.url, tenant, tmp_path,
+        # 4x, not 10x: after the link is back, RTK needs a few wall seconds of corrections to be fixed again
+        async with platform(live_server.url, tenant, tmp_path, speed=4.0,
                             agent_server_url=f"http://127.0.0.1:{proxy.port}") as p:
             run_id = await p.start_run()
             await p.wait_state(run_id, ("flying",), 60)
@@ -85,8 +86,8 @@ async def test_uav_link_lost_in_flight_the_run_waits_then_completes(live_server,
             proxy.cut()
             cut_seq = p.agent.link.stats.sent
             # the UAV flies on by itself: it reaches the next legs of its mission with no server
-            await _until(lambda: (p.agent.autopilot.state.mission_current or 0) >= 3, 60,
-                         "the UAV to fly its legs while the server link is down")
+            await _until(lambda: (p.agent.autopilot.state.mission_current or 0) >= 2, 60,
+                         "the UAV to fly on to its next leg while the server link is down")
             during = await p.run_state(run_id)
             assert during["state"] == "flying", during["state"]  # waiting, not failed
             assert not p.agent.link.connected and p.agent.link.stats.queued > 0
