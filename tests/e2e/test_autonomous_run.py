@@ -18,6 +18,10 @@ async def test_a_run_walks_the_whole_sequence_and_completes(live_server, tenant:
         assert p.world.base.contacts_seated and not p.world.base.can_vehicle_leave()  # on the pad, closed again
         report = (await p.api.get(f"/api/v1/runs/{run_id}/report", headers=tenant.h("viewer"))).json()
         assert report["flight_time_s"] > 0 and len(report["track"]) > 10
+        # the RTK chain (simulated receiver -> base daemon -> server -> agent -> autopilot) made the fix RTK
+        rows = (await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}/telemetry", headers=tenant.h("viewer"),
+                                params={"fields": "gnss.fix", "limit": 100000})).json()
+        assert "rtk_fixed" in {r.get("gnss.fix") for r in rows}
 
 
 async def test_wind_over_the_limit_aborts_at_the_check_and_nothing_moves(live_server, tenant: Tenant, tmp_path):
@@ -95,6 +99,8 @@ async def test_uav_link_lost_in_flight_the_run_waits_then_completes(live_server,
             body = await p.wait_state(run_id, FINAL, 120)
             assert body["state"] == "completed", (body["reason"], body["timeline"])
             assert p.agent.link.stats.sent > cut_seq
+            assert await p.agent.link.flush(20)  # everything buffered during the cut was stored and acked
+            assert p.agent.link.stats.dropped == 0
     finally:
         await proxy.stop()
 

@@ -367,3 +367,18 @@ async def test_sql_store_retention_prunes_old_samples(database_url):
     rows = await store.query(Query(asset_id, now - timedelta(days=30), now))
     assert [r["a"] for r in rows] == [2.0]
     await engine.dispose()
+
+
+async def test_force_login_closes_the_old_sessions_sockets_with_4001(live_server, tenant: Tenant):
+    url = live_server.url.replace("http", "ws") + f"/ws/operator?token={tenant.tokens['operator']}"
+    async with websockets.connect(url) as ws:
+        await ws.send(json.dumps({"v": 1, "type": "subscribe", "id": "6f1c3a3e-58a4-4d1e-9f55-000000000020",
+                                  "seq": 0, "ts": 0, "payload": {"asset_ids": []}}))
+        async with httpx.AsyncClient(base_url=live_server.url) as c:
+            r = await c.post("/api/v1/auth/login", json={"email": tenant.emails["operator"],
+                                                        "password": Tenant.PASSWORD, "force": True})
+            assert r.status_code == 200
+        with pytest.raises(websockets.ConnectionClosed) as info:
+            while True:
+                await asyncio.wait_for(ws.recv(), 10)
+    assert info.value.rcvd.code == 4001
