@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import tomllib
 from pathlib import Path
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
+
+from asset_agent.precland.config import PrecisionLandingConfig
 
 
 class ServerSection(BaseModel):
@@ -44,6 +47,42 @@ class AvailabilitySection(BaseModel):
     min_fix_type: int = Field(default=3, ge=0, le=6)
 
 
+class PreclandSection(PrecisionLandingConfig):
+    """`[precland]`: the precision-landing pipeline's parameters plus where its sensors are.
+
+    `enabled` defaults to on when a camera or IR address is given. The pad's surveyed position is
+    the autopilot's home ("home", the base's pad) or `pad_lat`/`pad_lon` ("surveyed"). `clock_rate`
+    is sensor-clock seconds per wall second (None: measured from the sensors' timestamps).
+    """
+
+    mode: Literal["landing_target", "companion"] = "landing_target"
+    enabled: bool | None = None
+    camera_host: str = "127.0.0.1"
+    camera_port: int | None = Field(default=None, ge=1, le=65535)
+    ir_host: str = "127.0.0.1"
+    ir_port: int | None = Field(default=None, ge=1, le=65535)
+    activation_height_m: float = Field(default=10.0, gt=0)
+    pad_source: Literal["home", "surveyed"] = "home"
+    pad_lat: float | None = Field(default=None, ge=-90, le=90)
+    pad_lon: float | None = Field(default=None, ge=-180, le=180)
+    pad_sigma_m: float = Field(default=1.0, gt=0)
+    state_rate_hz: float = Field(default=25.0, gt=0, le=100)
+    clock_rate: float | None = Field(default=None, gt=0)
+
+    @property
+    def active(self) -> bool:
+        """True when the daemon should run precision landing."""
+        if self.enabled is not None:
+            return self.enabled
+        return self.camera_port is not None or self.ir_port is not None
+
+    def pipeline(self) -> PrecisionLandingConfig:
+        """The pipeline's own configuration."""
+        return PrecisionLandingConfig(
+            **{k: getattr(self, k) for k in PrecisionLandingConfig.model_fields}
+        )
+
+
 class AgentConfig(BaseModel):
     """All of agent.toml."""
 
@@ -52,6 +91,7 @@ class AgentConfig(BaseModel):
     autopilot: AutopilotSection = AutopilotSection()
     telemetry: TelemetrySection = TelemetrySection()
     availability: AvailabilitySection = AvailabilitySection()
+    precland: PreclandSection = PreclandSection()
 
     @classmethod
     def load(cls, path: str | Path) -> AgentConfig:

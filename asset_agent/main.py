@@ -19,10 +19,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from asset_agent.autopilot import Autopilot, AutopilotConfig
+from asset_agent.autopilot.client import DEFAULT_STREAMS
 from asset_agent.availability import AvailabilityLimits
 from asset_agent.config import AgentConfig
 from asset_agent.events import EventLimits, EventTracker
 from asset_agent.handlers import Handlers
+from asset_agent.landing import PrecisionLander, stream_rates
 from asset_agent.telemetry import to_event, to_telemetry
 from protocol.configfile import AssetConfig, ConfigFileError
 from protocol.configfile_cli import PasswordSourceError, load_config
@@ -40,21 +42,27 @@ class Agent:
     autopilot: Autopilot
     link: Link
     tracker: EventTracker
+    lander: PrecisionLander | None = None
 
 
 def setup(config: AgentConfig, asset: AssetConfig) -> Agent:
     """Build the autopilot adapter and the server link; nothing connects yet."""
     ap = config.autopilot
+    precland = config.precland.active
+    streams = {**DEFAULT_STREAMS, **(stream_rates(config.precland) if precland else {})}
     autopilot = Autopilot(AutopilotConfig(url=ap.url, link_timeout_s=ap.link_timeout_s,
-                                          command_timeout_s=ap.command_timeout_s))
+                                          command_timeout_s=ap.command_timeout_s, streams=streams))
     link = Link(config.server.url or asset.server_url, asset.name, asset.secret,
                 config.server.state_file.expanduser(), agent="asset_agent", max_outbox=config.server.max_outbox)
     limits = AvailabilityLimits(config.availability.min_battery_pct, config.availability.min_fix_type)
     for name, handler in Handlers(autopilot, limits).table().items():
         link.on_command(name, handler)
     link.on_rtcm(autopilot.inject_rtcm)
+    lander = PrecisionLander(autopilot, config.precland) if precland else None
+    if lander is not None:
+        link.on_command("precland_fault", lander.fault_command)
     tracker = EventTracker(EventLimits(low_battery_pct=config.telemetry.low_battery_pct))
-    return Agent(config, asset, autopilot, link, tracker)
+    return Agent(config, asset, autopilot, link, tracker, lander)
 
 
 async def _report(agent: Agent, stop: asyncio.Event) -> None:
@@ -90,9 +98,16 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
     await agent.link.start()
     log.info("agent %s running: autopilot %s, server %s", agent.asset.name, agent.config.autopilot.url,
              agent.link.server_url)
+    lander = None
+    if agent.lander is not None:
+        lander = asyncio.create_task(agent.lander.run(stop), name="precland")
     try:
         await _report(agent, stop)
     finally:
+        if lander is not None:
+            lander.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await lander
         await agent.link.stop()
         await agent.autopilot.close()
 

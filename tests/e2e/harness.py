@@ -89,8 +89,12 @@ class Platform:
 
 @contextlib.asynccontextmanager
 async def platform(server_url: str, tenant: Tenant, tmp: Path, *, seed: int = 21,
-                   speed: float = SPEED, agent_server_url: str | None = None) -> AsyncIterator[Platform]:
-    """World + daemons connected to the server at `server_url`, assets registered in `tenant`."""
+                   speed: float = SPEED, agent_server_url: str | None = None,
+                   precland: dict[str, Any] | None = None) -> AsyncIterator[Platform]:
+    """World + daemons connected to the server at `server_url`, assets registered in `tenant`.
+
+    `precland`: the agent's [precland] section (the world's camera and IR ports are filled in);
+    None leaves precision landing off (the UAV lands on RTK GNSS alone)."""
     world = full_world(WorldConfig.for_tests(speed=speed, seed=seed))
     async with world:
         world.weather.force(wind_mps=2.0, gust_mps=3.0, rain_mm_h=0.0, temperature_c=15.0)
@@ -110,7 +114,9 @@ async def platform(server_url: str, tenant: Tenant, tmp: Path, *, seed: int = 21
             aconf = AgentConfig.model_validate({
                 "server": {"state_file": str(tmp / "agent.db"), "url": agent_server_url or server_url},
                 "autopilot": {"url": f"udpout:127.0.0.1:{world.ports['mavlink_udp']}", "link_timeout_s": 2.0},
-                "telemetry": {"rate_hz": 5}})
+                "telemetry": {"rate_hz": 5},
+                **({"precland": {"camera_port": world.ports["camera"], "ir_port": world.ports["ir"],
+                                 **precland}} if precland is not None else {})})
             agent = setup_agent(aconf, ucfg)
             stops = {"base": asyncio.Event(), "agent": asyncio.Event()}
             tasks = {
