@@ -47,6 +47,9 @@ class Settings(BaseSettings):
     ws_rate_per_s: float = Field(default=200.0, gt=0)
     ws_burst: float = Field(default=400.0, ge=1)
     telemetry_retention_days: float = Field(default=90.0, gt=0)
+    # commands reach an asset's socket on a broker nudge; this sweep catches a nudge that could not
+    # arrive (several processes without REDIS_URL, a Redis hiccup)
+    command_sweep_s: float = Field(default=20.0, gt=0)
 
     # autonomous runs: per-step time budgets in seconds, e.g. {"flying": 1800} (see server/runs/machine.py)
     run_timeouts: dict[str, float] = Field(default_factory=dict)

@@ -102,7 +102,9 @@ def test_settings(database_url: str, **overrides: Any):  # type: ignore[no-untyp
                 argon2_time_cost=1, argon2_memory_kib=8192, argon2_parallelism=1,
                 config_scrypt_log_n=12, login_max_failures_address=10_000, log_format="console",
                 # the simulated world runs 10x: a UAV on the pad is confirmed within ~2 s wall
-                run_timeouts={"confirming": 8.0})
+                run_timeouts={"confirming": 8.0, "checking": 10.0},
+                # several test servers share one database without Redis: nudges do not cross processes
+                command_sweep_s=1.0)
     base.update(overrides)
     return Settings(**base)
 

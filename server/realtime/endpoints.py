@@ -39,7 +39,6 @@ from server.realtime.ingest import Item
 log = logging.getLogger(__name__)
 router = APIRouter()
 HEARTBEAT_S = 15.0  # the asset session idles out after 60 s without one
-COMMAND_SWEEP_S = 20.0
 PRESENCE_TTL_S = 30.0
 DURABLE = ("telemetry", "event", "command_result")
 
@@ -278,7 +277,7 @@ async def _deliver_commands(app: Any, asset_id: uuid.UUID, sender: _Sender, wake
             await db.commit()
         wake.clear()
         with contextlib.suppress(TimeoutError):
-            await asyncio.wait_for(wake.wait(), COMMAND_SWEEP_S * rng.uniform(0.5, 1.5))
+            await asyncio.wait_for(wake.wait(), app.state.settings.command_sweep_s * rng.uniform(0.5, 1.5))
 
 
 @router.websocket("/ws/operator")

@@ -193,7 +193,9 @@ class RunEngine:
         return Observations(
             elapsed_s=(utcnow() - since).total_seconds(), timeout_s=self.timeout_s(State(run.state)),
             commands=outcomes, uav_events=uav_events, base_events=base_events, uav_landed=landed,
-            base_mass_g=base.get("scale_mass_g"), abort_requested=run.abort_requested,
+            base_mass_g=base.get("scale_mass_g"),
+            base_confirms=base.get("landing_confirmed") is True and _after(base.get("ts"), since),
+            abort_requested=run.abort_requested,
             abort_reason=run.abort_reason, took_off="took_off" in uav_events or "armed" in uav_events)
 
 

@@ -109,6 +109,7 @@ class Observations:
     uav_landed: bool = False  # on the ground and disarmed, per telemetry
     uav_link_up: bool = True
     base_mass_g: float | None = None
+    base_confirms: bool = False  # the base's latest telemetry (sent after this step began) says confirmed
     abort_requested: bool = False
     abort_reason: str = ""
     took_off: bool = False
@@ -221,7 +222,7 @@ def advance(state: State, obs: Observations, *, aborting: bool = False) -> Trans
                               "the base stays open", "landing_timeout", alert=True)
         return None
     if state is State.confirming:
-        if "landing_confirmed" in obs.base_events:
+        if "landing_confirmed" in obs.base_events or obs.base_confirms:
             return Transition(State.closing, "the base's scale confirms the UAV on the lift")
         if obs.elapsed_s > obs.timeout_s:
             mass = f"{obs.base_mass_g:.0f} g" if obs.base_mass_g is not None else "no reading"

@@ -109,3 +109,9 @@ def test_takeoff_failure_closes_the_base_while_the_uav_is_still_on_the_lift():
     # without telemetry showing the UAV disarmed on the lift, nothing closes
     t = advance(State.flying, obs(commands={("uav", "start_mission"): CommandOutcome("failed", "PreArm: GPS")}))
     assert t is not None and t.to is State.failed and not t.extra_actions and t.alert
+
+
+def test_a_landing_confirmed_before_the_step_began_is_read_from_the_base_state():
+    """The base may confirm while the UAV's own 'landed' is still on its way (e.g. after a reconnect)."""
+    t = advance(State.confirming, obs(base_confirms=True))
+    assert t is not None and t.to is State.closing

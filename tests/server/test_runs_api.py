@@ -54,26 +54,17 @@ def test_abort_before_take_off_ends_aborted_with_a_readable_timeline(api, tenant
     assert fleet["success_rate"] == 0.0
 
 
-def test_unanswered_availability_check_aborts_the_run(database_url, superuser_email):
-    """Assets that never answer: the check step times out and the run is aborted, nothing moved."""
-    import httpx
+def test_unanswered_availability_check_aborts_the_run(api, tenant: Tenant):
+    """Assets that never answer: the check step times out (10 s in the test server) and the run is
+    aborted, nothing moved."""
+    ids = _setup(api, tenant)
+    run = api.post("/api/v1/runs", headers=tenant.h("operator"), json=ids).json()
 
-    from tests.conftest import LiveServer, test_settings
+    def finished():  # type: ignore[no-untyped-def]
+        body = api.get(f"/api/v1/runs/{run['id']}", headers=tenant.h("viewer")).json()
+        return body if body["state"] in ("aborted", "failed", "completed") else None
 
-    server = LiveServer(test_settings(database_url, run_timeouts={"checking": 1.0})).start()
-    try:
-        with httpx.Client(base_url=server.url) as api:
-            tenant = Tenant(api, superuser_email, "timeout")
-            ids = _setup(api, tenant)
-            run = api.post("/api/v1/runs", headers=tenant.h("operator"), json=ids).json()
-
-            def finished():  # type: ignore[no-untyped-def]
-                body = api.get(f"/api/v1/runs/{run['id']}", headers=tenant.h("viewer")).json()
-                return body if body["state"] in ("aborted", "failed", "completed") else None
-
-            body = wait_for(finished, 20, what="the run to end")
-    finally:
-        server.stop()
+    body = wait_for(finished, 40, what="the run to end")
     assert body["state"] == "aborted" and body["cause"] == "check_timeout"
     assert "no availability answer from the base and the UAV" in body["reason"]
 

@@ -144,4 +144,4 @@ def test_two_processes_sharing_a_schedule_start_its_run_exactly_once(two_servers
                  30, what="the schedule to fire")
         runs_a = [r for r in a.get("/api/v1/runs", headers=tenant.h("viewer")).json() if r["schedule_id"] == s["id"]]
         runs_b = [r for r in b.get("/api/v1/runs", headers=tenant.h("viewer")).json() if r["schedule_id"] == s["id"]]
-    assert len(runs_a) == 1 and runs_a == runs_b
+    assert len(runs_a) == 1 and [r["id"] for r in runs_a] == [r["id"] for r in runs_b]
