@@ -96,6 +96,8 @@ class _Subscriptions(asyncio.DatagramProtocol):
 class IrBeaconSensor:
     """Sends a reading every 1/rate_hz simulated seconds over UDP, to `dest` or to subscribers."""
 
+    IDLE_POLL_S = 0.05  # wall seconds between looks for a first subscriber
+
     def __init__(
         self,
         pose_fn: Callable[[], Pose],
@@ -141,6 +143,10 @@ class IrBeaconSensor:
         next_t = self.clock.now()
         seq = 0
         while True:
+            if self.dest is None and not self._subs.addrs:  # nobody listens: idle cheaply
+                await asyncio.sleep(self.IDLE_POLL_S)
+                next_t = self.clock.now()
+                continue
             next_t += period
             await self.clock.sleep(next_t - self.clock.now())
             if self.clock.now() - next_t > period:

@@ -4,6 +4,7 @@ simulated autopilot consuming LANDING_TARGET land the UAV on the charging contac
 from __future__ import annotations
 
 import asyncio
+import itertools
 import socket
 import time
 
@@ -40,6 +41,13 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         assert (await _command(p, "precland_fault", {"source": "sonar"}))["status"] == "rejected"
         assert lander.faults["ir"].r_drop == 0.3
         run_id = await p.start_run()
+        await p.wait_state(run_id, ("flying",), 60)
+        await _until(
+            lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
+        )
+        # multipath: a 40 cm GNSS error that RTK does not remove; on GNSS alone the UAV would land
+        # on the scale but beside the contacts
+        copter.gnss.bias_ne_m = (0.3, -0.27)
         await p.wait_state(run_id, ("landing",), 90)
         body = await p.wait_state(run_id, FINAL, 90)
         assert body["state"] == "completed", (body["reason"], body["timeline"])
@@ -95,3 +103,21 @@ async def _command(p, name: str, params: dict, limit_s: float = 20) -> dict:  # 
             return dict(body)
         await asyncio.sleep(0.05)
     raise AssertionError(f"{name} did not finish: {body}")
+
+
+def test_the_sensor_clock_follows_the_capture_stamps_rate_and_offset():
+    """Stamps from a clock running 4x with 100 s offset and jittery delivery: followed, never backwards."""
+    from asset_agent.landing import SensorClock
+
+    wall = [0.0]
+    clock = SensorClock(wall=lambda: wall[0])
+    assert not clock.ready
+    seen = []
+    for i in range(200):
+        wall[0] = i * 0.01
+        delay = 0.002 * (i % 3)  # delivered 0-4 ms (wall) after capture
+        clock.observe(100.0 + 4.0 * (wall[0] - delay))
+        seen.append(clock.now())
+    assert clock.ready and abs(clock.rate - 4.0) < 0.05
+    assert abs(clock.now() - (100.0 + 4.0 * wall[0])) < 0.02
+    assert all(b >= a for a, b in itertools.pairwise(seen))
