@@ -142,6 +142,9 @@ async def demo(args: argparse.Namespace, folder: Path, env: dict[str, str], pw: 
         _say(f"starting the server on {server_url}")
         procs.start("server", ["server", "--port", str(args.port)], env)
         await _wait_http(f"http://127.0.0.1:{ports['control']}/health", procs)
+        async with httpx.AsyncClient() as sim:  # the camera and IR sensor pick their own ports
+            served = (await sim.get(f"http://127.0.0.1:{ports['control']}/health")).json()["ports"]
+        ports.update({k: served[k] for k in ("camera", "ir") if k in served})
         await _wait_http(f"{server_url}/api/health", procs)
         async with httpx.AsyncClient(base_url=server_url, timeout=30) as c:
             token = (await _api(c, "POST", "/api/v1/auth/login", json={"email": root_email, "password": root_pw}))["access_token"]
@@ -254,7 +257,11 @@ url = "tcp:127.0.0.1:{ports['mavlink']}"
 
 [telemetry]
 rate_hz = 5
-"""
+""" + (f"""
+[precland]
+camera_port = {ports['camera']}
+ir_port = {ports['ir']}
+""" if "camera" in ports and "ir" in ports else "")
 
 
 async def _ready(c: httpx.AsyncClient, token: str, base_id: str, uav_id: str,
