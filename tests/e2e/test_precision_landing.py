@@ -50,20 +50,21 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         copter.gnss.bias_ne_m = (0.3, -0.27)
         await p.wait_state(run_id, ("landing",), 90)
         body = await p.wait_state(run_id, FINAL, 90)
-        assert body["state"] == "completed", (body["reason"], body["timeline"])
-        assert not body["alert"], body["reason"]  # charging started: the contacts are seated
+        error_m = copter.pad_distance()  # ground truth
+        seen = (
+            f"landing error {error_m * 100:.1f} cm, {lander.stats}, rate {lander.stats.target_rate_hz}"
+            f" Hz, accepted by the autopilot {copter.precland.accepted}"
+        )
+        print(f"precland e2e: {seen}")
+        assert error_m < 0.05, seen
+        assert body["state"] == "completed", (body["reason"], body["timeline"], seen)
+        assert not body["alert"], (body["reason"], seen)  # charging started: contacts seated
         assert p.world.base.contacts_seated
         # the autopilot steered its descent with the agent's LANDING_TARGETs
-        assert lander.stats.landings >= 1 and lander.stats.targets_sent > 20, lander.stats
-        assert copter.precland.accepted > 20 and copter.precland.rejected == 0
+        assert lander.stats.landings >= 1 and lander.stats.targets_sent > 20, seen
+        assert copter.precland.accepted > 20 and copter.precland.rejected == 0, seen
         rate = lander.stats.target_rate_hz
-        assert rate is not None and rate >= 10.0, lander.stats
-        error_m = copter.pad_distance()  # ground truth
-        print(
-            f"precland e2e: landing error {error_m * 100:.1f} cm, {lander.stats}, rate {rate:.1f} Hz, "
-            f"accepted by the autopilot {copter.precland.accepted}"
-        )
-        assert error_m < 0.05
+        assert rate is not None and rate >= 10.0, seen
 
 
 async def test_unreachable_sensors_leave_the_landing_to_gnss(live_server, tenant: Tenant, tmp_path):
