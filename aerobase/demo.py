@@ -311,7 +311,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="aerobase demo", description=__doc__.splitlines()[0])
     parser.add_argument("--once", action="store_true", help="exit after the run: 0 if it completed")
     parser.add_argument("--port", type=int, default=8000)
-    parser.add_argument("--speed", type=float, default=10.0, help="simulated seconds per wall second")
+    parser.add_argument("--speed", type=float, default=5.0, help="simulated seconds per wall second")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--dir", default="var/demo", help="where files, logs and the database go")
     args = parser.parse_args(argv)
