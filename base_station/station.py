@@ -74,6 +74,7 @@ class Result:
 
 Item = Progress | Result
 MOTION_COMMANDS = ("open", "close", "open_panels", "close_panels", "lift_up", "lift_down")
+CHARGER_CONFIRM_S = 10.0  # how long the charger may take to report charging after being enabled
 
 
 class Station:
@@ -336,7 +337,7 @@ class Station:
         await self.coord.write_register(HoldingRegister.CHARGE_CURRENT_LIMIT, limit)
         written = await self.coord.write_coil(Coil.CHARGER_ENABLE, True)
         yield Progress(name, "charger_enabled", f"charger enabled, limit {limit} mA")
-        deadline = written + 3.0
+        deadline = written + CHARGER_CONFIRM_S
         while time.monotonic() < deadline:
             snap = await self.coord.wait_fresh(written)
             written = snap.read_started

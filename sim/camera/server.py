@@ -104,6 +104,7 @@ class CameraServer:
         self._slots: set[_Slot] = set()
         self._task: asyncio.Task | None = None
         self._seq = 0
+        self._subscribed = asyncio.Event()  # the capture loop sleeps while nobody watches
 
     async def start(self) -> int:
         """Bind and start capturing; returns the bound TCP port."""
@@ -134,6 +135,8 @@ class CameraServer:
             if self.clock.now() - next_t > period:  # fell behind: skip, never burst
                 next_t = self.clock.now()
             if not self._slots:
+                await self._subscribed.wait()
+                next_t = self.clock.now()
                 continue
             try:
                 pose = self.pose_fn()
@@ -152,6 +155,7 @@ class CameraServer:
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         slot = _Slot(writer)
         self._slots.add(slot)
+        self._subscribed.set()
         log.info("camera subscriber %s", writer.get_extra_info("peername"))
         try:
             while True:
@@ -163,6 +167,8 @@ class CameraServer:
             pass
         finally:
             self._slots.discard(slot)
+            if not self._slots:
+                self._subscribed.clear()
             writer.close()
 
 
