@@ -9,7 +9,6 @@ Presence key `conn.asset.<id>`: one live connection per asset across every proce
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import logging
 import time
@@ -22,6 +21,7 @@ from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
 from protocol.messages import CommandResultPayload, envelope
 from server.commands import service as commands
+from server.kit.periodic import Periodic
 from server.realtime.broker import Broker
 
 log = logging.getLogger(__name__)
@@ -71,19 +71,16 @@ class Hub:
         self.node = uuid.uuid4().hex[:12]
         self.counters = Counters()
         self.closers: dict[uuid.UUID, list[Callable[[int, str], None]]] = {}
-        self._task: asyncio.Task[None] | None = None
+        self._sweeper = Periodic("command-sweeper", self.expire_commands, 1.0)
 
     async def start(self) -> None:
         """Listen for ended sessions and run the command-deadline sweeper."""
         self.broker.subscribe("sessions.ended", self._on_sessions_ended)
-        self._task = asyncio.create_task(self._sweep(), name="command-sweeper")
+        self._sweeper.start()
 
     async def stop(self) -> None:
         """Stop the sweeper."""
-        if self._task:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
+        await self._sweeper.stop()
 
     async def sessions_ended(self, ids: list[Any]) -> None:
         """Tell every process to close these sessions' sockets (code 4001)."""
@@ -107,18 +104,12 @@ class Hub:
             if not self.closers[session_id]:
                 del self.closers[session_id]
 
-    async def _sweep(self) -> None:
-        while True:
-            await asyncio.sleep(1.0)
-            try:
-                async with self.sessionmaker() as db:
-                    expired = await commands.expire(db)
-                    await db.commit()
-                for cmd in expired:
-                    message = envelope(CommandResultPayload(asset_id=cmd.asset_id, status="timed_out",
-                                                            reason=cmd.reason), re=cmd.id)
-                    await self.broker.publish(f"asset.{cmd.asset_id}", message.model_dump(mode="json"))
-            except asyncio.CancelledError:
-                raise
-            except Exception:
-                log.exception("command sweep failed")
+    async def expire_commands(self) -> None:
+        """Every unfinished command past its deadline becomes timed_out; operators hear of it."""
+        async with self.sessionmaker() as db:
+            expired = await commands.expire(db)
+            await db.commit()
+        for cmd in expired:
+            message = envelope(CommandResultPayload(asset_id=cmd.asset_id, status="timed_out",
+                                                    reason=cmd.reason), re=cmd.id)
+            await self.broker.publish(f"asset.{cmd.asset_id}", message.model_dump(mode="json"))

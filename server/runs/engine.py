@@ -7,8 +7,6 @@ picks up where the table says a run stands.
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import logging
 import uuid
 from dataclasses import asdict
@@ -17,6 +15,7 @@ from typing import Any
 
 from server.assets.models import Asset
 from server.commands import service as commands
+from server.kit.periodic import Periodic
 from server.kit.time import utcnow
 from server.runs import repository as repo
 from server.runs.machine import (
@@ -52,29 +51,15 @@ class RunEngine:
         self.state = state  # app.state: sessionmaker, broker, telemetry store
         self.settings = settings
         self.node = f"runs-{node}"
-        self.tick_s = tick_s
-        self._task: asyncio.Task[None] | None = None
+        self._periodic = Periodic("run-engine", self.tick, tick_s)
 
     def start(self) -> None:
         """Start the loop."""
-        self._task = asyncio.create_task(self._loop(), name="run-engine")
+        self._periodic.start()
 
     async def stop(self) -> None:
         """Stop the loop (leases expire on their own)."""
-        if self._task:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
-
-    async def _loop(self) -> None:
-        while True:
-            try:
-                await self.tick()
-            except asyncio.CancelledError:
-                raise
-            except Exception:
-                log.exception("run engine tick failed")
-            await asyncio.sleep(self.tick_s)
+        await self._periodic.stop()
 
     def timeout_s(self, state: State) -> float:
         """The configured time budget of a step."""

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import logging
 import uuid
 from typing import Any
@@ -12,6 +10,7 @@ from sqlalchemy.exc import IntegrityError
 
 from server.assets.repository import AssetRepository
 from server.kit.errors import AppError
+from server.kit.periodic import Periodic
 from server.kit.scope import Principal
 from server.kit.time import utcnow
 from server.organizations.models import Role
@@ -38,29 +37,15 @@ class Scheduler:
     def __init__(self, state: Any, grace_s: float = 60.0, tick_s: float = 1.0) -> None:
         self.state = state
         self.grace_s = grace_s
-        self.tick_s = tick_s
-        self._task: asyncio.Task[None] | None = None
+        self._periodic = Periodic("scheduler", self.tick, tick_s)
 
     def start(self) -> None:
         """Start the loop."""
-        self._task = asyncio.create_task(self._loop(), name="scheduler")
+        self._periodic.start()
 
     async def stop(self) -> None:
         """Stop the loop."""
-        if self._task:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
-
-    async def _loop(self) -> None:
-        while True:
-            try:
-                await self.tick()
-            except asyncio.CancelledError:
-                raise
-            except Exception:
-                log.exception("scheduler tick failed")
-            await asyncio.sleep(self.tick_s)
+        await self._periodic.stop()
 
     async def tick(self) -> None:
         """Fire every due schedule once."""

@@ -1,0 +1,41 @@
+"""A background task that calls an async function every few seconds, logging (not dying of) errors."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import Awaitable, Callable
+
+log = logging.getLogger(__name__)
+
+
+class Periodic:
+    """Runs `tick()` every `every_s` seconds from `start()` until `stop()`."""
+
+    def __init__(self, name: str, tick: Callable[[], Awaitable[None]], every_s: float) -> None:
+        self.name = name
+        self.tick = tick
+        self.every_s = every_s
+        self._task: asyncio.Task[None] | None = None
+
+    def start(self) -> None:
+        """Start the loop."""
+        self._task = asyncio.create_task(self._loop(), name=self.name)
+
+    async def stop(self) -> None:
+        """Stop the loop."""
+        if self._task:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+
+    async def _loop(self) -> None:
+        while True:
+            try:
+                await self.tick()
+            except asyncio.CancelledError:
+                raise
+            except Exception:
+                log.exception("%s: tick failed", self.name)
+            await asyncio.sleep(self.every_s)
