@@ -286,6 +286,11 @@ class Copter(MissionProtocolMixin):
     def _charge_from_base(self) -> None:
         """Optional base extension: follow the charger's state of charge while seated."""
         soc = getattr(getattr(self.base, "charger", None), "uav_soc", None)
+        if soc is None and getattr(self.base, "contacts_seated", False):
+            # seated but the charger has not heard of this battery (placed at start, or a touchdown
+            # bounce re-seated it): the battery is there, so tell the charger
+            self._share_battery(self.dyn.state.battery_pct / 100.0)
+            return
         if isinstance(soc, float | int) and abs(soc * 100.0 - self.dyn.state.battery_pct) > 0.01:
             self.dyn.set_battery(soc * 100.0)
 

@@ -80,7 +80,8 @@ def test_failed_logins_are_rate_limited_per_address(database_url, superuser_emai
     server = LiveServer(test_settings(database_url, login_max_failures_address=3)).start()
     try:
         with httpx.Client(base_url=server.url) as api:
-            addr = {"X-Forwarded-For": "10.77.0.1"}
+            octet = uuid.uuid4().int % 250
+            addr = {"X-Forwarded-For": f"10.77.{octet}.1"}
             for i in range(3):
                 r = api.post("/api/v1/auth/login", json={"email": f"u{i}-{uuid.uuid4().hex}@x.test",
                                                         "password": "whatever-xx"}, headers=addr)
@@ -90,7 +91,7 @@ def test_failed_logins_are_rate_limited_per_address(database_url, superuser_emai
             assert r.status_code == 429 and "address" in r.json()["error"]["message"]
             other = api.post("/api/v1/auth/login", json={"email": f"z-{uuid.uuid4().hex}@x.test",
                                                         "password": "whatever-xx"},
-                             headers={"X-Forwarded-For": "10.77.0.2"})
+                             headers={"X-Forwarded-For": f"10.78.{octet}.2"})
             assert other.status_code == 401
     finally:
         server.stop()

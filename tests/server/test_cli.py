@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import uuid
 
 from tests.conftest import Tenant, auth
 
@@ -19,26 +20,27 @@ def _run(args: list[str], env: dict[str, str], stdin: str | None = None) -> subp
 def test_admin_bootstrap_and_token(database_url, api):
     env = {"DATABASE_URL": database_url, "AEROBASE_ARGON2_MEMORY_KIB": "8192", "AEROBASE_ARGON2_TIME_COST": "1"}
     assert _run(["admin", "migrate"], env).returncode == 0
-    r = _run(["admin", "create-org", "cli-org-1"], env)
+    org, email = f"cli-org-{uuid.uuid4().hex[:8]}", f"cli-{uuid.uuid4().hex[:8]}@x.test"
+    r = _run(["admin", "create-org", org], env)
     assert r.returncode == 0, r.stderr
     org_id = r.stdout.strip()
-    r = _run(["admin", "create-org", "cli-org-1"], env)
+    r = _run(["admin", "create-org", org], env)
     assert r.returncode == 1 and "already exists" in r.stderr and "Traceback" not in r.stderr
-    r = _run(["admin", "create-user", "--org", "cli-org-1", "--email", "cli@x.test", "--role", "operator"],
+    r = _run(["admin", "create-user", "--org", org, "--email", email, "--role", "operator"],
              {**env, "AEROBASE_PASSWORD": "cli-password-123"})
     assert r.returncode == 0, r.stderr
-    r = _run(["admin", "create-user", "--org", "cli-org-1", "--email", "short@x.test", "--role", "viewer",
+    r = _run(["admin", "create-user", "--org", org, "--email", f"short-{uuid.uuid4().hex[:8]}@x.test", "--role", "viewer",
               "--password", "short"], env)
     assert r.returncode == 1 and "12 characters" in r.stderr
-    r = _run(["admin", "create-superuser", "--email", "cli-root@x.test", "--password", "root-password-123"], env)
+    r = _run(["admin", "create-superuser", "--email", f"root-{uuid.uuid4().hex[:8]}@x.test", "--password", "root-password-123"], env)
     assert r.returncode == 0, r.stderr
-    token = _run(["admin", "token", "--email", "cli@x.test"], env).stdout.strip()
+    token = _run(["admin", "token", "--email", email], env).stdout.strip()
     me = api.get("/api/v1/auth/me", headers=auth(token)).json()
     assert me["organization_id"] == org_id and me["role"] == "operator"
     # the one-session rule holds for scripts too
-    r = _run(["admin", "token", "--email", "cli@x.test"], env)
+    r = _run(["admin", "token", "--email", email], env)
     assert r.returncode == 1 and "live session" in r.stderr
-    assert _run(["admin", "token", "--email", "cli@x.test", "--force"], env).returncode == 0
+    assert _run(["admin", "token", "--email", email, "--force"], env).returncode == 0
 
 
 def test_asset_decrypt(tenant: Tenant):
