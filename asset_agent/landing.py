@@ -203,7 +203,8 @@ class PrecisionLander:
         """Watch the autopilot; run the landing loop while it lands. Never raises but cancel."""
         tasks = [asyncio.create_task(self._states(), name="precland-states")]
         ir: IrReceiver | None = None
-        if self.section.ir_port is not None:
+        ir_port = self.section.ir_port  # the receiver exists only when a port is configured
+        if ir_port is not None:
             ir = IrReceiver()
             try:
                 await ir.start()
@@ -215,8 +216,12 @@ class PrecisionLander:
             next_subscribe = 0.0
             while not stop.is_set():
                 try:
-                    if ir is not None and time.monotonic() >= next_subscribe:
-                        ir.subscribe(self.section.ir_host, self.section.ir_port)
+                    if (
+                        ir is not None
+                        and ir_port is not None
+                        and time.monotonic() >= next_subscribe
+                    ):
+                        ir.subscribe(self.section.ir_host, ir_port)
                         next_subscribe = time.monotonic() + 1.0
                     self._supervise()
                 except Exception:

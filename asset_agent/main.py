@@ -57,7 +57,11 @@ def setup(config: AgentConfig, asset: AssetConfig) -> Agent:
     limits = AvailabilityLimits(config.availability.min_battery_pct, config.availability.min_fix_type)
     for name, handler in Handlers(autopilot, limits).table().items():
         link.on_command(name, handler)
-    link.on_rtcm(autopilot.inject_rtcm)
+
+    def inject_rtcm(frame: bytes) -> None:
+        autopilot.inject_rtcm(frame)  # the fragment count is of no use to the link
+
+    link.on_rtcm(inject_rtcm)
     lander = PrecisionLander(autopilot, config.precland) if precland else None
     if lander is not None:
         link.on_command("precland_fault", lander.fault_command)

@@ -34,9 +34,12 @@ def to_telemetry(s: UavState) -> UavTelemetry:
     position = None
     if s.lat is not None and s.lon is not None and s.alt_msl is not None:
         position = Position(lat=s.lat, lon=s.lon, alt_msl_m=s.alt_msl, alt_rel_m=s.alt_rel or 0.0)
-    velocity = Velocity(north_m_s=s.vn, east_m_s=s.ve, down_m_s=s.vd) if None not in (s.vn, s.ve, s.vd) else None
-    attitude = (Attitude(roll_deg=s.roll_deg, pitch_deg=s.pitch_deg, yaw_deg=s.yaw_deg)
-                if None not in (s.roll_deg, s.pitch_deg, s.yaw_deg) else None)
+    velocity = None
+    if s.vn is not None and s.ve is not None and s.vd is not None:
+        velocity = Velocity(north_m_s=s.vn, east_m_s=s.ve, down_m_s=s.vd)
+    attitude = None
+    if s.roll_deg is not None and s.pitch_deg is not None and s.yaw_deg is not None:
+        attitude = Attitude(roll_deg=s.roll_deg, pitch_deg=s.pitch_deg, yaw_deg=s.yaw_deg)
     mission = None
     if s.mission_total is not None:
         mission = MissionProgress(current=max(0, s.mission_current or 0), total=max(0, s.mission_total))

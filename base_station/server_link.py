@@ -22,7 +22,7 @@ from base_station.telemetry import AxisTelemetry, StationTelemetry
 from protocol.commands import CommandRequest
 from protocol.configfile import AssetConfig
 from protocol.link import Link
-from protocol.messages import CommandProgress, CommandResultPayload, EventPayload
+from protocol.messages import CommandProgress, CommandResultPayload, EventPayload, Severity
 from protocol.telemetry import Actuator, Charger, Faults, LandingBaseTelemetry, Power, Rtk, Weather
 
 log = logging.getLogger(__name__)
@@ -64,7 +64,7 @@ def to_protocol(t: StationTelemetry, rtk: Rtk | None = None) -> LandingBaseTelem
 
 def to_event(e: Event) -> EventPayload:
     """The wire form of one station event (pure)."""
-    severity = "critical" if e.kind in CRITICAL else "warning" if e.kind in WARNING else "info"
+    severity: Severity = "critical" if e.kind in CRITICAL else "warning" if e.kind in WARNING else "info"
     return EventPayload(name=e.kind.value, severity=severity, message=e.message, data=dict(e.data))
 
 

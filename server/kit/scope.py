@@ -40,7 +40,7 @@ class Principal:
 M = TypeVar("M")
 
 
-def scoped(model: type[M], principal: Principal) -> Select[tuple[M]]:
+def scoped(model: type[M], principal: Principal) -> Select[M]:
     """SELECT of `model` restricted to the principal's organisation (nothing without one)."""
     column: Any = model.organization_id  # type: ignore[attr-defined]
     if principal.organization_id is None:
@@ -58,7 +58,7 @@ class ScopedRepository(Generic[M]):
         self.db = db
         self.principal = principal
 
-    def select(self) -> Select[tuple[M]]:
+    def select(self) -> Select[M]:
         """The scoped SELECT every query of this repository starts from."""
         return scoped(self.model, self.principal)
 

@@ -103,9 +103,12 @@ async def asset_socket(ws: WebSocket) -> None:
     if principal.kind != "asset":
         await ws.close(4401, "this socket is for assets; operators use /ws/operator")
         return
+    asset_id, org_id = principal.asset_id, principal.organization_id
+    if asset_id is None or org_id is None:  # every asset session carries both; never expected
+        await ws.close(4401, "this asset session has no asset or organisation")
+        return
     app = ws.app
     hub, broker, ingest, settings = app.state.hub, app.state.broker, app.state.ingest, app.state.settings
-    asset_id = principal.asset_id
     key, owner = f"conn.asset.{asset_id}", f"{hub.node}:{uuid.uuid4().hex[:8]}"
     holder = await broker.claim(key, owner, PRESENCE_TTL_S)
     if holder is not None:
@@ -143,7 +146,7 @@ async def asset_socket(ws: WebSocket) -> None:
         await ws.send_text(encode(envelope(WelcomePayload(
             session_id=str(principal.session_id), last_acked_seq=last, heartbeat_s=HEARTBEAT_S,
             server_time=int(time.time() * 1000)))))
-        conn = _AssetConn(principal, stream, last, sender, settings.ws_rate_per_s, settings.ws_burst)
+        conn = _AssetConn(asset_id, org_id, stream, last, sender, settings.ws_rate_per_s, settings.ws_burst)
         tasks = [asyncio.create_task(sender.run()), asyncio.create_task(conn.acker()),
                  asyncio.create_task(_heartbeat(app, principal, key, owner, sender)),
                  asyncio.create_task(_deliver_commands(app, asset_id, sender, wake))]
@@ -172,9 +175,10 @@ async def asset_socket(ws: WebSocket) -> None:
 class _AssetConn:
     """The reading side of one asset socket: validate, de-duplicate, fan out, store, ack."""
 
-    def __init__(self, principal: Principal, stream: uuid.UUID, last_seq: int, sender: _Sender,
-                 rate: float, burst: float) -> None:
-        self.principal = principal
+    def __init__(self, asset_id: uuid.UUID, organization_id: uuid.UUID, stream: uuid.UUID, last_seq: int,
+                 sender: _Sender, rate: float, burst: float) -> None:
+        self.asset_id = asset_id
+        self.organization_id = organization_id
         self.stream = stream
         self.last_seq = last_seq
         self.sender = sender
@@ -187,7 +191,7 @@ class _AssetConn:
 
     async def read(self, ws: WebSocket, app: Any) -> None:
         hub, broker, ingest = app.state.hub, app.state.broker, app.state.ingest
-        asset_id, org_id = self.principal.asset_id, self.principal.organization_id
+        asset_id, org_id = self.asset_id, self.organization_id
         while True:
             raw = await ws.receive_text()
             hub.counters.received += 1
@@ -302,7 +306,9 @@ async def operator_socket(ws: WebSocket) -> None:
         if mid and mid in recent:
             return
         recent.append(mid)
-        text = message.get("text") if isinstance(message.get("text"), str) else json.dumps(message, separators=(",", ":"))
+        text = message.get("text")
+        if not isinstance(text, str):
+            text = json.dumps(message, separators=(",", ":"))
         if not sender.send_text(text):
             hub.counters.operator_dropped += 1
 

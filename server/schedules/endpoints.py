@@ -46,7 +46,10 @@ async def create_schedule(body: ScheduleCreate, principal: Operator, db: DB) -> 
             first = body.at or now + timedelta(seconds=body.interval_s)
         else:
             check_cron(body.cron or "")
-            first = next_after("cron", now, cron=body.cron, tz=body.timezone)
+            nxt = next_after("cron", now, cron=body.cron, tz=body.timezone)
+            if nxt is None:  # next_after returns None only for a spent one-shot, never for cron
+                raise TimingError(f"cron expression {body.cron!r} has no next time")
+            first = nxt
     except TimingError as err:
         raise Unprocessable(str(err), code="invalid_schedule") from err
     s = Schedule(organization_id=principal.organization_id, name=body.name, mission_id=body.mission_id,
