@@ -111,15 +111,18 @@ class UavConfig(_Section):
 
 
 class ChargeConfig(_Section):
-    """Default charge current limit."""
+    """Default charge current limit, and how long the charger may take to report charging."""
 
     current_limit_ma: int = Field(default=5000, ge=0, le=65535)
+    start_timeout_s: float = Field(default=10.0, gt=0, le=600)
 
 
 class ServerConfig(_Section):
     """The server link: the encrypted asset file (empty: run without a server) and the link's state."""
 
-    config_file: str = ""  # e.g. "~/.aerobase/asset.enc"; password from password_file or AEROBASE_ASSET_PASSWORD
+    config_file: str = (
+        ""  # e.g. "~/.aerobase/asset.enc"; password from password_file or AEROBASE_ASSET_PASSWORD
+    )
     password_file: str = ""  # mode 0600
     state_file: str = "~/.aerobase/base-link.db"  # the link's outbox, session and command ledger
     url: str = ""  # overrides the server URL written in the asset file

@@ -27,7 +27,7 @@ from base_station.availability import availability
 from base_station.config import StationConfig
 from base_station.coordinator import Coordinator
 from base_station.devices.axis import AxisSpec, Decision, MotionTracker, Outcome
-from base_station.devices.charger import check_start_charging
+from base_station.devices.charger import charger_idle_reason, check_start_charging
 from base_station.devices.lift import LIFT, check_lift_down, check_lift_up
 from base_station.devices.panels import PANELS, check_close_panels, check_open_panels
 from base_station.events import Event, EventKind, Subscription
@@ -74,7 +74,6 @@ class Result:
 
 Item = Progress | Result
 MOTION_COMMANDS = ("open", "close", "open_panels", "close_panels", "lift_up", "lift_down")
-CHARGER_CONFIRM_S = 10.0  # how long the charger may take to report charging after being enabled
 
 
 class Station:
@@ -337,10 +336,10 @@ class Station:
         await self.coord.write_register(HoldingRegister.CHARGE_CURRENT_LIMIT, limit)
         written = await self.coord.write_coil(Coil.CHARGER_ENABLE, True)
         yield Progress(name, "charger_enabled", f"charger enabled, limit {limit} mA")
-        deadline = written + CHARGER_CONFIRM_S
-        while time.monotonic() < deadline:
-            snap = await self.coord.wait_fresh(written)
-            written = snap.read_started
+        window = self.config.charge.start_timeout_s
+        deadline = written + window
+        snap = await self.coord.wait_fresh(written)
+        while True:
             plc = snap.plc
             if (
                 snap.link_up
@@ -357,9 +356,15 @@ class Station:
                     },
                 )
                 return
-        state = snap.plc.charger_state if snap.plc else None
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                break
+            # a strictly newer poll, awaited: re-reading the same snapshot would spin the loop
+            snap = await self.coord.wait_next(snap.seq, remaining)
         yield self._fail(
-            name, f"charger did not start (state {state.name.lower() if state else '?'})"
+            name,
+            f"charger did not start within {window:g} s: "
+            + charger_idle_reason(snap.plc, snap.link_up),
         )
 
     async def _stop_charging(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:

@@ -23,3 +23,18 @@ def check_start_charging(plc: PlcState | None, link_up: bool) -> Decision:
     if reasons:
         return Decision(False, "start_charging refused: " + "; ".join(reasons))
     return Decision(True)
+
+
+def charger_idle_reason(plc: PlcState | None, link_up: bool) -> str:
+    """Why the charger is not charging, from one PLC reading (for refusals and failures)."""
+    if not link_up or plc is None:
+        return "PLC link down"
+    state = "unknown" if plc.charger_state is None else plc.charger_state.name.lower()
+    why = check_start_charging(plc, link_up)
+    if not why.allowed:
+        return f"charger {state}; {why.reason.removeprefix('start_charging refused: ')}"
+    if not plc.charger_enable:
+        return f"charger {state}; CHARGER_ENABLE is off"
+    if plc.uav_battery_soc_pct is None:
+        return f"charger {state}; no battery link to the UAV's pack"
+    return f"charger {state} although enabled with the contacts seated"

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import asyncio
 
-from bs_helpers import Rig, rig_at, run, wait_for
+from bs_helpers import SPEED, Rig, rig_at, run, start_daemon, station_config, stop_daemon, wait_for
 
 from base_station.events import EventKind
 from base_station.station import Status
+from sim.world import World, WorldConfig
 
 
 async def test_available_when_everything_is_fine(rig: Rig) -> None:
@@ -185,3 +186,30 @@ async def test_charger_fault_refuses_charging_and_is_reported(rig: Rig) -> None:
         for e in rig.app.coordinator.events.history
     )
     await wait_for(lambda: rig.station.telemetry().power.grid_present is False, what="grid off")
+
+
+async def test_a_charger_that_never_starts_fails_with_why_while_the_daemon_keeps_polling() -> None:
+    """Contacts seated but no battery link to the pack: the charger stays idle. start_charging fails
+    after its window saying why, and all the while the daemon keeps polling the PLC and feeding its
+    watchdog (the wait once re-read the same snapshot without awaiting and froze the event loop)."""
+    async with World(WorldConfig.for_tests(speed=SPEED, seed=5)) as world:
+        world.weather.force(wind_mps=2.0, gust_mps=3.0, rain_mm_h=0.0, temperature_c=15.0)
+        config = station_config(world.ports["plc"], SPEED)
+        config = config.model_copy(
+            update={"charge": config.charge.model_copy(update={"start_timeout_s": 2.0})}
+        )
+        app = await start_daemon(config)
+        try:
+            await wait_for(lambda: app.coordinator.snapshot.link_up, 5.0, "link up")
+            await wait_for(lambda: world.base.watchdog_armed, 5.0, "watchdog armed")
+            world.base.set_pad_load(1500, contacts_seated=True)  # a pack the charger cannot talk to
+            await wait_for(lambda: app.station.telemetry().charger.contacts_seated, what="contacts")
+            polls = app.coordinator.polls
+            result = await run(app.station, "start_charging")
+            assert result.status is Status.FAILED
+            assert "within 2 s" in result.reason and "charger idle" in result.reason
+            assert "no battery link" in result.reason, result.reason
+            assert app.coordinator.polls - polls >= 10  # 20 Hz for 2 s: the poll loop went on
+            assert "WATCHDOG" not in app.coordinator.snapshot.plc.fault_names
+        finally:
+            await stop_daemon(app)
