@@ -9,6 +9,7 @@ GNSS error; the dynamics fly the truth, so a vehicle lands where its GNSS says t
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -59,6 +60,8 @@ class Base(Protocol):
         """The pad centre: latitude, longitude (degrees), altitude (m MSL)."""
         ...
 
+
+log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class CopterConfig:
@@ -267,6 +270,8 @@ class Copter(MissionProtocolMixin):
         landed = self.dyn.state.landed
         if landed != self._was_landed:
             self._was_landed = landed
+            log.info("vehicle %s %.3f m from the pad centre", "landed" if landed else "lifted off",
+                     self.pad_distance())
             if not landed:
                 self.base.set_pad_load(0.0, False)
                 self._share_battery(None)

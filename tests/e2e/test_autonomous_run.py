@@ -14,7 +14,7 @@ async def test_a_run_walks_the_whole_sequence_and_completes(live_server, tenant:
         assert [t["to_state"] for t in body["timeline"]] == [
             "checking", "opening", "uploading", "flying", "landing", "confirming", "closing", "charging",
             "completed"]
-        assert not body["alert"], body["reason"]  # charging started: the contacts are seated
+        assert not body["alert"], (body["reason"], _on_the_pad(p))  # charging started: the contacts are seated
         assert p.world.base.contacts_seated and not p.world.base.can_vehicle_leave()  # on the pad, closed again
         report = (await p.api.get(f"/api/v1/runs/{run_id}/report", headers=tenant.h("viewer"))).json()
         assert report["flight_time_s"] > 0 and len(report["track"]) > 10
@@ -105,6 +105,28 @@ async def test_uav_link_lost_in_flight_the_run_waits_then_completes(live_server,
         await proxy.stop()
 
 
+async def test_operator_abort_in_flight_returns_the_uav_lands_and_closes_over_it(live_server, tenant: Tenant,
+                                                                                 tmp_path):
+    """An operator aborts mid-mission: the UAV heads home before finishing its legs, lands on the pad,
+    the scale confirms it, and only then does the base close; the run ends aborted, not failed."""
+    async with platform(live_server.url, tenant, tmp_path) as p:
+        run_id = await p.start_run()
+        await p.wait_state(run_id, ("flying",), 60)
+        await _until(lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out")
+        r = await p.api.post(f"/api/v1/runs/{run_id}/abort", json={"reason": "airspace closed"},
+                             headers=p.tenant.h("operator"))
+        assert r.status_code == 202, r.text
+        body = await p.wait_state(run_id, FINAL, 150)
+        assert body["state"] == "aborted" and body["cause"] == "operator_abort", (body["reason"], body["timeline"])
+        states = [t["to_state"] for t in body["timeline"]]
+        assert states == ["checking", "opening", "uploading", "flying", "landing", "confirming", "closing",
+                          "charging", "aborted"], states
+        landing = next(t for t in body["timeline"] if t["to_state"] == "landing")
+        assert "airspace closed" in landing["reason"] and "return" in landing["reason"]
+        # the panels closed only over a UAV the scale had confirmed: it is seated and the base is shut
+        assert p.world.base.contacts_seated and not p.world.base.can_vehicle_leave()
+
+
 async def test_server_killed_while_flying_resumes_and_completes(database_url, superuser_email, tmp_path):
     """The server process dies mid-flight; a new one on the same database resumes the run."""
     import asyncio
@@ -130,6 +152,14 @@ async def test_server_killed_while_flying_resumes_and_completes(database_url, su
                 assert states.count("flying") == 1  # resumed where it stood, not restarted from the top
     finally:
         await asyncio.to_thread((restarted or server).stop)
+
+
+def _on_the_pad(p) -> dict[str, object]:  # type: ignore[no-untyped-def]
+    """What the world says of the UAV on the pad (for failure messages)."""
+    copter = next(part for part in p.world.parts if part.name == "vehicle").server.copter
+    charger = p.world.base.charger
+    return {"pad_distance_m": round(copter.pad_distance(), 4), "seated": p.world.base.contacts_seated,
+            "fix": copter.reading.fix_type, "charger": (int(charger.state), charger.uav_soc)}
 
 
 async def _until(predicate, limit_s: float, what: str) -> None:  # type: ignore[no-untyped-def]
