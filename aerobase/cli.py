@@ -41,7 +41,7 @@ def resolve(argv: Sequence[str]) -> tuple[str, list[str]] | None:
     """The target of the longest route matching the start of argv, and the rest of argv."""
     for words in sorted(ROUTES, key=len, reverse=True):
         if tuple(argv[: len(words)]) == words:
-            return ROUTES[words], list(argv[len(words):])
+            return ROUTES[words], list(argv[len(words) :])
     return None
 
 

@@ -31,10 +31,16 @@ class Handlers:
 
     def table(self) -> dict[str, Any]:
         """Command name -> handler, for `Link.on_command`."""
-        return {"check_availability": self.check_availability, "upload_mission": self.upload_mission,
-                "start_mission": self.start_mission, "pause": self.simple("pause"),
-                "resume": self.simple("resume"), "return_to_base": self.simple("return_to_base"),
-                "land": self.simple("land"), "abort": self.abort}
+        return {
+            "check_availability": self.check_availability,
+            "upload_mission": self.upload_mission,
+            "start_mission": self.start_mission,
+            "pause": self.simple("pause"),
+            "resume": self.simple("resume"),
+            "return_to_base": self.simple("return_to_base"),
+            "land": self.simple("land"),
+            "abort": self.abort,
+        }
 
     async def check_availability(self, request: CommandRequest) -> CommandResultPayload:
         """Battery, GNSS fix, autopilot health and link, disarmed: every failed condition listed."""
@@ -43,9 +49,15 @@ class Handlers:
         if failed:
             return result("failed", "; ".join(f.message for f in failed), {"failed": conditions})
         s = self.autopilot.state
-        return result("succeeded", "available", {"failed": [], "battery_pct": s.battery_pct, "fix": s.fix_name})
+        return result(
+            "succeeded",
+            "available",
+            {"failed": [], "battery_pct": s.battery_pct, "fix": s.fix_name},
+        )
 
-    async def upload_mission(self, request: CommandRequest) -> AsyncIterator[CommandProgress | CommandResultPayload]:
+    async def upload_mission(
+        self, request: CommandRequest
+    ) -> AsyncIterator[CommandProgress | CommandResultPayload]:
         """Upload the items, read them back and compare."""
         raw = request.params.get("items")
         if not isinstance(raw, list) or not raw:
@@ -56,14 +68,18 @@ class Handlers:
         except InvalidMissionItem as err:
             yield result("rejected", str(err))
             return
-        yield CommandProgress(step="upload", index=1, total=2, message=f"uploading {len(items)} items")
+        yield CommandProgress(
+            step="upload", index=1, total=2, message=f"uploading {len(items)} items"
+        )
         try:
             await self.autopilot.upload_mission(items, verify=True)
         except AutopilotError as err:
             yield _failure(err)
             return
         yield CommandProgress(step="verify", index=2, total=2, message="read back and identical")
-        yield result("succeeded", f"{len(items)} items uploaded and verified", {"count": len(items)})
+        yield result(
+            "succeeded", f"{len(items)} items uploaded and verified", {"count": len(items)}
+        )
 
     async def start_mission(self, request: CommandRequest) -> CommandResultPayload:
         """Arm and start the uploaded mission (AUTO)."""
@@ -91,4 +107,6 @@ class Handlers:
             done = await self.autopilot.abort()
         except AutopilotError as err:
             return _failure(err)
-        return result("succeeded", "returning to the base" if done == "rtl" else "disarmed", {"action": done})
+        return result(
+            "succeeded", "returning to the base" if done == "rtl" else "disarmed", {"action": done}
+        )

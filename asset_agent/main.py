@@ -50,11 +50,25 @@ def setup(config: AgentConfig, asset: AssetConfig) -> Agent:
     ap = config.autopilot
     precland = config.precland.active
     streams = {**DEFAULT_STREAMS, **(stream_rates(config.precland) if precland else {})}
-    autopilot = Autopilot(AutopilotConfig(url=ap.url, link_timeout_s=ap.link_timeout_s,
-                                          command_timeout_s=ap.command_timeout_s, streams=streams))
-    link = Link(config.server.url or asset.server_url, asset.name, asset.secret,
-                config.server.state_file.expanduser(), agent="asset_agent", max_outbox=config.server.max_outbox)
-    limits = AvailabilityLimits(config.availability.min_battery_pct, config.availability.min_fix_type)
+    autopilot = Autopilot(
+        AutopilotConfig(
+            url=ap.url,
+            link_timeout_s=ap.link_timeout_s,
+            command_timeout_s=ap.command_timeout_s,
+            streams=streams,
+        )
+    )
+    link = Link(
+        config.server.url or asset.server_url,
+        asset.name,
+        asset.secret,
+        config.server.state_file.expanduser(),
+        agent="asset_agent",
+        max_outbox=config.server.max_outbox,
+    )
+    limits = AvailabilityLimits(
+        config.availability.min_battery_pct, config.availability.min_fix_type
+    )
     for name, handler in Handlers(autopilot, limits).table().items():
         link.on_command(name, handler)
 
@@ -100,8 +114,12 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
     stop = stop or asyncio.Event()
     await agent.autopilot.start()
     await agent.link.start()
-    log.info("agent %s running: autopilot %s, server %s", agent.asset.name, agent.config.autopilot.url,
-             agent.link.server_url)
+    log.info(
+        "agent %s running: autopilot %s, server %s",
+        agent.asset.name,
+        agent.config.autopilot.url,
+        agent.link.server_url,
+    )
     lander = None
     if agent.lander is not None:
         lander = asyncio.create_task(agent.lander.run(stop), name="precland")
@@ -121,7 +139,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="aerobase agent")
     parser.add_argument("--config", required=True, help="agent.toml")
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    logging.basicConfig(
+        level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
+    )
     try:
         config = AgentConfig.load(args.config)
         pw = str(config.server.password_file.expanduser()) if config.server.password_file else None
@@ -130,8 +150,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"aerobase agent: {err}", file=sys.stderr)
         return 1
     if asset.kind != "uav":
-        print(f"aerobase agent: {Path(config.server.config_file)} is a {asset.kind}'s file, not a UAV's",
-              file=sys.stderr)
+        print(
+            f"aerobase agent: {Path(config.server.config_file)} is a {asset.kind}'s file, not a UAV's",
+            file=sys.stderr,
+        )
         return 1
     agent = setup(config, asset)
 

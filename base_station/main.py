@@ -54,9 +54,13 @@ def server_link(config: StationConfig) -> LinkRunner | None:
     from base_station.server_link import link_runner, make_link
     from protocol.configfile_cli import load_config as load_asset
 
-    asset = load_asset(Path(config.server.config_file).expanduser(), config.server.password_file or None)
+    asset = load_asset(
+        Path(config.server.config_file).expanduser(), config.server.password_file or None
+    )
     if asset.kind != "landing_base":
-        raise ValueError(f"{config.server.config_file} is a {asset.kind}'s file, not a landing base's")
+        raise ValueError(
+            f"{config.server.config_file} is a {asset.kind}'s file, not a landing base's"
+        )
     state = Path(config.server.state_file).expanduser()
     return link_runner(make_link(asset, state, config.server.url or None))
 

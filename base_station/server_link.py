@@ -44,41 +44,75 @@ def to_protocol(t: StationTelemetry, rtk: Rtk | None = None) -> LandingBaseTelem
     """The wire form of one station telemetry sample (pure)."""
     w, c, p = t.weather, t.charger, t.power
     return LandingBaseTelemetry(
-        plc_link="up" if t.plc_link == "up" else "down", panels=_axis(t.panels), lift=_axis(t.lift),
-        uav_present=t.uav_present, landing_confirmed=t.landing_confirmed,
+        plc_link="up" if t.plc_link == "up" else "down",
+        panels=_axis(t.panels),
+        lift=_axis(t.lift),
+        uav_present=t.uav_present,
+        landing_confirmed=t.landing_confirmed,
         scale_mass_g=None if t.scale_mass_g is None else max(0.0, t.scale_mass_g),
-        weather=None if w is None else Weather(
-            wind_m_s=max(0.0, w.wind_mps), gust_m_s=max(0.0, w.gust_mps), direction_deg=w.direction_deg % 360,
-            rain_mm_h=max(0.0, w.rain_mm_h), rain_detected=w.rain_detected, temperature_c=w.temperature_c,
-            humidity_pct=min(100.0, max(0.0, w.humidity_pct))),
-        charger=None if c is None else Charger(
+        weather=None
+        if w is None
+        else Weather(
+            wind_m_s=max(0.0, w.wind_mps),
+            gust_m_s=max(0.0, w.gust_mps),
+            direction_deg=w.direction_deg % 360,
+            rain_mm_h=max(0.0, w.rain_mm_h),
+            rain_detected=w.rain_detected,
+            temperature_c=w.temperature_c,
+            humidity_pct=min(100.0, max(0.0, w.humidity_pct)),
+        ),
+        charger=None
+        if c is None
+        else Charger(
             state=c.state if c.state in ("idle", "charging", "complete", "fault") else "idle",  # type: ignore[arg-type]
-            enabled=c.enabled, contact=c.contacts_seated, current_a=c.current_ma / 1000, voltage_v=c.voltage_v,
-            uav_battery_pct=None if c.uav_battery_pct is None else min(100.0, max(0.0, c.uav_battery_pct))),
-        power=None if p is None else Power(
+            enabled=c.enabled,
+            contact=c.contacts_seated,
+            current_a=c.current_ma / 1000,
+            voltage_v=c.voltage_v,
+            uav_battery_pct=None
+            if c.uav_battery_pct is None
+            else min(100.0, max(0.0, c.uav_battery_pct)),
+        ),
+        power=None
+        if p is None
+        else Power(
             source=p.source if p.source in ("grid", "solar", "battery") else None,  # type: ignore[arg-type]
-            battery_pct=min(100.0, max(0.0, p.base_battery_pct)), battery_v=p.base_battery_voltage_v,
-            solar_w=max(0, p.solar_w), grid_present=p.grid_present),
-        rtk=rtk, estop=t.estop, faults=Faults.from_bits(t.fault_bits or 0))
+            battery_pct=min(100.0, max(0.0, p.base_battery_pct)),
+            battery_v=p.base_battery_voltage_v,
+            solar_w=max(0, p.solar_w),
+            grid_present=p.grid_present,
+        ),
+        rtk=rtk,
+        estop=t.estop,
+        faults=Faults.from_bits(t.fault_bits or 0),
+    )
 
 
 def to_event(e: Event) -> EventPayload:
     """The wire form of one station event (pure)."""
-    severity: Severity = "critical" if e.kind in CRITICAL else "warning" if e.kind in WARNING else "info"
+    severity: Severity = (
+        "critical" if e.kind in CRITICAL else "warning" if e.kind in WARNING else "info"
+    )
     return EventPayload(name=e.kind.value, severity=severity, message=e.message, data=dict(e.data))
 
 
 def command_handler(station: Station, name: str):  # type: ignore[no-untyped-def]
     """A link handler running one station command, its progress numbered as it comes."""
 
-    async def handler(request: CommandRequest) -> AsyncIterator[CommandProgress | CommandResultPayload]:
+    async def handler(
+        request: CommandRequest,
+    ) -> AsyncIterator[CommandProgress | CommandResultPayload]:
         index = 0
         async for item in station.execute(name, request.params):
             if isinstance(item, Progress):
                 index += 1
-                yield CommandProgress(step=item.step, index=index, total=max(index, 2), message=item.message)
+                yield CommandProgress(
+                    step=item.step, index=index, total=max(index, 2), message=item.message
+                )
             elif isinstance(item, Result):
-                yield CommandResultPayload(status=item.status.value, reason=item.reason, data=item.data)  # type: ignore[arg-type]
+                yield CommandResultPayload(
+                    status=item.status.value, reason=item.reason, data=item.data
+                )  # type: ignore[arg-type]
                 return
 
     return handler
@@ -86,7 +120,9 @@ def command_handler(station: Station, name: str):  # type: ignore[no-untyped-def
 
 def make_link(asset: AssetConfig, state_file: Path, server_url: str | None = None) -> Link:
     """The link of this base (state kept in `state_file` across restarts)."""
-    return Link(server_url or asset.server_url, asset.name, asset.secret, state_file, agent="base_station")
+    return Link(
+        server_url or asset.server_url, asset.name, asset.secret, state_file, agent="base_station"
+    )
 
 
 def link_runner(link: Link):  # type: ignore[no-untyped-def]
@@ -98,7 +134,9 @@ def link_runner(link: Link):  # type: ignore[no-untyped-def]
         await link.start()
         reader = None
         if config.rtk.tcp_port or config.rtk.serial_device:
-            reader = RtkReader(ReaderConfig(source=source_url(**config.rtk.model_dump())), on_frame=link.send_rtcm)
+            reader = RtkReader(
+                ReaderConfig(source=source_url(**config.rtk.model_dump())), on_frame=link.send_rtcm
+            )
             reader.start()
         events = station.subscribe()
 

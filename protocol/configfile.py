@@ -67,7 +67,9 @@ def _key(password: str, salt: bytes, log_n: int, r: int, p: int) -> bytes:
     return Scrypt(salt=salt, length=16, n=2**log_n, r=r, p=p).derive(password.encode("utf-8"))
 
 
-def encrypt_config(cfg: AssetConfig, password: str, log_n: int = 15, r: int = 8, p: int = 1) -> bytes:
+def encrypt_config(
+    cfg: AssetConfig, password: str, log_n: int = 15, r: int = 8, p: int = 1
+) -> bytes:
     """Encrypt `cfg` with a key derived from `password`; returns the file's bytes."""
     salt, nonce = os.urandom(16), os.urandom(12)
     header = _HEADER.pack(MAGIC, VERSION, log_n, r, p, salt, nonce)
@@ -81,13 +83,17 @@ def decrypt_config(data: bytes, password: str) -> AssetConfig:
         raise BadFormat("not an Aerobase asset configuration file")
     _magic, version, log_n, r, p, salt, nonce = _HEADER.unpack(data[:HEADER_SIZE])
     if version != VERSION:
-        raise BadFormat(f"unsupported asset configuration file version {version} (this build reads {VERSION})")
+        raise BadFormat(
+            f"unsupported asset configuration file version {version} (this build reads {VERSION})"
+        )
     if len(data) < HEADER_SIZE + TAG_SIZE:
         raise BadFormat("the asset configuration file is truncated")
     if not (10 <= log_n <= 22 and 1 <= r <= 32 and 1 <= p <= 16):
         raise BadFormat("the asset configuration file has implausible key-derivation parameters")
     try:
-        body = AESGCM(_key(password, salt, log_n, r, p)).decrypt(nonce, data[HEADER_SIZE:], data[:HEADER_SIZE])
+        body = AESGCM(_key(password, salt, log_n, r, p)).decrypt(
+            nonce, data[HEADER_SIZE:], data[:HEADER_SIZE]
+        )
     except InvalidTag as err:
         raise WrongPassword(
             "wrong password, or the file was altered (AES-GCM cannot tell the two apart)"
@@ -96,4 +102,6 @@ def decrypt_config(data: bytes, password: str) -> AssetConfig:
         fields = json.loads(body)
         return AssetConfig(**{k: str(fields[k]) for k in AssetConfig.__dataclass_fields__})
     except (ValueError, KeyError, TypeError) as err:
-        raise BadFormat("the asset configuration file decrypted but its content is not valid") from err
+        raise BadFormat(
+            "the asset configuration file decrypted but its content is not valid"
+        ) from err

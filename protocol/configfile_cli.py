@@ -54,7 +54,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `aerobase asset ...`."""
     parser = argparse.ArgumentParser(prog="aerobase asset")
     sub = parser.add_subparsers(dest="command", required=True)
-    dec = sub.add_parser("decrypt", help="print the decrypted content of an asset configuration file")
+    dec = sub.add_parser(
+        "decrypt", help="print the decrypted content of an asset configuration file"
+    )
     dec.add_argument("file")
     dec.add_argument("--password-file", help="file holding the password (mode 0600)")
     args = parser.parse_args(argv)

@@ -68,7 +68,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.state.sessionmaker = make_sessionmaker(engine)
         app.state.broker = make_broker(settings.redis_url)
         await app.state.broker.start()
-        app.state.telemetry = make_telemetry_store(settings, app.state.sessionmaker, engine.dialect.name)
+        app.state.telemetry = make_telemetry_store(
+            settings, app.state.sessionmaker, engine.dialect.name
+        )
         await app.state.telemetry.start()
         app.state.ingest = Ingest(app.state.sessionmaker, app.state.telemetry)
         app.state.ingest.start()
@@ -80,8 +82,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if settings.run_engine:
             app.state.runs.start()
             app.state.scheduler.start()
-        retention = asyncio.create_task(retention_loop(app.state.telemetry, settings.telemetry_retention_days))
-        log.info("server started", extra={"database": engine.url.render_as_string(hide_password=True)})
+        retention = asyncio.create_task(
+            retention_loop(app.state.telemetry, settings.telemetry_retention_days)
+        )
+        log.info(
+            "server started", extra={"database": engine.url.render_as_string(hide_password=True)}
+        )
         try:
             yield
         finally:
@@ -94,21 +100,40 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             await app.state.broker.close()
             await engine.dispose()
 
-    app = FastAPI(title="Aerobase", version=VERSION, lifespan=lifespan,
-                  openapi_url="/api/openapi.json", docs_url="/api/docs", redoc_url=None,
-                  description="REST API of the Aerobase drone-in-a-box platform. See frontend_api.md.")
+    app = FastAPI(
+        title="Aerobase",
+        version=VERSION,
+        lifespan=lifespan,
+        openapi_url="/api/openapi.json",
+        docs_url="/api/docs",
+        redoc_url=None,
+        description="REST API of the Aerobase drone-in-a-box platform. See frontend_api.md.",
+    )
     app.state.settings = settings
-    app.state.passwords = Passwords(settings.argon2_time_cost, settings.argon2_memory_kib,
-                                    settings.argon2_parallelism)
+    app.state.passwords = Passwords(
+        settings.argon2_time_cost, settings.argon2_memory_kib, settings.argon2_parallelism
+    )
     app.state.session_end_listeners = []  # async callables given the ids of ended sessions
     app.add_middleware(GZipMiddleware, minimum_size=2048)
     app.add_middleware(RejectNulBytes)
     install_error_handlers(app)
-    for router in (health_router, auth_router, organizations_router, assets_router, audit_router,
-                   commands_router, telemetry_router, realtime_router, missions_router, runs_router,
-                   schedules_router):
+    for router in (
+        health_router,
+        auth_router,
+        organizations_router,
+        assets_router,
+        audit_router,
+        commands_router,
+        telemetry_router,
+        realtime_router,
+        missions_router,
+        runs_router,
+        schedules_router,
+    ):
         app.include_router(router)
     # NTRIP is its own protocol (basic auth, gnss/* content types): served beside the REST API
-    app.include_router(ntrip_router(BaseCorrections(app.state), caster_authenticator(app.state, settings)),
-                       include_in_schema=False)
+    app.include_router(
+        ntrip_router(BaseCorrections(app.state), caster_authenticator(app.state, settings)),
+        include_in_schema=False,
+    )
     return app

@@ -34,8 +34,15 @@ def server_main(argv: Sequence[str] | None = None) -> int:
     overrides = {k: v for k, v in (("host", args.host), ("port", args.port)) if v is not None}
     settings = Settings(**overrides)
     configure_logging(settings.log_format, settings.log_level)
-    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_config=None,
-                ws_max_size=1 << 20, ws_per_message_deflate=False, proxy_headers=True)
+    uvicorn.run(
+        create_app(settings),
+        host=settings.host,
+        port=settings.port,
+        log_config=None,
+        ws_max_size=1 << 20,
+        ws_per_message_deflate=False,
+        proxy_headers=True,
+    )
     return 0
 
 
@@ -45,7 +52,9 @@ def _password(given: str | None, env: str = "AEROBASE_PASSWORD") -> str:
     if os.environ.get(env):
         return os.environ[env]
     if not sys.stdin.isatty():
-        raise AppError(f"no password: give --password, set {env}, or run on a terminal to be prompted")
+        raise AppError(
+            f"no password: give --password, set {env}, or run on a terminal to be prompted"
+        )
     first = getpass.getpass("Password: ")
     if first != getpass.getpass("Repeat password: "):
         raise AppError("the passwords differ")
@@ -94,8 +103,9 @@ def admin_main(argv: Sequence[str] | None = None) -> int:
         if args.command == "migrate":
             print("database is at the latest migration")
             return 0
-        passwords = Passwords(settings.argon2_time_cost, settings.argon2_memory_kib,
-                              settings.argon2_parallelism)
+        passwords = Passwords(
+            settings.argon2_time_cost, settings.argon2_memory_kib, settings.argon2_parallelism
+        )
         result = asyncio.run(_with_db(settings, lambda db: _admin(db, args, settings, passwords)))
         print(result)
         return 0
@@ -112,15 +122,21 @@ async def _admin(db, args, settings: Settings, passwords: Passwords) -> str:  # 
         users = UserRepository(db)
         user = await users.by_email(args.email)
         if user is None:
-            user = await service.create_user(db, passwords, email=args.email,
-                                             password=_checked(_password(args.password)))
+            user = await service.create_user(
+                db, passwords, email=args.email, password=_checked(_password(args.password))
+            )
         elif any(o.id == org.id for _, o in await users.memberships(user.id)):
             raise AppError(f"{args.email} is already a member of {args.org}")
         await service.add_member(db, org.id, user.id, Role(args.role))
         return str(user.id)
     if args.command == "create-superuser":
-        user = await service.create_user(db, passwords, email=args.email,
-                                         password=_checked(_password(args.password)), is_superuser=True)
+        user = await service.create_user(
+            db,
+            passwords,
+            email=args.email,
+            password=_checked(_password(args.password)),
+            is_superuser=True,
+        )
         return str(user.id)
     if args.command == "token":
         users = UserRepository(db)
@@ -132,8 +148,11 @@ async def _admin(db, args, settings: Settings, passwords: Passwords) -> str:  # 
         if args.org and not orgs:
             raise AppError(f"{args.email} is not a member of {args.org}")
         issued = await SessionService(db, settings).open(
-            Account("user", user.id, orgs[0].id if orgs else None, user.email), force=args.force,
-            client_addr=None, via="token.cli")
+            Account("user", user.id, orgs[0].id if orgs else None, user.email),
+            force=args.force,
+            client_addr=None,
+            via="token.cli",
+        )
         return issued.access_token
     raise AppError(f"unknown command {args.command}")
 

@@ -21,7 +21,8 @@ class Settings(BaseSettings):
     host: str = "127.0.0.1"
     port: int = 8000
     public_url: str | None = Field(
-        default=None, description="URL daemons use to reach this server; written into asset config files"
+        default=None,
+        description="URL daemons use to reach this server; written into asset config files",
     )
     database_url: str = Field(
         default="sqlite+aiosqlite:///./var/aerobase.db",
@@ -54,7 +55,9 @@ class Settings(BaseSettings):
     # autonomous runs: per-step time budgets in seconds, e.g. {"flying": 1800} (see server/runs/machine.py)
     run_timeouts: dict[str, float] = Field(default_factory=dict)
     run_engine: bool = True  # drive runs and fire schedules in this process (every replica may)
-    schedule_grace_s: float = Field(default=60.0, ge=0, description="a due time later than this is 'missed'")
+    schedule_grace_s: float = Field(
+        default=60.0, ge=0, description="a due time later than this is 'missed'"
+    )
 
     # mission validation limits
     mission_min_alt_m: float = Field(default=2.0, ge=0)
@@ -94,6 +97,6 @@ class Settings(BaseSettings):
         """The file of a SQLite database URL, so its folder can be created."""
         prefix = "sqlite+aiosqlite:///"
         if self.database_url.startswith(prefix):
-            rest = self.database_url[len(prefix):]
+            rest = self.database_url[len(prefix) :]
             return None if rest in ("", ":memory:") else Path(rest)
         return None

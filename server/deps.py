@@ -54,28 +54,42 @@ def bearer_token(request: Request) -> str | None:
     return None
 
 
-async def principal_of(db: AsyncSession, settings: Settings, token: str | None) -> tuple[Principal, AuthSession]:
+async def principal_of(
+    db: AsyncSession, settings: Settings, token: str | None
+) -> tuple[Principal, AuthSession]:
     """Resolve a token to the caller; raises Unauthorized."""
     if not token:
         raise Unauthorized()
     session = await SessionService(db, settings).authenticate(token)
     if session.principal_kind == "asset":
-        return Principal(kind="asset", session_id=session.id, organization_id=session.organization_id,
-                         asset_id=session.asset_id), session
+        return Principal(
+            kind="asset",
+            session_id=session.id,
+            organization_id=session.organization_id,
+            asset_id=session.asset_id,
+        ), session
     user = await db.get(User, session.user_id)
     if user is None or not user.is_active:
         raise Unauthorized("account disabled", code="account_disabled")
     role: Role | None = None
     if session.organization_id is not None:
-        probe = Principal(kind="user", session_id=session.id, organization_id=session.organization_id)
+        probe = Principal(
+            kind="user", session_id=session.id, organization_id=session.organization_id
+        )
         found = await MembershipRepository(db, probe).of_user(user.id)
         if found is not None:
             role = found[0].role
         elif user.is_superuser:
             role = Role.admin
-    return Principal(kind="user", session_id=session.id, organization_id=session.organization_id
-                     if role else None, role=role, user_id=user.id, is_superuser=user.is_superuser,
-                     label=user.email), session
+    return Principal(
+        kind="user",
+        session_id=session.id,
+        organization_id=session.organization_id if role else None,
+        role=role,
+        user_id=user.id,
+        is_superuser=user.is_superuser,
+        label=user.email,
+    ), session
 
 
 async def current_session(request: Request, db: DB, settings: SettingsDep) -> AuthSession:

@@ -19,5 +19,11 @@ async def health(request: Request) -> JSONResponse:
     except Exception as err:  # any driver error means unreachable
         database = f"unreachable: {type(err).__name__}"
     ok = database == "ok"
-    return JSONResponse({"status": "ok" if ok else "degraded", "database": database,
-                         "version": request.app.version}, status_code=200 if ok else 503)
+    return JSONResponse(
+        {
+            "status": "ok" if ok else "degraded",
+            "database": database,
+            "version": request.app.version,
+        },
+        status_code=200 if ok else 503,
+    )

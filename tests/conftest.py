@@ -44,8 +44,12 @@ def need_service(name: str, host: str, port: int) -> None:
     pytest.skip(f"{message}; start it to run this test (in CI this fails instead)")
 
 
-def wait_for(predicate: Callable[[], Any], timeout: float = 10.0, interval: float = 0.02,
-             what: str = "condition") -> Any:
+def wait_for(
+    predicate: Callable[[], Any],
+    timeout: float = 10.0,
+    interval: float = 0.02,
+    what: str = "condition",
+) -> Any:
     """Poll `predicate` until it returns a truthy value; fail after `timeout` seconds."""
     deadline = time.monotonic() + timeout
     while True:
@@ -98,13 +102,21 @@ def test_settings(database_url: str, **overrides: Any):  # type: ignore[no-untyp
     """Server settings for tests: real argon2id with a lighter cost, fast scrypt."""
     from server.config import Settings
 
-    base = dict(database_url=database_url, environment="test", migrate_on_start=False,
-                argon2_time_cost=1, argon2_memory_kib=8192, argon2_parallelism=1,
-                config_scrypt_log_n=12, login_max_failures_address=10_000, log_format="console",
-                # the simulated world runs 10x: a UAV on the pad is confirmed within ~2 s wall
-                run_timeouts={"confirming": 8.0, "checking": 10.0},
-                # several test servers share one database without Redis: nudges do not cross processes
-                command_sweep_s=1.0)
+    base = dict(
+        database_url=database_url,
+        environment="test",
+        migrate_on_start=False,
+        argon2_time_cost=1,
+        argon2_memory_kib=8192,
+        argon2_parallelism=1,
+        config_scrypt_log_n=12,
+        login_max_failures_address=10_000,
+        log_format="console",
+        # the simulated world runs 10x: a UAV on the pad is confirmed within ~2 s wall
+        run_timeouts={"confirming": 8.0, "checking": 10.0},
+        # several test servers share one database without Redis: nudges do not cross processes
+        command_sweep_s=1.0,
+    )
     base.update(overrides)
     return Settings(**base)
 
@@ -125,11 +137,21 @@ class LiveServer:
         self.url = f"http://127.0.0.1:{self.port}"
         settings.port = self.port
         self.app = create_app(settings)
-        config = uvicorn.Config(self.app, host="127.0.0.1", port=self.port, log_config=None,
-                                ws_max_size=1 << 20, ws_per_message_deflate=False, proxy_headers=True,
-                                forwarded_allow_ips="127.0.0.1", lifespan="on")
+        config = uvicorn.Config(
+            self.app,
+            host="127.0.0.1",
+            port=self.port,
+            log_config=None,
+            ws_max_size=1 << 20,
+            ws_per_message_deflate=False,
+            proxy_headers=True,
+            forwarded_allow_ips="127.0.0.1",
+            lifespan="on",
+        )
         self.server = uvicorn.Server(config)
-        self.thread = threading.Thread(target=self.server.run, name=f"server-{self.port}", daemon=True)
+        self.thread = threading.Thread(
+            target=self.server.run, name=f"server-{self.port}", daemon=True
+        )
 
     def restarted(self) -> LiveServer:
         """A new server process state (new app, empty memory) on the same port; call after stop()."""
@@ -177,8 +199,13 @@ def superuser_email(database_url: str) -> str:
     async def create() -> None:
         engine = make_engine(database_url)
         async with make_sessionmaker(engine)() as db:
-            await create_user(db, Passwords(1, 8192, 1), email=email, password=SUPERUSER_PASSWORD,
-                              is_superuser=True)
+            await create_user(
+                db,
+                Passwords(1, 8192, 1),
+                email=email,
+                password=SUPERUSER_PASSWORD,
+                is_superuser=True,
+            )
             await db.commit()
         await engine.dispose()
 
@@ -203,20 +230,32 @@ class Tenant:
         self.user_ids: dict[str, str] = {}
         for role in ("admin", "operator", "viewer"):
             email = f"{role}-{uuid.uuid4().hex[:8]}@{self.name}.test"
-            r = api.post("/api/v1/users", json={"email": email, "password": self.PASSWORD, "role": role},
-                         headers=auth(root))
+            r = api.post(
+                "/api/v1/users",
+                json={"email": email, "password": self.PASSWORD, "role": role},
+                headers=auth(root),
+            )
             assert r.status_code == 201, r.text
             self.emails[role], self.user_ids[role] = email, r.json()["id"]
         api.post("/api/v1/auth/logout", headers=auth(root))
-        self.tokens = {role: login(api, email, self.PASSWORD) for role, email in self.emails.items()}
+        self.tokens = {
+            role: login(api, email, self.PASSWORD) for role, email in self.emails.items()
+        }
 
     def h(self, role: str = "admin") -> dict[str, str]:
         """Authorization headers of the user with `role`."""
         return auth(self.tokens[role])
 
-    def create_asset(self, kind: str = "uav", password: str = "asset-password-123", **extra: Any) -> dict[str, Any]:
+    def create_asset(
+        self, kind: str = "uav", password: str = "asset-password-123", **extra: Any
+    ) -> dict[str, Any]:
         """Register an asset as the admin; returns the response body (with config_file)."""
-        body = {"name": f"{kind}-{uuid.uuid4().hex[:10]}", "kind": kind, "password": password, **extra}
+        body = {
+            "name": f"{kind}-{uuid.uuid4().hex[:10]}",
+            "kind": kind,
+            "password": password,
+            **extra,
+        }
         r = self.api.post("/api/v1/assets", json=body, headers=self.h("admin"))
         assert r.status_code == 201, r.text
         return dict(r.json())

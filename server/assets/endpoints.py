@@ -19,12 +19,14 @@ router = APIRouter(tags=["assets"])
 
 
 def _service(db: DB, principal: Admin, settings: SettingsDep) -> AssetService:
-    return AssetService(AssetRepository(db, principal), settings.effective_public_url,
-                        settings.config_scrypt_log_n)
+    return AssetService(
+        AssetRepository(db, principal), settings.effective_public_url, settings.config_scrypt_log_n
+    )
 
 
-async def _end_sessions(request: Request, db: DB, settings: SettingsDep, asset_id: uuid.UUID,
-                        reason: str) -> None:
+async def _end_sessions(
+    request: Request, db: DB, settings: SettingsDep, asset_id: uuid.UUID, reason: str
+) -> None:
     ended = await SessionService(db, settings).end_all_for_asset(asset_id, reason)
     await db.commit()
     for listener in request.app.state.session_end_listeners:
@@ -32,25 +34,43 @@ async def _end_sessions(request: Request, db: DB, settings: SettingsDep, asset_i
 
 
 @router.get("/api/v1/assets", response_model=list[AssetOut])
-async def list_assets(principal: Viewer, db: DB, kind: AssetKind | None = None,
-                      limit: int = Query(100, ge=1, le=1000),
-                      offset: int = Query(0, ge=0, le=10**9)) -> list[AssetOut]:
+async def list_assets(
+    principal: Viewer,
+    db: DB,
+    kind: AssetKind | None = None,
+    limit: int = Query(100, ge=1, le=1000),
+    offset: int = Query(0, ge=0, le=10**9),
+) -> list[AssetOut]:
     """Assets of the caller's organisation."""
     rows = await AssetRepository(db, principal).list_filtered(limit, offset, kind)
     return [AssetOut.model_validate(a) for a in rows]
 
 
 @router.post("/api/v1/assets", status_code=201, response_model=AssetCreated)
-async def create_asset(body: AssetCreate, principal: Admin, request: Request, db: DB,
-                       settings: SettingsDep) -> AssetCreated:
+async def create_asset(
+    body: AssetCreate, principal: Admin, request: Request, db: DB, settings: SettingsDep
+) -> AssetCreated:
     """Register an asset; answers with its encrypted configuration file (admins only)."""
     service = _service(db, principal, settings)
-    asset, data = await service.register(name=body.name, kind=body.kind, password=body.password,
-                                         description=body.description, base_id=body.base_id,
-                                         attributes=body.attributes)
-    await record(db, "asset.created", organization_id=principal.organization_id, actor_kind="user",
-                 actor_id=principal.actor_id, target=str(asset.id), client_addr=client_addr(request),
-                 name=asset.name, kind=asset.kind.value)
+    asset, data = await service.register(
+        name=body.name,
+        kind=body.kind,
+        password=body.password,
+        description=body.description,
+        base_id=body.base_id,
+        attributes=body.attributes,
+    )
+    await record(
+        db,
+        "asset.created",
+        organization_id=principal.organization_id,
+        actor_kind="user",
+        actor_id=principal.actor_id,
+        target=str(asset.id),
+        client_addr=client_addr(request),
+        name=asset.name,
+        kind=asset.kind.value,
+    )
     out = AssetOut.model_validate(asset).model_dump()
     return AssetCreated(**out, config_file=base64.b64encode(data).decode())
 
@@ -62,45 +82,88 @@ async def get_asset(asset_id: uuid.UUID, principal: Viewer, db: DB) -> AssetOut:
 
 
 @router.patch("/api/v1/assets/{asset_id}", response_model=AssetOut)
-async def update_asset(asset_id: uuid.UUID, body: AssetUpdate, principal: Admin, request: Request,
-                       db: DB, settings: SettingsDep) -> AssetOut:
+async def update_asset(
+    asset_id: uuid.UUID,
+    body: AssetUpdate,
+    principal: Admin,
+    request: Request,
+    db: DB,
+    settings: SettingsDep,
+) -> AssetOut:
     """Rename an asset, describe it, bind a UAV to a base (admins only)."""
     service = _service(db, principal, settings)
     asset = await service.repo.get(asset_id)
     changes = body.model_dump(exclude_unset=True)
     await service.update(asset, changes)
-    await record(db, "asset.updated", organization_id=principal.organization_id, actor_kind="user",
-                 actor_id=principal.actor_id, target=str(asset.id), client_addr=client_addr(request),
-                 changes=sorted(changes))
+    await record(
+        db,
+        "asset.updated",
+        organization_id=principal.organization_id,
+        actor_kind="user",
+        actor_id=principal.actor_id,
+        target=str(asset.id),
+        client_addr=client_addr(request),
+        changes=sorted(changes),
+    )
     return AssetOut.model_validate(asset)
 
 
 @router.delete("/api/v1/assets/{asset_id}", status_code=204, response_class=Response)
-async def delete_asset(asset_id: uuid.UUID, principal: Admin, request: Request, db: DB,
-                       settings: SettingsDep) -> Response:
+async def delete_asset(
+    asset_id: uuid.UUID, principal: Admin, request: Request, db: DB, settings: SettingsDep
+) -> Response:
     """Delete an asset and end its sessions (admins only)."""
     repo = AssetRepository(db, principal)
     asset = await repo.get(asset_id)
-    await record(db, "asset.deleted", organization_id=principal.organization_id, actor_kind="user",
-                 actor_id=principal.actor_id, target=str(asset.id), client_addr=client_addr(request),
-                 name=asset.name)
+    await record(
+        db,
+        "asset.deleted",
+        organization_id=principal.organization_id,
+        actor_kind="user",
+        actor_id=principal.actor_id,
+        target=str(asset.id),
+        client_addr=client_addr(request),
+        name=asset.name,
+    )
     await _end_sessions(request, db, settings, asset.id, "asset_deleted")
     await db.delete(asset)
     return Response(status_code=204)
 
 
-@router.post("/api/v1/assets/{asset_id}/config", response_class=Response,
-             responses={200: {"content": {"application/octet-stream": {}},
-                              "description": "the encrypted configuration file"}})
-async def reissue_config(asset_id: uuid.UUID, body: ConfigRequest, principal: Admin, request: Request,
-                         db: DB, settings: SettingsDep) -> Response:
+@router.post(
+    "/api/v1/assets/{asset_id}/config",
+    response_class=Response,
+    responses={
+        200: {
+            "content": {"application/octet-stream": {}},
+            "description": "the encrypted configuration file",
+        }
+    },
+)
+async def reissue_config(
+    asset_id: uuid.UUID,
+    body: ConfigRequest,
+    principal: Admin,
+    request: Request,
+    db: DB,
+    settings: SettingsDep,
+) -> Response:
     """Re-issue the configuration file with a new secret; the old secret stops working (admins only)."""
     service = _service(db, principal, settings)
     asset = await service.repo.get(asset_id)
     data = await service.reissue(asset, body.password)
-    await record(db, "asset.credentials_rotated", organization_id=principal.organization_id,
-                 actor_kind="user", actor_id=principal.actor_id, target=str(asset.id),
-                 client_addr=client_addr(request))
+    await record(
+        db,
+        "asset.credentials_rotated",
+        organization_id=principal.organization_id,
+        actor_kind="user",
+        actor_id=principal.actor_id,
+        target=str(asset.id),
+        client_addr=client_addr(request),
+    )
     await _end_sessions(request, db, settings, asset.id, "credentials_rotated")
-    return Response(content=data, media_type="application/octet-stream",
-                    headers={"Content-Disposition": f'attachment; filename="{asset.name}.abcf"'})
+    return Response(
+        content=data,
+        media_type="application/octet-stream",
+        headers={"Content-Disposition": f'attachment; filename="{asset.name}.abcf"'},
+    )

@@ -30,7 +30,9 @@ class Asset(IdMixin, Base):
         ForeignKey("organizations.id", ondelete="CASCADE"), index=True
     )
     name: Mapped[str] = mapped_column(String(100), unique=True)
-    kind: Mapped[AssetKind] = mapped_column(Enum(AssetKind, name="asset_kind", native_enum=False, length=16))
+    kind: Mapped[AssetKind] = mapped_column(
+        Enum(AssetKind, name="asset_kind", native_enum=False, length=16)
+    )
     description: Mapped[str] = mapped_column(String(2000), default="")
     secret_hash: Mapped[str] = mapped_column(String(64))
     secret_rotated_at: Mapped[datetime] = mapped_column(default=utcnow)

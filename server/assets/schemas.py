@@ -20,7 +20,9 @@ class AssetCreate(BaseModel):
     kind: AssetKind
     password: Password
     description: Text = ""
-    base_id: uuid.UUID | None = Field(default=None, description="for a UAV: the landing base it lives in")
+    base_id: uuid.UUID | None = Field(
+        default=None, description="for a UAV: the landing base it lives in"
+    )
     attributes: dict[str, Any] = Field(default_factory=dict, max_length=50)
 
 

@@ -31,14 +31,29 @@ class AssetService:
         if base.kind != AssetKind.landing_base:
             raise Unprocessable(f"asset {base_id} is not a landing base", code="invalid_binding")
 
-    async def register(self, *, name: str, kind: AssetKind, password: str, description: str,
-                       base_id: uuid.UUID | None, attributes: dict[str, Any]) -> tuple[Asset, bytes]:
+    async def register(
+        self,
+        *,
+        name: str,
+        kind: AssetKind,
+        password: str,
+        description: str,
+        base_id: uuid.UUID | None,
+        attributes: dict[str, Any],
+    ) -> tuple[Asset, bytes]:
         """A new asset and its encrypted configuration file."""
         if await self.repo.name_taken(name):
             raise Conflict(f"an asset named {name!r} already exists", code="name_taken")
         await self._check_base(kind, base_id)
-        asset = Asset(organization_id=self.repo.principal.organization_id, name=name, kind=kind,
-                      description=description, base_id=base_id, attributes=attributes, secret_hash="")
+        asset = Asset(
+            organization_id=self.repo.principal.organization_id,
+            name=name,
+            kind=kind,
+            description=description,
+            base_id=base_id,
+            attributes=attributes,
+            secret_hash="",
+        )
         self.repo.db.add(asset)
         await self.repo.db.flush()
         return asset, await self._issue(asset, password)
@@ -51,8 +66,14 @@ class AssetService:
         secret = new_secret()
         asset.secret_hash = token_hash(secret)
         asset.secret_rotated_at = utcnow()
-        cfg = AssetConfig(server_url=self.server_url, asset_id=str(asset.id), name=asset.name,
-                          kind=asset.kind.value, secret=secret, issued_at=utcnow().isoformat())
+        cfg = AssetConfig(
+            server_url=self.server_url,
+            asset_id=str(asset.id),
+            name=asset.name,
+            kind=asset.kind.value,
+            secret=secret,
+            issued_at=utcnow().isoformat(),
+        )
         # scrypt is deliberately slow: keep it off the event loop
         return await asyncio.to_thread(encrypt_config, cfg, password, self.scrypt_log_n)
 
@@ -60,7 +81,9 @@ class AssetService:
         """Apply a partial update."""
         if "name" in changes and changes["name"] != asset.name:
             if await self.repo.name_taken(changes["name"]):
-                raise Conflict(f"an asset named {changes['name']!r} already exists", code="name_taken")
+                raise Conflict(
+                    f"an asset named {changes['name']!r} already exists", code="name_taken"
+                )
         if "base_id" in changes:
             await self._check_base(asset.kind, changes["base_id"])
         for key, value in changes.items():

@@ -30,8 +30,12 @@ class AuditEventOut(BaseModel):
 
 
 @router.get("/api/v1/audit", response_model=list[AuditEventOut])
-async def list_audit(principal: Admin, db: DB, limit: int = Query(100, ge=1, le=1000),
-                     action: str | None = Query(None, max_length=64)) -> list[AuditEventOut]:
+async def list_audit(
+    principal: Admin,
+    db: DB,
+    limit: int = Query(100, ge=1, le=1000),
+    action: str | None = Query(None, max_length=64),
+) -> list[AuditEventOut]:
     """The newest audit events of the caller's organisation (admins only)."""
     rows = await AuditRepository(db, principal).recent(limit, action)
     return [AuditEventOut.model_validate(r) for r in rows]

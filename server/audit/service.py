@@ -22,6 +22,15 @@ async def record(
     **details: Any,
 ) -> None:
     """Add one audit event to the current unit of work."""
-    db.add(AuditEvent(action=action, organization_id=organization_id, actor_kind=actor_kind,
-                      actor_id=actor_id, target=target, client_addr=client_addr, details=details))
+    db.add(
+        AuditEvent(
+            action=action,
+            organization_id=organization_id,
+            actor_kind=actor_kind,
+            actor_id=actor_id,
+            target=target,
+            client_addr=client_addr,
+            details=details,
+        )
+    )
     await db.flush()

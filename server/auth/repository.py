@@ -19,17 +19,22 @@ class SessionRepository:
 
     async def by_token_hash(self, token_hash: str) -> AuthSession | None:
         """The session holding this token, ended or not."""
-        stmt = select(AuthSession).where(AuthSession.token_hash == token_hash)  # unscoped: identity lookup
+        stmt = select(AuthSession).where(
+            AuthSession.token_hash == token_hash
+        )  # unscoped: identity lookup
         return (await self.db.execute(stmt)).scalar_one_or_none()
 
     async def by_id(self, session_id: uuid.UUID) -> AuthSession | None:
         """The session with this id."""
         return await self.db.get(AuthSession, session_id)
 
-    async def open_for(self, *, user_id: uuid.UUID | None = None,
-                       asset_id: uuid.UUID | None = None) -> list[AuthSession]:
+    async def open_for(
+        self, *, user_id: uuid.UUID | None = None, asset_id: uuid.UUID | None = None
+    ) -> list[AuthSession]:
         """Sessions of one account that have not been ended (they may have expired)."""
-        stmt = select(AuthSession).where(AuthSession.ended_at.is_(None))  # unscoped: identity lookup
+        stmt = select(AuthSession).where(
+            AuthSession.ended_at.is_(None)
+        )  # unscoped: identity lookup
         if user_id is not None:
             stmt = stmt.where(AuthSession.user_id == user_id)
         else:
@@ -55,6 +60,7 @@ class LoginFailureRepository:
         count, oldest = (await self.db.execute(stmt)).one()
         if oldest is not None and oldest.tzinfo is None:
             from datetime import UTC
+
             oldest = oldest.replace(tzinfo=UTC)
         return int(count), oldest
 

@@ -81,11 +81,15 @@ class SessionService:
 
     def _policy(self, kind: str) -> tuple[int, int]:
         s = self.settings
-        return (s.session_ttl_s, s.session_idle_s) if kind == "user" else (
-            s.asset_session_ttl_s, s.asset_session_idle_s)
+        return (
+            (s.session_ttl_s, s.session_idle_s)
+            if kind == "user"
+            else (s.asset_session_ttl_s, s.asset_session_idle_s)
+        )
 
-    async def open(self, account: Account, *, force: bool, client_addr: str | None,
-                   via: str = "login") -> IssuedToken:
+    async def open(
+        self, account: Account, *, force: bool, client_addr: str | None, via: str = "login"
+    ) -> IssuedToken:
         """One live session per account: refuse with 409 while one is alive unless `force`."""
         now = utcnow()
         key = {"user_id": account.id} if account.kind == "user" else {"asset_id": account.id}
@@ -94,32 +98,53 @@ class SessionService:
             live = existing[0]
             raise Conflict(
                 f"{account.label} already has a live session (started {live.created_at:%Y-%m-%d %H:%M:%S} UTC, "
-                f"last active {live.last_seen_at:%H:%M:%S} UTC); log in with \"force\": true to end it",
+                f'last active {live.last_seen_at:%H:%M:%S} UTC); log in with "force": true to end it',
                 code="session_active",
-                details={"session_started_at": live.created_at.isoformat(),
-                         "last_seen_at": live.last_seen_at.isoformat()},
+                details={
+                    "session_started_at": live.created_at.isoformat(),
+                    "last_seen_at": live.last_seen_at.isoformat(),
+                },
             )
         ended = []
         for old in existing:
             old.ended_at, old.end_reason = now, "taken_over"
             ended.append(old.id)
-            await record(self.db, "session.taken_over", organization_id=account.organization_id,
-                         actor_kind=account.kind, actor_id=str(account.id), target=str(old.id),
-                         client_addr=client_addr, previous_client_addr=old.client_addr)
+            await record(
+                self.db,
+                "session.taken_over",
+                organization_id=account.organization_id,
+                actor_kind=account.kind,
+                actor_id=str(account.id),
+                target=str(old.id),
+                client_addr=client_addr,
+                previous_client_addr=old.client_addr,
+            )
         ttl, idle = self._policy(account.kind)
         token = new_token()
         session = AuthSession(
-            token_hash=token_hash(token), principal_kind=account.kind,
+            token_hash=token_hash(token),
+            principal_kind=account.kind,
             user_id=account.id if account.kind == "user" else None,
             asset_id=account.id if account.kind == "asset" else None,
-            organization_id=account.organization_id, created_at=now, last_seen_at=now,
-            expires_at=now + timedelta(seconds=ttl), idle_timeout_s=idle, client_addr=client_addr,
+            organization_id=account.organization_id,
+            created_at=now,
+            last_seen_at=now,
+            expires_at=now + timedelta(seconds=ttl),
+            idle_timeout_s=idle,
+            client_addr=client_addr,
         )
         self.repo.add(session)
         await self.db.flush()
-        await record(self.db, via, organization_id=account.organization_id, actor_kind=account.kind,
-                     actor_id=str(account.id), target=str(session.id), client_addr=client_addr,
-                     forced=bool(ended))
+        await record(
+            self.db,
+            via,
+            organization_id=account.organization_id,
+            actor_kind=account.kind,
+            actor_id=str(account.id),
+            target=str(session.id),
+            client_addr=client_addr,
+            forced=bool(ended),
+        )
         return IssuedToken(token, session, tuple(ended))
 
     async def authenticate(self, token: str) -> AuthSession:
@@ -129,10 +154,11 @@ class SessionService:
         if session is None:
             raise Unauthorized("unknown token")
         if session.ended_at is not None:
-            reason = {"taken_over": "another login took this session over",
-                      "logout": "the session was logged out",
-                      "credentials_rotated": "the asset's credentials were rotated"}.get(
-                session.end_reason or "", "the session was ended")
+            reason = {
+                "taken_over": "another login took this session over",
+                "logout": "the session was logged out",
+                "credentials_rotated": "the asset's credentials were rotated",
+            }.get(session.end_reason or "", "the session was ended")
             raise Unauthorized(f"session ended: {reason}", code="session_ended")
         if not session.alive_at(now):
             raise Unauthorized("session expired", code="session_expired")
@@ -172,8 +198,9 @@ class SessionService:
             ended.append(s.id)
         return ended
 
-    async def end_all_for_user(self, user_id: uuid.UUID, reason: str,
-                               organization_id: uuid.UUID | None = None) -> list[uuid.UUID]:
+    async def end_all_for_user(
+        self, user_id: uuid.UUID, reason: str, organization_id: uuid.UUID | None = None
+    ) -> list[uuid.UUID]:
         """End every open session of a user, optionally only those in one organisation."""
         ended = []
         for s in await self.repo.open_for(user_id=user_id):

@@ -55,23 +55,35 @@ class CommandOut(BaseModel):
 
 
 @router.post("/api/v1/assets/{asset_id}/commands", status_code=202, response_model=CommandOut)
-async def send_command(asset_id: uuid.UUID, body: CommandCreate, principal: Operator, request: Request,
-                       db: DB) -> CommandOut:
+async def send_command(
+    asset_id: uuid.UUID, body: CommandCreate, principal: Operator, request: Request, db: DB
+) -> CommandOut:
     """Queue a command; it reaches the asset through whichever server process holds its socket."""
     asset = await AssetRepository(db, principal).get(asset_id)
-    cmd = await service.create(db, organization_id=asset.organization_id, asset_id=asset.id, name=body.name,
-                               params=body.params, timeout_s=body.timeout_s, created_by=principal.actor_id)
+    cmd = await service.create(
+        db,
+        organization_id=asset.organization_id,
+        asset_id=asset.id,
+        name=body.name,
+        params=body.params,
+        timeout_s=body.timeout_s,
+        created_by=principal.actor_id,
+    )
     await db.commit()
     await request.app.state.broker.publish(f"cmd.{asset.id}", {"command_id": str(cmd.id)})
     return CommandOut.model_validate(cmd)
 
 
 @router.get("/api/v1/assets/{asset_id}/commands", response_model=list[CommandOut])
-async def list_commands(asset_id: uuid.UUID, principal: Viewer, db: DB,
-                        limit: int = Query(50, ge=1, le=500)) -> list[CommandOut]:
+async def list_commands(
+    asset_id: uuid.UUID, principal: Viewer, db: DB, limit: int = Query(50, ge=1, le=500)
+) -> list[CommandOut]:
     """The newest commands of an asset."""
     await AssetRepository(db, principal).get(asset_id)
-    return [CommandOut.model_validate(c) for c in await CommandRepository(db, principal).of_asset(asset_id, limit)]
+    return [
+        CommandOut.model_validate(c)
+        for c in await CommandRepository(db, principal).of_asset(asset_id, limit)
+    ]
 
 
 @router.get("/api/v1/commands/{command_id}", response_model=CommandOut)

@@ -18,11 +18,21 @@ class CommandRepository(ScopedRepository[AssetCommand]):
 
     async def history(self, command_id: uuid.UUID) -> list[CommandStatusChange]:
         """Status changes of a command already resolved through `get`."""
-        stmt = (select(CommandStatusChange).where(CommandStatusChange.command_id == command_id)  # unscoped: command checked by get()
-                .order_by(CommandStatusChange.at))
+        stmt = (
+            select(CommandStatusChange)
+            .where(
+                CommandStatusChange.command_id == command_id
+            )  # unscoped: command checked by get()
+            .order_by(CommandStatusChange.at)
+        )
         return list((await self.db.execute(stmt)).scalars())
 
     async def of_asset(self, asset_id: uuid.UUID, limit: int) -> list[AssetCommand]:
         """The newest commands of one asset."""
-        stmt = self.select().where(AssetCommand.asset_id == asset_id).order_by(AssetCommand.created_at.desc()).limit(limit)
+        stmt = (
+            self.select()
+            .where(AssetCommand.asset_id == asset_id)
+            .order_by(AssetCommand.created_at.desc())
+            .limit(limit)
+        )
         return list((await self.db.execute(stmt)).scalars())

@@ -13,13 +13,29 @@ from server.commands.models import FINAL, AssetCommand, CommandStatusChange
 from server.kit.time import utcnow
 
 
-async def create(db: AsyncSession, *, organization_id: uuid.UUID, asset_id: uuid.UUID, name: str,
-                 params: dict[str, Any], timeout_s: float, created_by: str | None) -> AssetCommand:
+async def create(
+    db: AsyncSession,
+    *,
+    organization_id: uuid.UUID,
+    asset_id: uuid.UUID,
+    name: str,
+    params: dict[str, Any],
+    timeout_s: float,
+    created_by: str | None,
+) -> AssetCommand:
     """A queued command with its deadline."""
     now = utcnow()
-    cmd = AssetCommand(organization_id=organization_id, asset_id=asset_id, name=name, params=params,
-                       status="queued", deadline=now + timedelta(seconds=timeout_s), created_by=created_by,
-                       created_at=now, updated_at=now)
+    cmd = AssetCommand(
+        organization_id=organization_id,
+        asset_id=asset_id,
+        name=name,
+        params=params,
+        status="queued",
+        deadline=now + timedelta(seconds=timeout_s),
+        created_by=created_by,
+        created_at=now,
+        updated_at=now,
+    )
     db.add(cmd)
     await db.flush()
     db.add(CommandStatusChange(command_id=cmd.id, status="queued", at=now))
@@ -27,8 +43,14 @@ async def create(db: AsyncSession, *, organization_id: uuid.UUID, asset_id: uuid
     return cmd
 
 
-async def set_status(db: AsyncSession, cmd: AssetCommand, status: str, reason: str = "",
-                     progress: dict[str, Any] | None = None, result: dict[str, Any] | None = None) -> bool:
+async def set_status(
+    db: AsyncSession,
+    cmd: AssetCommand,
+    status: str,
+    reason: str = "",
+    progress: dict[str, Any] | None = None,
+    result: dict[str, Any] | None = None,
+) -> bool:
     """Move a command on; a final status is never left. Returns False when nothing changed."""
     if cmd.status in FINAL:
         return False
@@ -36,36 +58,58 @@ async def set_status(db: AsyncSession, cmd: AssetCommand, status: str, reason: s
     cmd.status, cmd.reason, cmd.updated_at = status, reason[:2000], now
     if result is not None:
         cmd.result = result
-    db.add(CommandStatusChange(command_id=cmd.id, status=status, reason=reason[:2000], progress=progress, at=now))
+    db.add(
+        CommandStatusChange(
+            command_id=cmd.id, status=status, reason=reason[:2000], progress=progress, at=now
+        )
+    )
     await db.flush()
     return True
 
 
-async def apply_result(db: AsyncSession, command_id: uuid.UUID, asset_id: uuid.UUID,
-                       payload: dict[str, Any]) -> bool:
+async def apply_result(
+    db: AsyncSession, command_id: uuid.UUID, asset_id: uuid.UUID, payload: dict[str, Any]
+) -> bool:
     """Record a command_result from the asset the command was for."""
     cmd = await db.get(AssetCommand, command_id)
     if cmd is None or cmd.asset_id != asset_id:
         return False
-    return await set_status(db, cmd, str(payload.get("status", "failed")), str(payload.get("reason", "")),
-                            payload.get("progress"), payload.get("data"))
+    return await set_status(
+        db,
+        cmd,
+        str(payload.get("status", "failed")),
+        str(payload.get("reason", "")),
+        payload.get("progress"),
+        payload.get("data"),
+    )
 
 
 async def due_for_delivery(db: AsyncSession, asset_id: uuid.UUID) -> list[AssetCommand]:
     """Queued commands of an asset whose deadline has not passed, oldest first."""
-    stmt = (select(AssetCommand).where(  # unscoped: delivery to an authenticated asset's own socket
-        AssetCommand.asset_id == asset_id, AssetCommand.status == "queued", AssetCommand.deadline > utcnow())
-        .order_by(AssetCommand.created_at))
+    stmt = (
+        select(AssetCommand)
+        .where(  # unscoped: delivery to an authenticated asset's own socket
+            AssetCommand.asset_id == asset_id,
+            AssetCommand.status == "queued",
+            AssetCommand.deadline > utcnow(),
+        )
+        .order_by(AssetCommand.created_at)
+    )
     return list((await db.execute(stmt)).scalars())
 
 
 async def expire(db: AsyncSession) -> list[AssetCommand]:
     """Every unfinished command past its deadline becomes timed_out."""
     stmt = select(AssetCommand).where(  # unscoped: system sweep
-        AssetCommand.status.not_in(list(FINAL)), AssetCommand.deadline <= utcnow())
+        AssetCommand.status.not_in(list(FINAL)), AssetCommand.deadline <= utcnow()
+    )
     expired = []
     for cmd in (await db.execute(stmt)).scalars():
-        if await set_status(db, cmd, "timed_out", f"no final answer from the asset within its deadline "
-                                                  f"({cmd.deadline:%H:%M:%S} UTC)"):
+        if await set_status(
+            db,
+            cmd,
+            "timed_out",
+            f"no final answer from the asset within its deadline ({cmd.deadline:%H:%M:%S} UTC)",
+        ):
             expired.append(cmd)
     return expired

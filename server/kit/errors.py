@@ -1,13 +1,13 @@
 """The typed error tree of the server and the one handler that renders it.
 
-    AppError                      {"error": {"code", "message", "details"}}
-    ├── BadRequest        400
-    ├── Unauthorized      401   not logged in, token unknown, expired or ended
-    ├── Forbidden         403   logged in, but the role does not allow it
-    ├── NotFound          404   also for resources of another organisation
-    ├── Conflict          409   name taken, live session, state clash
-    ├── Unprocessable     422   well-formed but invalid
-    └── RateLimited       429   with Retry-After
+AppError                      {"error": {"code", "message", "details"}}
+├── BadRequest        400
+├── Unauthorized      401   not logged in, token unknown, expired or ended
+├── Forbidden         403   logged in, but the role does not allow it
+├── NotFound          404   also for resources of another organisation
+├── Conflict          409   name taken, live session, state clash
+├── Unprocessable     422   well-formed but invalid
+└── RateLimited       429   with Retry-After
 """
 
 from __future__ import annotations
@@ -92,16 +92,30 @@ def error_body(code: str, message: str, details: Any = None) -> dict[str, Any]:
     return {"error": {"code": code, "message": message, "details": details}}
 
 
-_STATUS_CODES = {400: "bad_request", 401: "unauthorized", 403: "forbidden", 404: "not_found",
-                 405: "method_not_allowed", 409: "conflict", 413: "too_large", 415: "unsupported_media_type",
-                 422: "validation_error", 429: "rate_limited"}
+_STATUS_CODES = {
+    400: "bad_request",
+    401: "unauthorized",
+    403: "forbidden",
+    404: "not_found",
+    405: "method_not_allowed",
+    409: "conflict",
+    413: "too_large",
+    415: "unsupported_media_type",
+    422: "validation_error",
+    429: "rate_limited",
+}
 
 
 def _clean_validation(errors: list[dict[str, Any]]) -> list[dict[str, Any]]:
     out = []
     for e in errors:
-        out.append({"loc": [str(p) for p in e.get("loc", ())], "msg": str(e.get("msg", "")),
-                    "type": str(e.get("type", ""))})
+        out.append(
+            {
+                "loc": [str(p) for p in e.get("loc", ())],
+                "msg": str(e.get("msg", "")),
+                "type": str(e.get("type", "")),
+            }
+        )
     return out
 
 
@@ -110,8 +124,11 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(AppError)
     async def _app_error(_: Request, exc: AppError) -> JSONResponse:
-        return JSONResponse(error_body(exc.code, exc.message, exc.details), status_code=exc.status,
-                            headers=exc.headers)
+        return JSONResponse(
+            error_body(exc.code, exc.message, exc.details),
+            status_code=exc.status,
+            headers=exc.headers,
+        )
 
     @app.exception_handler(RequestValidationError)
     async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
@@ -126,8 +143,11 @@ def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(StarletteHTTPException)
     async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
         code = _STATUS_CODES.get(exc.status_code, "error")
-        return JSONResponse(error_body(code, str(exc.detail)), status_code=exc.status_code,
-                            headers=getattr(exc, "headers", None))
+        return JSONResponse(
+            error_body(code, str(exc.detail)),
+            status_code=exc.status_code,
+            headers=getattr(exc, "headers", None),
+        )
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
@@ -148,13 +168,17 @@ class RejectNulBytes:
         if scope["type"] in ("http", "websocket"):
             from urllib.parse import unquote_to_bytes
 
-            raw = scope.get("query_string", b"") + scope.get("path", "").encode("utf-8", "surrogateescape")
+            raw = scope.get("query_string", b"") + scope.get("path", "").encode(
+                "utf-8", "surrogateescape"
+            )
             if b"\x00" in unquote_to_bytes(raw) or b"\x00" in raw:
                 if scope["type"] == "websocket":
                     await send({"type": "websocket.close", "code": 1008})
                     return
-                response = JSONResponse(error_body("validation_error", "NUL characters are not allowed in a URL"),
-                                        status_code=422)
+                response = JSONResponse(
+                    error_body("validation_error", "NUL characters are not allowed in a URL"),
+                    status_code=422,
+                )
                 await response(scope, receive, send)
                 return
         await self.app(scope, receive, send)

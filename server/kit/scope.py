@@ -64,7 +64,8 @@ class ScopedRepository(Generic[M]):
 
     async def get(self, id_: uuid.UUID) -> M:
         """The row with this id in the caller's organisation, else NotFound."""
-        row = (await self.db.execute(self.select().where(self.model.id == id_))).scalar_one_or_none()  # type: ignore[attr-defined]
+        stmt = self.select().where(self.model.id == id_)  # type: ignore[attr-defined]
+        row = (await self.db.execute(stmt)).scalar_one_or_none()
         if row is None:
             raise NotFound(f"{self.noun} {id_} not found")
         return row

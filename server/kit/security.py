@@ -16,8 +16,9 @@ class Passwords:
     """argon2id hashing with the configured cost."""
 
     def __init__(self, time_cost: int = 3, memory_kib: int = 65536, parallelism: int = 4) -> None:
-        self._ph = PasswordHasher(time_cost=time_cost, memory_cost=memory_kib,
-                                  parallelism=parallelism, type=Type.ID)
+        self._ph = PasswordHasher(
+            time_cost=time_cost, memory_cost=memory_kib, parallelism=parallelism, type=Type.ID
+        )
         self._dummy = self._ph.hash("timing-equaliser-not-a-password")
 
     def hash(self, password: str) -> str:

@@ -28,8 +28,15 @@ def _name(value: str) -> str:
 
 
 Text = Annotated[str, StringConstraints(max_length=2000), AfterValidator(_no_control)]
-Name = Annotated[str, StringConstraints(min_length=1, max_length=100, strip_whitespace=True),
-                 AfterValidator(_name)]
+Name = Annotated[
+    str,
+    StringConstraints(min_length=1, max_length=100, strip_whitespace=True),
+    AfterValidator(_name),
+]
 Email = Annotated[str, StringConstraints(min_length=3, max_length=320), AfterValidator(_email)]
-Password = Annotated[str, StringConstraints(min_length=12, max_length=1024), AfterValidator(_no_control)]
-LoginPassword = Annotated[str, StringConstraints(min_length=1, max_length=1024), AfterValidator(_no_control)]
+Password = Annotated[
+    str, StringConstraints(min_length=12, max_length=1024), AfterValidator(_no_control)
+]
+LoginPassword = Annotated[
+    str, StringConstraints(min_length=1, max_length=1024), AfterValidator(_no_control)
+]

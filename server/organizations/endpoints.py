@@ -25,22 +25,36 @@ router = APIRouter(tags=["organizations"])
 
 
 def _user_out(m: Membership, u: User) -> UserOut:
-    return UserOut(id=u.id, email=u.email, role=m.role, is_active=u.is_active, created_at=u.created_at)
+    return UserOut(
+        id=u.id, email=u.email, role=m.role, is_active=u.is_active, created_at=u.created_at
+    )
 
 
 @router.post("/api/v1/organizations", status_code=201, response_model=OrganizationOut)
-async def create_organization(body: OrganizationCreate, principal: Superuser, request: Request,
-                              db: DB) -> OrganizationOut:
+async def create_organization(
+    body: OrganizationCreate, principal: Superuser, request: Request, db: DB
+) -> OrganizationOut:
     """Create an organisation (platform superusers only)."""
     org = await service.create_organization(db, body.name)
-    await record(db, "organization.created", organization_id=org.id, actor_kind="user",
-                 actor_id=principal.actor_id, target=org.name, client_addr=client_addr(request))
+    await record(
+        db,
+        "organization.created",
+        organization_id=org.id,
+        actor_kind="user",
+        actor_id=principal.actor_id,
+        target=org.name,
+        client_addr=client_addr(request),
+    )
     return OrganizationOut.model_validate(org)
 
 
 @router.get("/api/v1/organizations", response_model=list[OrganizationOut])
-async def list_organizations(principal: Viewer, db: DB, limit: int = Query(100, ge=1, le=1000),
-                             offset: int = Query(0, ge=0, le=10**9)) -> list[OrganizationOut]:
+async def list_organizations(
+    principal: Viewer,
+    db: DB,
+    limit: int = Query(100, ge=1, le=1000),
+    offset: int = Query(0, ge=0, le=10**9),
+) -> list[OrganizationOut]:
     """Organisations visible to the caller: all for a superuser, one's own otherwise."""
     repo = OrganizationRepository(db)
     if principal.is_superuser:
@@ -50,7 +64,9 @@ async def list_organizations(principal: Viewer, db: DB, limit: int = Query(100, 
 
 
 @router.get("/api/v1/organizations/{organization_id}", response_model=OrganizationOut)
-async def get_organization(organization_id: uuid.UUID, principal: Viewer, db: DB) -> OrganizationOut:
+async def get_organization(
+    organization_id: uuid.UUID, principal: Viewer, db: DB
+) -> OrganizationOut:
     """One organisation: one's own, or any for a superuser."""
     org = await OrganizationRepository(db).by_id(organization_id)
     if org is None or (org.id != principal.organization_id and not principal.is_superuser):
@@ -59,22 +75,34 @@ async def get_organization(organization_id: uuid.UUID, principal: Viewer, db: DB
 
 
 @router.get("/api/v1/users", response_model=list[UserOut])
-async def list_users(principal: Viewer, db: DB, limit: int = Query(100, ge=1, le=1000),
-                     offset: int = Query(0, ge=0, le=10**9)) -> list[UserOut]:
+async def list_users(
+    principal: Viewer,
+    db: DB,
+    limit: int = Query(100, ge=1, le=1000),
+    offset: int = Query(0, ge=0, le=10**9),
+) -> list[UserOut]:
     """Members of the caller's organisation."""
     rows = await MembershipRepository(db, principal).with_users(limit, offset)
     return [_user_out(m, u) for m, u in rows]
 
 
 @router.post("/api/v1/users", status_code=201, response_model=UserOut)
-async def create_user(body: UserCreate, principal: Admin, request: Request, db: DB,
-                      passwords: PasswordsDep) -> UserOut:
+async def create_user(
+    body: UserCreate, principal: Admin, request: Request, db: DB, passwords: PasswordsDep
+) -> UserOut:
     """Create a user in the caller's organisation (admins only)."""
     user = await service.create_user(db, passwords, email=body.email, password=body.password)
     m = await service.add_member(db, principal.organization_id, user.id, body.role)  # type: ignore[arg-type]
-    await record(db, "user.created", organization_id=principal.organization_id, actor_kind="user",
-                 actor_id=principal.actor_id, target=user.email, client_addr=client_addr(request),
-                 role=body.role.value)
+    await record(
+        db,
+        "user.created",
+        organization_id=principal.organization_id,
+        actor_kind="user",
+        actor_id=principal.actor_id,
+        target=user.email,
+        client_addr=client_addr(request),
+        role=body.role.value,
+    )
     return _user_out(m, user)
 
 
@@ -92,8 +120,14 @@ async def get_user(user_id: uuid.UUID, principal: Viewer, db: DB) -> UserOut:
 
 
 @router.patch("/api/v1/users/{user_id}", response_model=UserOut)
-async def update_user(user_id: uuid.UUID, body: UserUpdate, principal: Admin, request: Request,
-                      db: DB, settings: SettingsDep) -> UserOut:
+async def update_user(
+    user_id: uuid.UUID,
+    body: UserUpdate,
+    principal: Admin,
+    request: Request,
+    db: DB,
+    settings: SettingsDep,
+) -> UserOut:
     """Change a member's role or disable the account (admins only)."""
     m, u = await _member(db, principal, user_id)
     if u.id == principal.user_id and body.role not in (None, Role.admin):
@@ -104,22 +138,37 @@ async def update_user(user_id: uuid.UUID, body: UserUpdate, principal: Admin, re
         u.is_active = body.is_active
         if not body.is_active:
             await SessionService(db, settings).end_all_for_user(u.id, "disabled")
-    await record(db, "user.updated", organization_id=principal.organization_id, actor_kind="user",
-                 actor_id=principal.actor_id, target=u.email, client_addr=client_addr(request),
-                 changes=body.model_dump(exclude_none=True, mode="json"))
+    await record(
+        db,
+        "user.updated",
+        organization_id=principal.organization_id,
+        actor_kind="user",
+        actor_id=principal.actor_id,
+        target=u.email,
+        client_addr=client_addr(request),
+        changes=body.model_dump(exclude_none=True, mode="json"),
+    )
     await db.flush()
     return _user_out(m, u)
 
 
 @router.delete("/api/v1/users/{user_id}", status_code=204, response_class=Response)
-async def remove_user(user_id: uuid.UUID, principal: Admin, request: Request, db: DB,
-                      settings: SettingsDep) -> Response:
+async def remove_user(
+    user_id: uuid.UUID, principal: Admin, request: Request, db: DB, settings: SettingsDep
+) -> Response:
     """Remove a member from the caller's organisation and end their sessions there (admins only)."""
     m, u = await _member(db, principal, user_id)
     if u.id == principal.user_id:
         raise Conflict("you cannot remove yourself", code="self_removal")
     await SessionService(db, settings).end_all_for_user(u.id, "removed", principal.organization_id)
     await db.delete(m)
-    await record(db, "user.removed", organization_id=principal.organization_id, actor_kind="user",
-                 actor_id=principal.actor_id, target=u.email, client_addr=client_addr(request))
+    await record(
+        db,
+        "user.removed",
+        organization_id=principal.organization_id,
+        actor_kind="user",
+        actor_id=principal.actor_id,
+        target=u.email,
+        client_addr=client_addr(request),
+    )
     return Response(status_code=204)

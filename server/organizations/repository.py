@@ -28,7 +28,9 @@ class OrganizationRepository:
 
     async def all(self, limit: int, offset: int) -> list[Organization]:
         """Every organisation (superusers only)."""
-        stmt = select(Organization).order_by(Organization.created_at).limit(limit).offset(offset)  # unscoped: superuser
+        stmt = (
+            select(Organization).order_by(Organization.created_at).limit(limit).offset(offset)
+        )  # unscoped: superuser
         return list((await self.db.execute(stmt)).scalars())
 
 
@@ -47,9 +49,12 @@ class UserRepository:
 
     async def memberships(self, user_id: uuid.UUID) -> list[tuple[Membership, Organization]]:
         """Every membership of a user with its organisation."""
-        stmt = (select(Membership, Organization)  # unscoped: a user's own memberships
-                .join(Organization, Organization.id == Membership.organization_id)
-                .where(Membership.user_id == user_id).order_by(Membership.created_at))
+        stmt = (
+            select(Membership, Organization)  # unscoped: a user's own memberships
+            .join(Organization, Organization.id == Membership.organization_id)
+            .where(Membership.user_id == user_id)
+            .order_by(Membership.created_at)
+        )
         return [(m, o) for m, o in (await self.db.execute(stmt)).all()]
 
 
@@ -61,13 +66,23 @@ class MembershipRepository(ScopedRepository[Membership]):
 
     async def with_users(self, limit: int, offset: int) -> list[tuple[Membership, User]]:
         """Members and their users, oldest first."""
-        stmt = (self.select().add_columns(User).join(User, User.id == Membership.user_id)
-                .order_by(Membership.created_at).limit(limit).offset(offset))
+        stmt = (
+            self.select()
+            .add_columns(User)
+            .join(User, User.id == Membership.user_id)
+            .order_by(Membership.created_at)
+            .limit(limit)
+            .offset(offset)
+        )
         return [(m, u) for m, u in (await self.db.execute(stmt)).all()]
 
     async def of_user(self, user_id: uuid.UUID) -> tuple[Membership, User] | None:
         """The membership of one user in the caller's organisation."""
-        stmt = self.select().add_columns(User).join(User, User.id == Membership.user_id).where(
-            Membership.user_id == user_id)
+        stmt = (
+            self.select()
+            .add_columns(User)
+            .join(User, User.id == Membership.user_id)
+            .where(Membership.user_id == user_id)
+        )
         row = (await self.db.execute(stmt)).first()
         return (row[0], row[1]) if row else None

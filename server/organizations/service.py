@@ -23,19 +23,25 @@ async def create_organization(db: AsyncSession, name: str) -> Organization:
     return org
 
 
-async def create_user(db: AsyncSession, passwords: Passwords, *, email: str, password: str,
-                      is_superuser: bool = False) -> User:
+async def create_user(
+    db: AsyncSession, passwords: Passwords, *, email: str, password: str, is_superuser: bool = False
+) -> User:
     """A new user; the e-mail must be free."""
     if await UserRepository(db).by_email(email):
         raise Conflict(f"a user with e-mail {email} already exists", code="email_taken")
-    user = User(email=email.lower(), password_hash=await asyncio.to_thread(passwords.hash, password),
-                is_superuser=is_superuser)
+    user = User(
+        email=email.lower(),
+        password_hash=await asyncio.to_thread(passwords.hash, password),
+        is_superuser=is_superuser,
+    )
     db.add(user)
     await db.flush()
     return user
 
 
-async def add_member(db: AsyncSession, org_id: uuid.UUID, user_id: uuid.UUID, role: Role) -> Membership:
+async def add_member(
+    db: AsyncSession, org_id: uuid.UUID, user_id: uuid.UUID, role: Role
+) -> Membership:
     """Give a user a role in an organisation."""
     membership = Membership(organization_id=org_id, user_id=user_id, role=role)
     db.add(membership)

@@ -123,8 +123,10 @@ class InProcessBroker:
 
 
 _RELEASE = "if redis.call('get', KEYS[1]) == ARGV[1] then return redis.call('del', KEYS[1]) else return 0 end"
-_REFRESH = ("if redis.call('get', KEYS[1]) == ARGV[1] then return redis.call('pexpire', KEYS[1], ARGV[2]) "
-            "else return 0 end")
+_REFRESH = (
+    "if redis.call('get', KEYS[1]) == ARGV[1] then return redis.call('pexpire', KEYS[1], ARGV[2]) "
+    "else return 0 end"
+)
 
 
 class RedisBroker:
@@ -163,7 +165,7 @@ class RedisBroker:
         while True:
             try:
                 async for item in self._iter():
-                    channel = item["channel"][len(self.prefix):]
+                    channel = item["channel"][len(self.prefix) :]
                     try:
                         message = json.loads(item["data"])
                     except ValueError:
@@ -209,7 +211,9 @@ class RedisBroker:
 
     async def refresh(self, key: str, owner: str, ttl_s: float) -> bool:
         """Extend the TTL if we still hold the key."""
-        return bool(await self._redis.eval(_REFRESH, 1, self.prefix + key, owner, int(ttl_s * 1000)))
+        return bool(
+            await self._redis.eval(_REFRESH, 1, self.prefix + key, owner, int(ttl_s * 1000))
+        )
 
     async def release(self, key: str, owner: str) -> None:
         """Delete the key if we hold it."""

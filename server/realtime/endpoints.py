@@ -108,7 +108,12 @@ async def asset_socket(ws: WebSocket) -> None:
         await ws.close(4401, "this asset session has no asset or organisation")
         return
     app = ws.app
-    hub, broker, ingest, settings = app.state.hub, app.state.broker, app.state.ingest, app.state.settings
+    hub, broker, ingest, settings = (
+        app.state.hub,
+        app.state.broker,
+        app.state.ingest,
+        app.state.settings,
+    )
     key, owner = f"conn.asset.{asset_id}", f"{hub.node}:{uuid.uuid4().hex[:8]}"
     holder = await broker.claim(key, owner, PRESENCE_TTL_S)
     if holder is not None:
@@ -143,13 +148,27 @@ async def asset_socket(ws: WebSocket) -> None:
         except ValueError:
             await ws.close(1008, "that stream belongs to another asset")
             return
-        await ws.send_text(encode(envelope(WelcomePayload(
-            session_id=str(principal.session_id), last_acked_seq=last, heartbeat_s=HEARTBEAT_S,
-            server_time=int(time.time() * 1000)))))
-        conn = _AssetConn(asset_id, org_id, stream, last, sender, settings.ws_rate_per_s, settings.ws_burst)
-        tasks = [asyncio.create_task(sender.run()), asyncio.create_task(conn.acker()),
-                 asyncio.create_task(_heartbeat(app, principal, key, owner, sender)),
-                 asyncio.create_task(_deliver_commands(app, asset_id, sender, wake))]
+        await ws.send_text(
+            encode(
+                envelope(
+                    WelcomePayload(
+                        session_id=str(principal.session_id),
+                        last_acked_seq=last,
+                        heartbeat_s=HEARTBEAT_S,
+                        server_time=int(time.time() * 1000),
+                    )
+                )
+            )
+        )
+        conn = _AssetConn(
+            asset_id, org_id, stream, last, sender, settings.ws_rate_per_s, settings.ws_burst
+        )
+        tasks = [
+            asyncio.create_task(sender.run()),
+            asyncio.create_task(conn.acker()),
+            asyncio.create_task(_heartbeat(app, principal, key, owner, sender)),
+            asyncio.create_task(_deliver_commands(app, asset_id, sender, wake)),
+        ]
         reader = asyncio.create_task(conn.read(ws, app))
         done, _ = await asyncio.wait([reader, tasks[0]], return_when=asyncio.FIRST_COMPLETED)
         for t in done:
@@ -167,7 +186,10 @@ async def asset_socket(ws: WebSocket) -> None:
         hub.unregister_closer(principal.session_id, sender.close)
         with contextlib.suppress(Exception):
             await broker.release(key, owner)
-        if ws.application_state != WebSocketState.DISCONNECTED and ws.client_state != WebSocketState.DISCONNECTED:
+        if (
+            ws.application_state != WebSocketState.DISCONNECTED
+            and ws.client_state != WebSocketState.DISCONNECTED
+        ):
             with contextlib.suppress(Exception):
                 await ws.close(1000)
 
@@ -175,8 +197,16 @@ async def asset_socket(ws: WebSocket) -> None:
 class _AssetConn:
     """The reading side of one asset socket: validate, de-duplicate, fan out, store, ack."""
 
-    def __init__(self, asset_id: uuid.UUID, organization_id: uuid.UUID, stream: uuid.UUID, last_seq: int,
-                 sender: _Sender, rate: float, burst: float) -> None:
+    def __init__(
+        self,
+        asset_id: uuid.UUID,
+        organization_id: uuid.UUID,
+        stream: uuid.UUID,
+        last_seq: int,
+        sender: _Sender,
+        rate: float,
+        burst: float,
+    ) -> None:
         self.asset_id = asset_id
         self.organization_id = organization_id
         self.stream = stream
@@ -187,7 +217,9 @@ class _AssetConn:
         self.have_pending = asyncio.Event()
 
     def _error(self, code: str, message: str, seq: int | None = None) -> None:
-        self.sender.send_text(encode(envelope(ErrorPayload(code=code, message=message, re_seq=seq))))
+        self.sender.send_text(
+            encode(envelope(ErrorPayload(code=code, message=message, re_seq=seq)))
+        )
 
     async def read(self, ws: WebSocket, app: Any) -> None:
         hub, broker, ingest = app.state.hub, app.state.broker, app.state.ingest
@@ -200,8 +232,11 @@ class _AssetConn:
                 # excess is refused with an error and the socket closed; the client reconnects and
                 # replays from the last ack, at its own pace.
                 hub.counters.rate_limited += 1
-                self._error("rate_limited", f"over {self.bucket.rate:.0f} messages/s (burst "
-                            f"{self.bucket.burst:.0f}): reconnect and replay from the last ack")
+                self._error(
+                    "rate_limited",
+                    f"over {self.bucket.rate:.0f} messages/s (burst "
+                    f"{self.bucket.burst:.0f}): reconnect and replay from the last ack",
+                )
                 self.sender.close(1008, "rate limit exceeded")
                 return
             msg = decode(raw, "asset_to_server")
@@ -219,9 +254,22 @@ class _AssetConn:
                 data = msg.model_dump(mode="json")
                 data["payload"]["asset_id"] = str(asset_id)
                 # encoded once here, not once per operator socket
-                await broker.publish(f"asset.{asset_id}", {"id": data["id"], "text": json.dumps(data, separators=(",", ":"))})
-                fut = ingest.submit(Item(self.stream, asset_id, org_id, msg.seq, msg.type, msg.ts,
-                                         data["payload"], getattr(msg, "re", None)))
+                await broker.publish(
+                    f"asset.{asset_id}",
+                    {"id": data["id"], "text": json.dumps(data, separators=(",", ":"))},
+                )
+                fut = ingest.submit(
+                    Item(
+                        self.stream,
+                        asset_id,
+                        org_id,
+                        msg.seq,
+                        msg.type,
+                        msg.ts,
+                        data["payload"],
+                        getattr(msg, "re", None),
+                    )
+                )
                 self.pending.append((msg.seq, fut))
                 self.have_pending.set()
             elif msg.type == "rtcm":
@@ -267,21 +315,33 @@ async def _heartbeat(app: Any, principal: Principal, key: str, owner: str, sende
             return
 
 
-async def _deliver_commands(app: Any, asset_id: uuid.UUID, sender: _Sender, wake: asyncio.Event) -> None:
+async def _deliver_commands(
+    app: Any, asset_id: uuid.UUID, sender: _Sender, wake: asyncio.Event
+) -> None:
     """Send queued commands (from the database) now and whenever nudged through the broker; a slow,
     jittered sweep covers a nudge lost in a broker hiccup."""
     rng = random.Random()
     while True:
         async with app.state.sessionmaker() as db:
             for cmd in await commands.due_for_delivery(db, asset_id):
-                text = encode(envelope(CommandPayload(name=cmd.name, params=cmd.params,
-                                                      deadline=int(cmd.deadline.timestamp() * 1000)), id=cmd.id))
+                text = encode(
+                    envelope(
+                        CommandPayload(
+                            name=cmd.name,
+                            params=cmd.params,
+                            deadline=int(cmd.deadline.timestamp() * 1000),
+                        ),
+                        id=cmd.id,
+                    )
+                )
                 if sender.send_text(text):
                     await commands.set_status(db, cmd, "sent", "delivered to the asset")
             await db.commit()
         wake.clear()
         with contextlib.suppress(TimeoutError):
-            await asyncio.wait_for(wake.wait(), app.state.settings.command_sweep_s * rng.uniform(0.5, 1.5))
+            await asyncio.wait_for(
+                wake.wait(), app.state.settings.command_sweep_s * rng.uniform(0.5, 1.5)
+            )
 
 
 @router.websocket("/ws/operator")
@@ -299,7 +359,9 @@ async def operator_socket(ws: WebSocket) -> None:
     sender = _Sender(ws, max_queue=5000)
     hub.register_closer(principal.session_id, sender.close)
     handlers: dict[uuid.UUID, Any] = {}
-    recent: deque[str] = deque(maxlen=256)  # a run's progress is published on its UAV's and its base's channel
+    recent: deque[str] = deque(
+        maxlen=256
+    )  # a run's progress is published on its UAV's and its base's channel
 
     def forward(message: dict[str, Any]) -> None:
         mid = str(message.get("id", ""))
@@ -332,8 +394,15 @@ async def operator_socket(ws: WebSocket) -> None:
                         try:
                             await repo.get(asset_id)
                         except NotFound:
-                            sender.send_text(encode(envelope(ErrorPayload(
-                                code="not_found", message=f"asset {asset_id} not found"))))
+                            sender.send_text(
+                                encode(
+                                    envelope(
+                                        ErrorPayload(
+                                            code="not_found", message=f"asset {asset_id} not found"
+                                        )
+                                    )
+                                )
+                            )
                             continue
                         if asset_id not in handlers:
                             handlers[asset_id] = forward

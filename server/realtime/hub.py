@@ -110,6 +110,8 @@ class Hub:
             expired = await commands.expire(db)
             await db.commit()
         for cmd in expired:
-            message = envelope(CommandResultPayload(asset_id=cmd.asset_id, status="timed_out",
-                                                    reason=cmd.reason), re=cmd.id)
+            message = envelope(
+                CommandResultPayload(asset_id=cmd.asset_id, status="timed_out", reason=cmd.reason),
+                re=cmd.id,
+            )
             await self.broker.publish(f"asset.{cmd.asset_id}", message.model_dump(mode="json"))

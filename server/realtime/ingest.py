@@ -36,7 +36,9 @@ class Item:
     ts_ms: int
     payload: dict[str, Any]
     re: uuid.UUID | None = None
-    done: asyncio.Future[None] = field(default_factory=lambda: asyncio.get_running_loop().create_future())
+    done: asyncio.Future[None] = field(
+        default_factory=lambda: asyncio.get_running_loop().create_future()
+    )
 
 
 def _ts(ms: int) -> datetime:
@@ -46,8 +48,13 @@ def _ts(ms: int) -> datetime:
 class Ingest:
     """The process-wide batcher."""
 
-    def __init__(self, sessionmaker: async_sessionmaker[AsyncSession], store: TelemetryStore,
-                 max_batch: int = 2000, max_delay_s: float = 0.02) -> None:
+    def __init__(
+        self,
+        sessionmaker: async_sessionmaker[AsyncSession],
+        store: TelemetryStore,
+        max_batch: int = 2000,
+        max_delay_s: float = 0.02,
+    ) -> None:
         self.sessionmaker = sessionmaker
         self.store = store
         self.max_batch = max_batch
@@ -113,8 +120,11 @@ class Ingest:
                         item.done.set_exception(err)
 
     async def _store(self, batch: list[Item]) -> None:
-        samples = [Sample(i.asset_id, _ts(i.ts_ms), i.seq, flatten(i.payload)) for i in batch
-                   if i.kind == "telemetry"]
+        samples = [
+            Sample(i.asset_id, _ts(i.ts_ms), i.seq, flatten(i.payload))
+            for i in batch
+            if i.kind == "telemetry"
+        ]
         await self.store.write(samples)
         highest: dict[uuid.UUID, int] = {}
         async with self.sessionmaker() as db:
@@ -122,14 +132,26 @@ class Ingest:
                 highest[item.stream_id] = max(highest.get(item.stream_id, 0), item.seq)
                 if item.kind == "event":
                     p = item.payload
-                    db.add(AssetEvent(organization_id=item.organization_id, asset_id=item.asset_id,
-                                      ts=_ts(item.ts_ms), name=str(p.get("name", ""))[:200],
-                                      severity=str(p.get("severity", "info")), message=str(p.get("message", ""))[:2000],
-                                      data=p.get("data") or {}))
+                    db.add(
+                        AssetEvent(
+                            organization_id=item.organization_id,
+                            asset_id=item.asset_id,
+                            ts=_ts(item.ts_ms),
+                            name=str(p.get("name", ""))[:200],
+                            severity=str(p.get("severity", "info")),
+                            message=str(p.get("message", ""))[:2000],
+                            data=p.get("data") or {},
+                        )
+                    )
                 elif item.kind == "command_result" and item.re is not None:
                     await apply_result(db, item.re, item.asset_id, item.payload)
-            rows = (await db.execute(select(AssetStream).where(  # unscoped: streams of connected assets
-                AssetStream.stream_id.in_(list(highest))))).scalars()
+            rows = (
+                await db.execute(
+                    select(AssetStream).where(  # unscoped: streams of connected assets
+                        AssetStream.stream_id.in_(list(highest))
+                    )
+                )
+            ).scalars()
             for row in rows:
                 row.last_seq = max(row.last_seq, highest[row.stream_id])
             await db.commit()

@@ -22,17 +22,30 @@ router = APIRouter(tags=["runs"])
 @router.post("/api/v1/runs", status_code=201, response_model=RunOut)
 async def create_run(body: RunCreate, principal: Operator, db: DB) -> RunOut:
     """Start an autonomous run now (it checks availability first)."""
-    run = await service.create_run(RunRepository(db, principal), AssetRepository(db, principal),
-                                   mission_id=body.mission_id, uav_id=body.uav_id, base_id=body.base_id,
-                                   created_by=principal.actor_id)
+    run = await service.create_run(
+        RunRepository(db, principal),
+        AssetRepository(db, principal),
+        mission_id=body.mission_id,
+        uav_id=body.uav_id,
+        base_id=body.base_id,
+        created_by=principal.actor_id,
+    )
     return service.run_out(run)
 
 
 @router.get("/api/v1/runs", response_model=list[RunOut])
-async def list_runs(principal: Viewer, db: DB, state: State | None = None, uav_id: uuid.UUID | None = None,
-                    limit: int = Query(100, ge=1, le=1000), offset: int = Query(0, ge=0, le=10**9)) -> list[RunOut]:
+async def list_runs(
+    principal: Viewer,
+    db: DB,
+    state: State | None = None,
+    uav_id: uuid.UUID | None = None,
+    limit: int = Query(100, ge=1, le=1000),
+    offset: int = Query(0, ge=0, le=10**9),
+) -> list[RunOut]:
     """Runs of the caller's organisation, newest first."""
-    rows = await RunRepository(db, principal).filtered(limit, offset, state.value if state else None, uav_id)
+    rows = await RunRepository(db, principal).filtered(
+        limit, offset, state.value if state else None, uav_id
+    )
     return [service.run_out(r) for r in rows]
 
 
@@ -66,8 +79,9 @@ async def run_report(run_id: uuid.UUID, principal: Viewer, request: Request, db:
 
 
 @router.get("/api/v1/reports/fleet", response_model=FleetReport)
-async def fleet_report(principal: Viewer, db: DB, start: datetime | None = None,
-                       end: datetime | None = None) -> FleetReport:
+async def fleet_report(
+    principal: Viewer, db: DB, start: datetime | None = None, end: datetime | None = None
+) -> FleetReport:
     """Runs in [start, end): success rate, failures by cause, mean flight time, per asset."""
     end = end or utcnow()
     try:

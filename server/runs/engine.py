@@ -38,10 +38,22 @@ def progress_payload(run: Run, label_override: str | None = None) -> dict[str, A
     """What operators see of a run: readable step, number, status, reason."""
     state = State(run.state)
     step = STEPS[state]
-    return {"run_id": str(run.id), "state": state.value, "step": step.number, "total_steps": TOTAL_STEPS,
-            "label": label_override or step.label, "final": state in FINAL, "outcome": run.outcome,
-            "cause": run.cause, "reason": run.reason, "alert": run.alert, "mission_id": str(run.mission_id),
-            "uav_id": str(run.uav_id), "base_id": str(run.base_id), "at": utcnow().isoformat()}
+    return {
+        "run_id": str(run.id),
+        "state": state.value,
+        "step": step.number,
+        "total_steps": TOTAL_STEPS,
+        "label": label_override or step.label,
+        "final": state in FINAL,
+        "outcome": run.outcome,
+        "cause": run.cause,
+        "reason": run.reason,
+        "alert": run.alert,
+        "mission_id": str(run.mission_id),
+        "uav_id": str(run.uav_id),
+        "base_id": str(run.base_id),
+        "at": utcnow().isoformat(),
+    }
 
 
 class RunEngine:
@@ -98,8 +110,16 @@ class RunEngine:
             previous = run.state
             now = utcnow()
             # written first: a server that dies right after this resumes in the new step
-            db.add(RunTransition(run_id=run.id, at=now, from_state=previous, to_state=transition.to.value,
-                                 reason=transition.reason, cause=transition.cause))
+            db.add(
+                RunTransition(
+                    run_id=run.id,
+                    at=now,
+                    from_state=previous,
+                    to_state=transition.to.value,
+                    reason=transition.reason,
+                    cause=transition.cause,
+                )
+            )
             if transition.cause == "operator_abort":
                 run.aborting = True
             if previous == State.flying.value:
@@ -113,9 +133,15 @@ class RunEngine:
             run.facts = {**run.facts, "pending_actions": [asdict(a) for a in pending]}
             run.step_commands, run.actions_issued = {}, not pending
             if transition.to in FINAL:
-                run.outcome, run.cause, run.finished_at = transition.to.value, transition.cause or None, now
+                run.outcome, run.cause, run.finished_at = (
+                    transition.to.value,
+                    transition.cause or None,
+                    now,
+                )
             await db.commit()
-            log.info("run %s: %s -> %s: %s", run.id, previous, transition.to.value, transition.reason)
+            log.info(
+                "run %s: %s -> %s: %s", run.id, previous, transition.to.value, transition.reason
+            )
         await self._publish(run)
 
     async def _publish(self, run: Run) -> None:
@@ -127,7 +153,11 @@ class RunEngine:
 
     async def _issue(self, db: Any, run: Run) -> set[uuid.UUID]:
         pending = run.facts.get("pending_actions")
-        actions = [Action(**a) for a in pending] if pending is not None else list(STEPS[State(run.state)].actions)
+        actions = (
+            [Action(**a) for a in pending]
+            if pending is not None
+            else list(STEPS[State(run.state)].actions)
+        )
         timeout = self.timeout_s(State(run.state)) if State(run.state) not in FINAL else 120.0
         issued = dict(run.step_commands)
         nudges: set[uuid.UUID] = set()
@@ -137,9 +167,15 @@ class RunEngine:
                 continue
             asset_id = run.uav_id if action.target == "uav" else run.base_id
             params = dict(action.params) or await self._params(db, run, action)
-            cmd = await commands.create(db, organization_id=run.organization_id, asset_id=asset_id,
-                                        name=action.command, params=params, timeout_s=timeout,
-                                        created_by=f"run:{run.id}")
+            cmd = await commands.create(
+                db,
+                organization_id=run.organization_id,
+                asset_id=asset_id,
+                name=action.command,
+                params=params,
+                timeout_s=timeout,
+                created_by=f"run:{run.id}",
+            )
             issued[key] = str(cmd.id)
             nudges.add(asset_id)
         run.step_commands, run.actions_issued = issued, True
@@ -151,7 +187,10 @@ class RunEngine:
             from server.missions.models import Mission
 
             mission = await db.get(Mission, run.mission_id)
-            return {"mission_id": str(run.mission_id), "items": list(mission.items) if mission else []}
+            return {
+                "mission_id": str(run.mission_id),
+                "items": list(mission.items) if mission else [],
+            }
         if action.target == "base" and action.command == "check_availability":
             uav = await db.get(Asset, run.uav_id)
             attrs = (uav.attributes if uav else None) or {}
@@ -173,15 +212,24 @@ class RunEngine:
         store = self.state.telemetry
         uav = await store.latest(run.uav_id) or {}
         base = await store.latest(run.base_id) or {}
-        landed = (uav.get("landed_state") == "on_ground" and uav.get("armed") is False
-                  and _after(uav.get("ts"), since))
+        landed = (
+            uav.get("landed_state") == "on_ground"
+            and uav.get("armed") is False
+            and _after(uav.get("ts"), since)
+        )
         return Observations(
-            elapsed_s=(utcnow() - since).total_seconds(), timeout_s=self.timeout_s(State(run.state)),
-            commands=outcomes, uav_events=uav_events, base_events=base_events, uav_landed=landed,
+            elapsed_s=(utcnow() - since).total_seconds(),
+            timeout_s=self.timeout_s(State(run.state)),
+            commands=outcomes,
+            uav_events=uav_events,
+            base_events=base_events,
+            uav_landed=landed,
             base_mass_g=base.get("scale_mass_g"),
             base_confirms=base.get("landing_confirmed") is True and _after(base.get("ts"), since),
             abort_requested=run.abort_requested,
-            abort_reason=run.abort_reason, took_off="took_off" in uav_events or "armed" in uav_events)
+            abort_reason=run.abort_reason,
+            took_off="took_off" in uav_events or "armed" in uav_events,
+        )
 
 
 def _after(ts: str | None, since: datetime) -> bool:

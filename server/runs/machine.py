@@ -64,22 +64,55 @@ class Step:
     default_timeout_s: float
 
 
-STEPS: dict[State, Step] = {s.state: s for s in (
-    Step(State.pending, 0, "Waiting to start", (), 30),
-    Step(State.checking, 1, "Checking weather, base health and UAV readiness",
-         (Action("base", "check_availability"), Action("uav", "check_availability")), 60),
-    Step(State.opening, 2, "Opening the base (side panels, then lift up)", (Action("base", "open"),), 120),
-    Step(State.uploading, 3, "Uploading the mission to the UAV and reading it back",
-         (Action("uav", "upload_mission"),), 90),
-    Step(State.flying, 4, "Flying the mission", (Action("uav", "start_mission"),), 3600),
-    Step(State.landing, 5, "Returning to the base and landing on the pad", (Action("uav", "return_to_base"),), 900),
-    Step(State.confirming, 6, "Confirming the landing on the base's scale", (), 90),
-    Step(State.closing, 7, "Closing the base (lift down, then side panels)", (Action("base", "close"),), 120),
-    Step(State.charging, 8, "Starting to charge the UAV", (Action("base", "start_charging"),), 60),
-    Step(State.completed, 9, "Completed", (), 0),
-    Step(State.aborted, 9, "Aborted", (), 0),
-    Step(State.failed, 9, "Failed", (), 0),
-)}
+STEPS: dict[State, Step] = {
+    s.state: s
+    for s in (
+        Step(State.pending, 0, "Waiting to start", (), 30),
+        Step(
+            State.checking,
+            1,
+            "Checking weather, base health and UAV readiness",
+            (Action("base", "check_availability"), Action("uav", "check_availability")),
+            60,
+        ),
+        Step(
+            State.opening,
+            2,
+            "Opening the base (side panels, then lift up)",
+            (Action("base", "open"),),
+            120,
+        ),
+        Step(
+            State.uploading,
+            3,
+            "Uploading the mission to the UAV and reading it back",
+            (Action("uav", "upload_mission"),),
+            90,
+        ),
+        Step(State.flying, 4, "Flying the mission", (Action("uav", "start_mission"),), 3600),
+        Step(
+            State.landing,
+            5,
+            "Returning to the base and landing on the pad",
+            (Action("uav", "return_to_base"),),
+            900,
+        ),
+        Step(State.confirming, 6, "Confirming the landing on the base's scale", (), 90),
+        Step(
+            State.closing,
+            7,
+            "Closing the base (lift down, then side panels)",
+            (Action("base", "close"),),
+            120,
+        ),
+        Step(
+            State.charging, 8, "Starting to charge the UAV", (Action("base", "start_charging"),), 60
+        ),
+        Step(State.completed, 9, "Completed", (), 0),
+        Step(State.aborted, 9, "Aborted", (), 0),
+        Step(State.failed, 9, "Failed", (), 0),
+    )
+}
 TOTAL_STEPS = 8
 
 
@@ -87,7 +120,9 @@ TOTAL_STEPS = 8
 class CommandOutcome:
     """What became of a command the step issued."""
 
-    status: str  # queued | sent | in_progress | succeeded | rejected | failed | canceled | timed_out
+    status: (
+        str  # queued | sent | in_progress | succeeded | rejected | failed | canceled | timed_out
+    )
     reason: str = ""
     data: Mapping[str, Any] | None = None
 
@@ -109,7 +144,9 @@ class Observations:
     uav_landed: bool = False  # on the ground and disarmed, per telemetry
     uav_link_up: bool = True
     base_mass_g: float | None = None
-    base_confirms: bool = False  # the base's latest telemetry (sent after this step began) says confirmed
+    base_confirms: bool = (
+        False  # the base's latest telemetry (sent after this step began) says confirmed
+    )
     abort_requested: bool = False
     abort_reason: str = ""
     took_off: bool = False
@@ -122,7 +159,9 @@ class Transition:
     to: State
     reason: str
     cause: str = ""
-    alert: bool = False  # operators must look at this (UAV or base left in a state that needs a person)
+    alert: bool = (
+        False  # operators must look at this (UAV or base left in a state that needs a person)
+    )
     extra_actions: tuple[Action, ...] = ()
 
 
@@ -136,7 +175,9 @@ def _failed_conditions(outcome: CommandOutcome) -> str:
     return "; ".join(p for p in parts if p) or outcome.reason or outcome.status
 
 
-def _command_failure(step: Step, outcomes: Mapping[tuple[str, str], CommandOutcome]) -> tuple[Action, CommandOutcome] | None:
+def _command_failure(
+    step: Step, outcomes: Mapping[tuple[str, str], CommandOutcome]
+) -> tuple[Action, CommandOutcome] | None:
     for action in step.actions:
         outcome = outcomes.get((action.target, action.command))
         if outcome and outcome.final and outcome.status != "succeeded":
@@ -145,7 +186,10 @@ def _command_failure(step: Step, outcomes: Mapping[tuple[str, str], CommandOutco
 
 
 def _all_succeeded(step: Step, outcomes: Mapping[tuple[str, str], CommandOutcome]) -> bool:
-    return all((o := outcomes.get((a.target, a.command))) is not None and o.status == "succeeded" for a in step.actions)
+    return all(
+        (o := outcomes.get((a.target, a.command))) is not None and o.status == "succeeded"
+        for a in step.actions
+    )
 
 
 WHO = {"base": "the base", "uav": "the UAV"}
@@ -158,14 +202,24 @@ def advance(state: State, obs: Observations, *, aborting: bool = False) -> Trans
     step = STEPS[state]
     # 1. operator abort: the safe outcome depends on where the run stands
     if obs.abort_requested and not aborting:
-        why = f"aborted by an operator: {obs.abort_reason}" if obs.abort_reason else "aborted by an operator"
+        why = (
+            f"aborted by an operator: {obs.abort_reason}"
+            if obs.abort_reason
+            else "aborted by an operator"
+        )
         if state in (State.pending, State.checking):
             return Transition(State.aborted, f"{why}; nothing had moved", "operator_abort")
         if state in (State.opening, State.uploading):
-            return Transition(State.closing, f"{why}; closing the base (the UAV is still on the lift)",
-                              "operator_abort", extra_actions=(Action("base", "stop"),))
+            return Transition(
+                State.closing,
+                f"{why}; closing the base (the UAV is still on the lift)",
+                "operator_abort",
+                extra_actions=(Action("base", "stop"),),
+            )
         if state is State.flying:
-            return Transition(State.landing, f"{why}; returning the UAV to the base to land", "operator_abort")
+            return Transition(
+                State.landing, f"{why}; returning the UAV to the base to land", "operator_abort"
+            )
         return None  # landing, confirming, closing, charging: already heading home; finish safely
     failure = _command_failure(step, obs.commands)
     if state is State.pending:
@@ -173,29 +227,50 @@ def advance(state: State, obs: Observations, *, aborting: bool = False) -> Trans
     if state is State.checking:
         if failure:
             action, outcome = failure
-            return Transition(State.aborted, f"{WHO[action.target]} is not available: {_failed_conditions(outcome)}",
-                              "not_available")
+            return Transition(
+                State.aborted,
+                f"{WHO[action.target]} is not available: {_failed_conditions(outcome)}",
+                "not_available",
+            )
         if _all_succeeded(step, obs.commands):
             return Transition(State.opening, "weather, base and UAV are all within limits")
         if obs.elapsed_s > obs.timeout_s:
-            missing = [WHO[a.target] for a in step.actions if not (o := obs.commands.get((a.target, a.command))) or not o.final]
-            return Transition(State.aborted, f"no availability answer from {' and '.join(missing)} within "
-                              f"{obs.timeout_s:.0f} s", "check_timeout")
+            missing = [
+                WHO[a.target]
+                for a in step.actions
+                if not (o := obs.commands.get((a.target, a.command))) or not o.final
+            ]
+            return Transition(
+                State.aborted,
+                f"no availability answer from {' and '.join(missing)} within {obs.timeout_s:.0f} s",
+                "check_timeout",
+            )
         return None
     if state in (State.opening, State.uploading):
         if failure:
             action, outcome = failure
             what = "opening the base" if state is State.opening else "uploading the mission"
-            return Transition(State.failed, f"{what} failed at {WHO[action.target]}: {outcome.reason or outcome.status}; "
-                              "the base is being closed (the UAV never left the lift)",
-                              f"{state.value}_failed", extra_actions=(Action("base", "close"),))
+            return Transition(
+                State.failed,
+                f"{what} failed at {WHO[action.target]}: {outcome.reason or outcome.status}; "
+                "the base is being closed (the UAV never left the lift)",
+                f"{state.value}_failed",
+                extra_actions=(Action("base", "close"),),
+            )
         if _all_succeeded(step, obs.commands):
             nxt = State.uploading if state is State.opening else State.flying
-            return Transition(nxt, "base open, lift up" if state is State.opening else "mission uploaded and verified")
+            return Transition(
+                nxt,
+                "base open, lift up" if state is State.opening else "mission uploaded and verified",
+            )
         if obs.elapsed_s > obs.timeout_s:
-            return Transition(State.failed, f"{step.label.lower()} did not finish within {obs.timeout_s:.0f} s; "
-                              "the base is being closed", f"{state.value}_timeout",
-                              extra_actions=(Action("base", "stop"), Action("base", "close")))
+            return Transition(
+                State.failed,
+                f"{step.label.lower()} did not finish within {obs.timeout_s:.0f} s; "
+                "the base is being closed",
+                f"{state.value}_timeout",
+                extra_actions=(Action("base", "stop"), Action("base", "close")),
+            )
         return None
     if state is State.flying:
         took_off = obs.took_off or "took_off" in obs.uav_events
@@ -203,50 +278,88 @@ def advance(state: State, obs: Observations, *, aborting: bool = False) -> Trans
             _, outcome = failure
             why = f"the UAV could not start the mission: {outcome.reason or outcome.status}"
             if not took_off and obs.uav_landed:
-                return Transition(State.failed, f"{why}; it is on the lift, disarmed: the base is being closed",
-                                  "takeoff_failed", extra_actions=(Action("base", "close"),))
+                return Transition(
+                    State.failed,
+                    f"{why}; it is on the lift, disarmed: the base is being closed",
+                    "takeoff_failed",
+                    extra_actions=(Action("base", "close"),),
+                )
             if not took_off:
-                return Transition(State.failed, f"{why}; the UAV's state is unknown, so the base stays open",
-                                  "takeoff_failed", alert=True)
+                return Transition(
+                    State.failed,
+                    f"{why}; the UAV's state is unknown, so the base stays open",
+                    "takeoff_failed",
+                    alert=True,
+                )
         if {"mission_finished", "landing", "landed"} & set(obs.uav_events):
             return Transition(State.landing, "mission finished")
         if obs.elapsed_s > obs.timeout_s:
-            return Transition(State.landing, f"the mission overran its {obs.timeout_s:.0f} s budget; returning to the base",
-                              "mission_overrun", alert=True)
+            return Transition(
+                State.landing,
+                f"the mission overran its {obs.timeout_s:.0f} s budget; returning to the base",
+                "mission_overrun",
+                alert=True,
+            )
         return None  # a lost UAV link is waited out: the autopilot flies the mission on its own
     if state is State.landing:
         if obs.uav_landed or "landed" in obs.uav_events:
             return Transition(State.confirming, "the UAV reports it has landed")
         if obs.elapsed_s > obs.timeout_s:
-            return Transition(State.failed, f"the UAV has not landed within {obs.timeout_s:.0f} s of heading home; "
-                              "the base stays open", "landing_timeout", alert=True)
+            return Transition(
+                State.failed,
+                f"the UAV has not landed within {obs.timeout_s:.0f} s of heading home; "
+                "the base stays open",
+                "landing_timeout",
+                alert=True,
+            )
         return None
     if state is State.confirming:
         if "landing_confirmed" in obs.base_events or obs.base_confirms:
             return Transition(State.closing, "the base's scale confirms the UAV on the lift")
         if obs.elapsed_s > obs.timeout_s:
             mass = f"{obs.base_mass_g:.0f} g" if obs.base_mass_g is not None else "no reading"
-            return Transition(State.failed, f"the scale did not confirm the UAV within {obs.timeout_s:.0f} s "
-                              f"(scale reads {mass}); the UAV may be off the pad, the panels stay open",
-                              "landing_not_confirmed", alert=True)
+            return Transition(
+                State.failed,
+                f"the scale did not confirm the UAV within {obs.timeout_s:.0f} s "
+                f"(scale reads {mass}); the UAV may be off the pad, the panels stay open",
+                "landing_not_confirmed",
+                alert=True,
+            )
         return None
     if state in (State.closing, State.charging):
         final_ok = State.aborted if aborting else State.completed
         if failure:
             action, outcome = failure
             if state is State.charging:
-                return Transition(final_ok, f"the base is closed but charging did not start: "
-                                  f"{outcome.reason or outcome.status}", "charging_failed", alert=True)
-            return Transition(State.failed, f"closing the base failed: {outcome.reason or outcome.status}",
-                              "closing_failed", alert=True)
+                return Transition(
+                    final_ok,
+                    f"the base is closed but charging did not start: "
+                    f"{outcome.reason or outcome.status}",
+                    "charging_failed",
+                    alert=True,
+                )
+            return Transition(
+                State.failed,
+                f"closing the base failed: {outcome.reason or outcome.status}",
+                "closing_failed",
+                alert=True,
+            )
         if _all_succeeded(step, obs.commands):
             if state is State.closing:
                 return Transition(State.charging, "base closed")
-            return Transition(final_ok, "charging; the run is over" if not aborting else
-                              "the UAV is back and charging; the run was aborted by an operator",
-                              "operator_abort" if aborting else "")
+            return Transition(
+                final_ok,
+                "charging; the run is over"
+                if not aborting
+                else "the UAV is back and charging; the run was aborted by an operator",
+                "operator_abort" if aborting else "",
+            )
         if obs.elapsed_s > obs.timeout_s:
-            return Transition(State.failed, f"{step.label.lower()} did not finish within {obs.timeout_s:.0f} s",
-                              f"{state.value}_timeout", alert=True)
+            return Transition(
+                State.failed,
+                f"{step.label.lower()} did not finish within {obs.timeout_s:.0f} s",
+                f"{state.value}_timeout",
+                alert=True,
+            )
         return None
     return None

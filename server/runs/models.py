@@ -17,12 +17,16 @@ class Run(IdMixin, Base):
     """One autonomous run: a mission flown by a UAV from a landing base and back."""
 
     __tablename__ = "runs"
-    __table_args__ = (Index("ix_runs_org_created", "organization_id", "created_at"),
-                      Index("ix_runs_state_lease", "state", "lease_until"),
-                      # one run per due time of a schedule, whatever the number of server processes
-                      Index("uq_runs_schedule_due", "schedule_id", "scheduled_for", unique=True))
+    __table_args__ = (
+        Index("ix_runs_org_created", "organization_id", "created_at"),
+        Index("ix_runs_state_lease", "state", "lease_until"),
+        # one run per due time of a schedule, whatever the number of server processes
+        Index("uq_runs_schedule_due", "schedule_id", "scheduled_for", unique=True),
+    )
 
-    organization_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("organizations.id", ondelete="CASCADE"))
+    organization_id: Mapped[uuid.UUID] = mapped_column(
+        ForeignKey("organizations.id", ondelete="CASCADE")
+    )
     mission_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("missions.id", ondelete="RESTRICT"))
     uav_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("assets.id", ondelete="RESTRICT"))
     base_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("assets.id", ondelete="RESTRICT"))
@@ -30,16 +34,24 @@ class Run(IdMixin, Base):
     scheduled_for: Mapped[datetime | None] = mapped_column(default=None)
     state: Mapped[str] = mapped_column(String(16), default="pending")
     step_started_at: Mapped[datetime] = mapped_column(default=utcnow)
-    step_commands: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)  # "target:command" -> command id
-    actions_issued: Mapped[bool] = mapped_column(default=False)  # the current step's commands are out
+    step_commands: Mapped[dict[str, Any]] = mapped_column(
+        JSON, default=dict
+    )  # "target:command" -> command id
+    actions_issued: Mapped[bool] = mapped_column(
+        default=False
+    )  # the current step's commands are out
     aborting: Mapped[bool] = mapped_column(default=False)
     abort_requested: Mapped[bool] = mapped_column(default=False)
     abort_reason: Mapped[str] = mapped_column(String(2000), default="")
-    outcome: Mapped[str | None] = mapped_column(String(16), default=None)  # completed | aborted | failed
+    outcome: Mapped[str | None] = mapped_column(
+        String(16), default=None
+    )  # completed | aborted | failed
     cause: Mapped[str | None] = mapped_column(String(64), default=None)
     reason: Mapped[str] = mapped_column(String(2000), default="")
     alert: Mapped[bool] = mapped_column(default=False)
-    facts: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)  # battery at start, take-off time, ...
+    facts: Mapped[dict[str, Any]] = mapped_column(
+        JSON, default=dict
+    )  # battery at start, take-off time, ...
     lease_owner: Mapped[str | None] = mapped_column(String(64), default=None)
     lease_until: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str | None] = mapped_column(String(64), default=None)

@@ -23,7 +23,9 @@ class RunRepository(ScopedRepository[Run]):
     model = Run
     noun = "run"
 
-    async def filtered(self, limit: int, offset: int, state: str | None, uav_id: uuid.UUID | None) -> list[Run]:
+    async def filtered(
+        self, limit: int, offset: int, state: str | None, uav_id: uuid.UUID | None
+    ) -> list[Run]:
         """Newest first, optionally by state or UAV."""
         stmt = self.select().order_by(Run.created_at.desc()).limit(limit).offset(offset)
         if state:
@@ -34,27 +36,47 @@ class RunRepository(ScopedRepository[Run]):
 
     async def in_window(self, start: datetime, end: datetime) -> list[Run]:
         """Runs created in [start, end)."""
-        stmt = self.select().where(Run.created_at >= start, Run.created_at < end).order_by(Run.created_at)
+        stmt = (
+            self.select()
+            .where(Run.created_at >= start, Run.created_at < end)
+            .order_by(Run.created_at)
+        )
         return list((await self.db.execute(stmt)).scalars())
 
     async def busy(self, asset_ids: list[uuid.UUID]) -> Run | None:
         """An unfinished run using any of these assets."""
-        stmt = self.select().where(Run.state.not_in(FINAL_VALUES),
-                                   or_(Run.uav_id.in_(asset_ids), Run.base_id.in_(asset_ids))).limit(1)
+        stmt = (
+            self.select()
+            .where(
+                Run.state.not_in(FINAL_VALUES),
+                or_(Run.uav_id.in_(asset_ids), Run.base_id.in_(asset_ids)),
+            )
+            .limit(1)
+        )
         return (await self.db.execute(stmt)).scalar_one_or_none()
 
     async def timeline(self, run_id: uuid.UUID) -> list[RunTransition]:
         """The transitions of a run already resolved through `get`."""
-        stmt = select(RunTransition).where(RunTransition.run_id == run_id).order_by(RunTransition.at)  # unscoped: run checked by get()
+        stmt = (
+            select(RunTransition).where(RunTransition.run_id == run_id).order_by(RunTransition.at)
+        )  # unscoped: run checked by get()
         return list((await self.db.execute(stmt)).scalars())
 
 
-async def claim(db: AsyncSession, owner: str, now: datetime, until: datetime, limit: int = 50) -> list[uuid.UUID]:
+async def claim(
+    db: AsyncSession, owner: str, now: datetime, until: datetime, limit: int = 50
+) -> list[uuid.UUID]:
     """Lease the runs this process will drive: unfinished (or with actions still to issue), unleased or ours."""
-    stmt = (select(Run)  # unscoped: the engine drives every organisation's runs
-            .where(or_(Run.state.not_in(FINAL_VALUES), Run.actions_issued.is_(False)),
-                   or_(Run.lease_until < now, Run.lease_owner == owner))
-            .order_by(Run.created_at).limit(limit).with_for_update(skip_locked=True))
+    stmt = (
+        select(Run)  # unscoped: the engine drives every organisation's runs
+        .where(
+            or_(Run.state.not_in(FINAL_VALUES), Run.actions_issued.is_(False)),
+            or_(Run.lease_until < now, Run.lease_owner == owner),
+        )
+        .order_by(Run.created_at)
+        .limit(limit)
+        .with_for_update(skip_locked=True)
+    )
     runs = list((await db.execute(stmt)).scalars())
     for run in runs:
         run.lease_owner, run.lease_until = owner, until
@@ -71,12 +93,20 @@ async def commands_by_id(db: AsyncSession, ids: list[uuid.UUID]) -> dict[uuid.UU
     """Commands the run issued."""
     if not ids:
         return {}
-    stmt = select(AssetCommand).where(AssetCommand.id.in_(ids))  # unscoped: engine, ids from the run itself
+    stmt = select(AssetCommand).where(
+        AssetCommand.id.in_(ids)
+    )  # unscoped: engine, ids from the run itself
     return {c.id: c for c in (await db.execute(stmt)).scalars()}
 
 
 async def event_names_since(db: AsyncSession, asset_id: uuid.UUID, since: datetime) -> list[str]:
     """Names of the events an asset reported that reached the server since `since`."""
-    stmt = (select(AssetEvent.name).where(AssetEvent.asset_id == asset_id,  # unscoped: engine
-                                          AssetEvent.created_at >= since).order_by(AssetEvent.created_at))
+    stmt = (
+        select(AssetEvent.name)
+        .where(
+            AssetEvent.asset_id == asset_id,  # unscoped: engine
+            AssetEvent.created_at >= since,
+        )
+        .order_by(AssetEvent.created_at)
+    )
     return list((await db.execute(stmt)).scalars())

@@ -18,9 +18,17 @@ from server.runs.repository import RunRepository
 from server.runs.schemas import AssetSummary, FleetReport, RunOut, RunReport, TransitionOut
 
 
-async def create_run(runs: RunRepository, assets: AssetRepository, *, mission_id: uuid.UUID, uav_id: uuid.UUID,
-                     base_id: uuid.UUID, created_by: str | None, schedule_id: uuid.UUID | None = None,
-                     scheduled_for: datetime | None = None) -> Run:
+async def create_run(
+    runs: RunRepository,
+    assets: AssetRepository,
+    *,
+    mission_id: uuid.UUID,
+    uav_id: uuid.UUID,
+    base_id: uuid.UUID,
+    created_by: str | None,
+    schedule_id: uuid.UUID | None = None,
+    scheduled_for: datetime | None = None,
+) -> Run:
     """A pending run, after checking its parts belong together and are free."""
     from server.missions.models import Mission
     from server.missions.repository import MissionRepository
@@ -32,17 +40,34 @@ async def create_run(runs: RunRepository, assets: AssetRepository, *, mission_id
     if base.kind != AssetKind.landing_base:
         raise Unprocessable(f"asset {base.name} is not a landing base", code="invalid_run")
     if uav.base_id is not None and uav.base_id != base.id:
-        raise Unprocessable(f"{uav.name} lives in another base; bind it to {base.name} first", code="invalid_run")
+        raise Unprocessable(
+            f"{uav.name} lives in another base; bind it to {base.name} first", code="invalid_run"
+        )
     if not mission.items:
         raise Unprocessable(f"mission {mission.name} has no items", code="invalid_run")
     busy = await runs.busy([uav.id, base.id])
     if busy is not None:
-        raise Conflict(f"run {busy.id} is still using {uav.name if busy.uav_id == uav.id else base.name} "
-                       f"(state {busy.state})", code="asset_busy")
+        raise Conflict(
+            f"run {busy.id} is still using {uav.name if busy.uav_id == uav.id else base.name} "
+            f"(state {busy.state})",
+            code="asset_busy",
+        )
     now = utcnow()
-    run = Run(organization_id=runs.principal.organization_id, mission_id=mission.id, uav_id=uav.id,
-              base_id=base.id, schedule_id=schedule_id, scheduled_for=scheduled_for, state=State.pending.value, step_started_at=now,
-              actions_issued=True, lease_until=now, created_by=created_by, created_at=now, updated_at=now)
+    run = Run(
+        organization_id=runs.principal.organization_id,
+        mission_id=mission.id,
+        uav_id=uav.id,
+        base_id=base.id,
+        schedule_id=schedule_id,
+        scheduled_for=scheduled_for,
+        state=State.pending.value,
+        step_started_at=now,
+        actions_issued=True,
+        lease_until=now,
+        created_by=created_by,
+        created_at=now,
+        updated_at=now,
+    )
     runs.db.add(run)
     await runs.db.flush()
     return run
@@ -71,22 +96,39 @@ async def report(runs: RunRepository, store: Any, run: Run) -> RunReport:
 
     timeline = await runs.timeline(run.id)
     end = run.finished_at or utcnow()
-    rows = await store.query(Query(run.uav_id, run.created_at, end,
-                                   ["position.lat", "position.lon", "position.alt_rel_m", "battery.percent"],
-                                   limit=20_000))
+    rows = await store.query(
+        Query(
+            run.uav_id,
+            run.created_at,
+            end,
+            ["position.lat", "position.lon", "position.alt_rel_m", "battery.percent"],
+            limit=20_000,
+        )
+    )
     track = [r for r in rows if "position.lat" in r]
-    batteries = [r["battery.percent"] for r in rows if isinstance(r.get("battery.percent"), int | float)]
+    batteries = [
+        r["battery.percent"] for r in rows if isinstance(r.get("battery.percent"), int | float)
+    ]
     used = round(batteries[0] - batteries[-1], 2) if len(batteries) >= 2 else None
-    return RunReport(run=run_out(run, timeline), flight_time_s=_flight_time(run), battery_used_pct=used,
-                     landing_error_m=run.facts.get("landing_error_m"), track=track)
+    return RunReport(
+        run=run_out(run, timeline),
+        flight_time_s=_flight_time(run),
+        battery_used_pct=used,
+        landing_error_m=run.facts.get("landing_error_m"),
+        track=track,
+    )
 
 
 def fleet(runs_in_window: list[Run], start: datetime, end: datetime) -> FleetReport:
     """The fleet summary of a window (pure)."""
     outcome = Counter(r.outcome for r in runs_in_window if r.state in {s.value for s in FINAL})
-    causes = Counter(r.cause or "unknown" for r in runs_in_window if r.outcome in ("failed", "aborted"))
+    causes = Counter(
+        r.cause or "unknown" for r in runs_in_window if r.outcome in ("failed", "aborted")
+    )
     finished = sum(outcome.values())
-    per: dict[uuid.UUID, dict[str, Any]] = defaultdict(lambda: {"runs": 0, "completed": 0, "flight": 0.0})
+    per: dict[uuid.UUID, dict[str, Any]] = defaultdict(
+        lambda: {"runs": 0, "completed": 0, "flight": 0.0}
+    )
     times = []
     for r in runs_in_window:
         ft = _flight_time(r) or 0.0
@@ -97,10 +139,20 @@ def fleet(runs_in_window: list[Run], start: datetime, end: datetime) -> FleetRep
         if r.facts.get("flight_started_at") and r.state in {s.value for s in FINAL}:
             times.append(ft)
     return FleetReport(
-        start=start, end=end, runs=len(runs_in_window), completed=outcome.get("completed", 0),
-        aborted=outcome.get("aborted", 0), failed=outcome.get("failed", 0),
+        start=start,
+        end=end,
+        runs=len(runs_in_window),
+        completed=outcome.get("completed", 0),
+        aborted=outcome.get("aborted", 0),
+        failed=outcome.get("failed", 0),
         in_progress=len(runs_in_window) - finished,
         success_rate=round(outcome.get("completed", 0) / finished, 4) if finished else None,
-        failures_by_cause=dict(causes), mean_flight_time_s=sum(times) / len(times) if times else None,
-        per_asset=[AssetSummary(asset_id=k, runs=v["runs"], completed=v["completed"], flight_time_s=v["flight"])
-                   for k, v in per.items()])
+        failures_by_cause=dict(causes),
+        mean_flight_time_s=sum(times) / len(times) if times else None,
+        per_asset=[
+            AssetSummary(
+                asset_id=k, runs=v["runs"], completed=v["completed"], flight_time_s=v["flight"]
+            )
+            for k, v in per.items()
+        ],
+    )

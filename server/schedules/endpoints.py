@@ -52,21 +52,41 @@ async def create_schedule(body: ScheduleCreate, principal: Operator, db: DB) -> 
             first = nxt
     except TimingError as err:
         raise Unprocessable(str(err), code="invalid_schedule") from err
-    s = Schedule(organization_id=principal.organization_id, name=body.name, mission_id=body.mission_id,
-                 uav_id=body.uav_id, base_id=body.base_id, kind=body.kind,
-                 at=first if body.kind != "cron" else None, interval_s=body.interval_s, cron=body.cron,
-                 timezone=body.timezone, missed_policy=body.missed_policy, enabled=body.enabled,
-                 next_due_at=first, created_by=principal.actor_id, created_at=now, updated_at=now)
+    s = Schedule(
+        organization_id=principal.organization_id,
+        name=body.name,
+        mission_id=body.mission_id,
+        uav_id=body.uav_id,
+        base_id=body.base_id,
+        kind=body.kind,
+        at=first if body.kind != "cron" else None,
+        interval_s=body.interval_s,
+        cron=body.cron,
+        timezone=body.timezone,
+        missed_policy=body.missed_policy,
+        enabled=body.enabled,
+        next_due_at=first,
+        created_by=principal.actor_id,
+        created_at=now,
+        updated_at=now,
+    )
     db.add(s)
     await db.flush()
     return ScheduleOut.model_validate(s)
 
 
 @router.get("/api/v1/schedules", response_model=list[ScheduleOut])
-async def list_schedules(principal: Viewer, db: DB, limit: int = Query(100, ge=1, le=1000),
-                         offset: int = Query(0, ge=0, le=10**9)) -> list[ScheduleOut]:
+async def list_schedules(
+    principal: Viewer,
+    db: DB,
+    limit: int = Query(100, ge=1, le=1000),
+    offset: int = Query(0, ge=0, le=10**9),
+) -> list[ScheduleOut]:
     """Schedules of the caller's organisation."""
-    return [ScheduleOut.model_validate(s) for s in await ScheduleRepository(db, principal).list(limit, offset)]
+    return [
+        ScheduleOut.model_validate(s)
+        for s in await ScheduleRepository(db, principal).list(limit, offset)
+    ]
 
 
 @router.get("/api/v1/schedules/{schedule_id}", response_model=ScheduleOut)
@@ -76,7 +96,9 @@ async def get_schedule(schedule_id: uuid.UUID, principal: Viewer, db: DB) -> Sch
 
 
 @router.patch("/api/v1/schedules/{schedule_id}", response_model=ScheduleOut)
-async def update_schedule(schedule_id: uuid.UUID, body: ScheduleUpdate, principal: Operator, db: DB) -> ScheduleOut:
+async def update_schedule(
+    schedule_id: uuid.UUID, body: ScheduleUpdate, principal: Operator, db: DB
+) -> ScheduleOut:
     """Enable, disable, rename or change the missed-run policy."""
     s = await ScheduleRepository(db, principal).get(schedule_id)
     for key, value in body.model_dump(exclude_unset=True).items():

@@ -25,8 +25,15 @@ log = logging.getLogger(__name__)
 
 def advance_schedule(s: Schedule, after: Any) -> None:
     """Set the next due time after `after`; a spent one-shot is disabled."""
-    s.next_due_at = next_after(s.kind, after, at=s.at, interval_s=s.interval_s, cron=s.cron, tz=s.timezone,
-                               anchor=s.next_due_at or s.at)
+    s.next_due_at = next_after(
+        s.kind,
+        after,
+        at=s.at,
+        interval_s=s.interval_s,
+        cron=s.cron,
+        tz=s.timezone,
+        anchor=s.next_due_at or s.at,
+    )
     if s.next_due_at is None:
         s.enabled = False
 
@@ -61,18 +68,32 @@ class Scheduler:
             await db.commit()
 
     async def _fire(self, db: Any, s: Schedule, due: Any, note: str) -> None:
-        system = Principal(kind="user", session_id=uuid.UUID(int=0), organization_id=s.organization_id,
-                           role=Role.admin, label=f"schedule {s.name}")
+        system = Principal(
+            kind="user",
+            session_id=uuid.UUID(int=0),
+            organization_id=s.organization_id,
+            role=Role.admin,
+            label=f"schedule {s.name}",
+        )
         try:
             async with db.begin_nested():
-                run = await create_run(RunRepository(db, system), AssetRepository(db, system),
-                                       mission_id=s.mission_id, uav_id=s.uav_id, base_id=s.base_id,
-                                       created_by=f"schedule:{s.id}", schedule_id=s.id, scheduled_for=due)
+                run = await create_run(
+                    RunRepository(db, system),
+                    AssetRepository(db, system),
+                    mission_id=s.mission_id,
+                    uav_id=s.uav_id,
+                    base_id=s.base_id,
+                    created_by=f"schedule:{s.id}",
+                    schedule_id=s.id,
+                    scheduled_for=due,
+                )
             s.last_run_id, s.last_fired_at = run.id, utcnow()
             s.last_result = f"started run {run.id} ({note})"
             log.info("schedule %s started run %s for %s", s.id, run.id, due)
         except IntegrityError:
-            s.last_result = f"the run for {due.isoformat()} was already started by another server process"
+            s.last_result = (
+                f"the run for {due.isoformat()} was already started by another server process"
+            )
         except AppError as err:
             s.last_fired_at = utcnow()
             s.last_result = f"could not start the run due {due.isoformat()}: {err.message}"

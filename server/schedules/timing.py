@@ -27,8 +27,16 @@ def check_cron(expr: str) -> None:
         raise TimingError(f"not a 5-field cron expression: {expr!r}")
 
 
-def next_after(kind: str, after: datetime, *, at: datetime | None = None, interval_s: int | None = None,
-               cron: str | None = None, tz: str = "UTC", anchor: datetime | None = None) -> datetime | None:
+def next_after(
+    kind: str,
+    after: datetime,
+    *,
+    at: datetime | None = None,
+    interval_s: int | None = None,
+    cron: str | None = None,
+    tz: str = "UTC",
+    anchor: datetime | None = None,
+) -> datetime | None:
     """The first due time strictly after `after` (UTC, aware); None when there is none (a spent one-shot)."""
     if kind == "once":
         return at if at is not None and at > after else None
@@ -66,5 +74,12 @@ def decide(due: datetime, now: datetime, policy: str, grace_s: float) -> Firing:
     if late <= grace_s:
         return Firing(True, due, False, "on time")
     if policy == "run_once":
-        return Firing(True, due, True, f"missed by {late:.0f} s while the server was down; run once now (policy run_once)")
-    return Firing(False, due, True, f"missed by {late:.0f} s while the server was down; skipped (policy skip)")
+        return Firing(
+            True,
+            due,
+            True,
+            f"missed by {late:.0f} s while the server was down; run once now (policy run_once)",
+        )
+    return Firing(
+        False, due, True, f"missed by {late:.0f} s while the server was down; skipped (policy skip)"
+    )

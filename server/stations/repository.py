@@ -10,5 +10,7 @@ from server.assets.models import Asset, AssetKind
 
 async def all_bases(db: AsyncSession) -> list[Asset]:
     """Every landing base of every organisation (the NTRIP caster filters by organisation)."""
-    stmt = select(Asset).where(Asset.kind == AssetKind.landing_base).order_by(Asset.name)  # unscoped: caster filters per caller
+    stmt = (
+        select(Asset).where(Asset.kind == AssetKind.landing_base).order_by(Asset.name)
+    )  # unscoped: caster filters per caller
     return list((await db.execute(stmt)).scalars())

@@ -19,7 +19,9 @@ class BaseCorrections:
     """One NTRIP mountpoint per landing base, fed by the broker channel its daemon publishes to."""
 
     def __init__(self, state: Any) -> None:
-        self.state = state  # the app's state: sessionmaker and broker exist once the app has started
+        self.state = (
+            state  # the app's state: sessionmaker and broker exist once the app has started
+        )
 
     async def mountpoints(self) -> list[Mountpoint]:
         """A mountpoint for every landing base (position from its attributes when surveyed)."""
@@ -28,12 +30,17 @@ class BaseCorrections:
         out = []
         for base in bases:
             attrs = base.attributes or {}
-            out.append(Mountpoint(
-                name=mountpoint_name(base.name), identifier=base.name[:60],
-                format_details=format_details({1005: 1, 1077: 1, 1097: 1, 1230: 1}),
-                latitude=float(attrs.get("latitude", 0.0) or 0.0),
-                longitude=float(attrs.get("longitude", 0.0) or 0.0),
-                organisation_id=base.organization_id, asset_id=base.id))
+            out.append(
+                Mountpoint(
+                    name=mountpoint_name(base.name),
+                    identifier=base.name[:60],
+                    format_details=format_details({1005: 1, 1077: 1, 1097: 1, 1230: 1}),
+                    latitude=float(attrs.get("latitude", 0.0) or 0.0),
+                    longitude=float(attrs.get("longitude", 0.0) or 0.0),
+                    organisation_id=base.organization_id,
+                    asset_id=base.id,
+                )
+            )
         return out
 
     def subscribe(self, mountpoint: Mountpoint) -> AsyncIterator[bytes]:
@@ -54,7 +61,9 @@ def caster_authenticator(state: Any, settings: Settings):  # type: ignore[no-unt
                 return None
             users = UserRepository(db)
             user = await users.by_email(username) if "\x00" not in username else None
-            ok = await asyncio.to_thread(state.passwords.verify, user.password_hash if user else None, password)
+            ok = await asyncio.to_thread(
+                state.passwords.verify, user.password_hash if user else None, password
+            )
             if not ok or user is None or not user.is_active:
                 await limiter.failed(username, None, utcnow())
                 await db.commit()

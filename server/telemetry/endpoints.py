@@ -46,21 +46,31 @@ def _range(start: datetime | None, end: datetime | None) -> tuple[datetime, date
 
 
 @router.get("/api/v1/assets/{asset_id}/telemetry")
-async def telemetry(asset_id: uuid.UUID, principal: Viewer, request: Request, db: DB,
-                    start: datetime | None = None, end: datetime | None = None,
-                    fields: str | None = Query(None, max_length=2000, description="comma-separated dotted names"),
-                    every: float | None = Query(None, gt=0, le=86400, description="bucket seconds"),
-                    agg: Literal["mean", "last"] = "mean",
-                    limit: int = Query(10_000, ge=1, le=100_000)) -> list[dict[str, Any]]:
+async def telemetry(
+    asset_id: uuid.UUID,
+    principal: Viewer,
+    request: Request,
+    db: DB,
+    start: datetime | None = None,
+    end: datetime | None = None,
+    fields: str | None = Query(None, max_length=2000, description="comma-separated dotted names"),
+    every: float | None = Query(None, gt=0, le=86400, description="bucket seconds"),
+    agg: Literal["mean", "last"] = "mean",
+    limit: int = Query(10_000, ge=1, le=100_000),
+) -> list[dict[str, Any]]:
     """Samples of an asset in [start, end): raw, or downsampled to `every`-second buckets."""
     await AssetRepository(db, principal).get(asset_id)
     start, end = _range(start, end)
     wanted = [f.strip() for f in fields.split(",") if f.strip()] if fields else None
-    return await request.app.state.telemetry.query(StoreQuery(asset_id, start, end, wanted, every, agg, limit))  # type: ignore[no-any-return]
+    return await request.app.state.telemetry.query(
+        StoreQuery(asset_id, start, end, wanted, every, agg, limit)
+    )  # type: ignore[no-any-return]
 
 
 @router.get("/api/v1/assets/{asset_id}/telemetry/latest")
-async def telemetry_latest(asset_id: uuid.UUID, principal: Viewer, request: Request, db: DB) -> dict[str, Any]:
+async def telemetry_latest(
+    asset_id: uuid.UUID, principal: Viewer, request: Request, db: DB
+) -> dict[str, Any]:
     """The newest sample of an asset."""
     await AssetRepository(db, principal).get(asset_id)
     row = await request.app.state.telemetry.latest(asset_id)
@@ -70,9 +80,18 @@ async def telemetry_latest(asset_id: uuid.UUID, principal: Viewer, request: Requ
 
 
 @router.get("/api/v1/assets/{asset_id}/events", response_model=list[EventOut])
-async def events(asset_id: uuid.UUID, principal: Viewer, db: DB, start: datetime | None = None,
-                 end: datetime | None = None, limit: int = Query(1000, ge=1, le=10_000)) -> list[EventOut]:
+async def events(
+    asset_id: uuid.UUID,
+    principal: Viewer,
+    db: DB,
+    start: datetime | None = None,
+    end: datetime | None = None,
+    limit: int = Query(1000, ge=1, le=10_000),
+) -> list[EventOut]:
     """Events of an asset in [start, end)."""
     await AssetRepository(db, principal).get(asset_id)
     start, end = _range(start, end)
-    return [EventOut.model_validate(e) for e in await EventRepository(db, principal).of_asset(asset_id, start, end, limit)]
+    return [
+        EventOut.model_validate(e)
+        for e in await EventRepository(db, principal).of_asset(asset_id, start, end, limit)
+    ]

@@ -28,8 +28,9 @@ class TelemetrySample(Base):
         Index("uq_telemetry_asset_seq_ts", "asset_id", "seq", "ts", unique=True),
     )
 
-    id: Mapped[int] = mapped_column(BigInteger().with_variant(sqlite_int(), "sqlite"), primary_key=True,
-                                    autoincrement=True)
+    id: Mapped[int] = mapped_column(
+        BigInteger().with_variant(sqlite_int(), "sqlite"), primary_key=True, autoincrement=True
+    )
     asset_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("assets.id", ondelete="CASCADE"))
     ts: Mapped[datetime]
     seq: Mapped[int] = mapped_column(BigInteger)
@@ -42,7 +43,9 @@ class AssetEvent(IdMixin, Base):
     __tablename__ = "asset_events"
     __table_args__ = (Index("ix_asset_events_asset_ts", "asset_id", "ts"),)
 
-    organization_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("organizations.id", ondelete="CASCADE"))
+    organization_id: Mapped[uuid.UUID] = mapped_column(
+        ForeignKey("organizations.id", ondelete="CASCADE")
+    )
     asset_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("assets.id", ondelete="CASCADE"))
     ts: Mapped[datetime]
     name: Mapped[str] = mapped_column(String(200))
@@ -58,6 +61,8 @@ class AssetStream(Base):
     __tablename__ = "asset_streams"
 
     stream_id: Mapped[uuid.UUID] = mapped_column(primary_key=True)
-    asset_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("assets.id", ondelete="CASCADE"), index=True)
+    asset_id: Mapped[uuid.UUID] = mapped_column(
+        ForeignKey("assets.id", ondelete="CASCADE"), index=True
+    )
     last_seq: Mapped[int] = mapped_column(BigInteger, default=0)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)

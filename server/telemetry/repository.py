@@ -15,8 +15,14 @@ class EventRepository(ScopedRepository[AssetEvent]):
     model = AssetEvent
     noun = "event"
 
-    async def of_asset(self, asset_id: uuid.UUID, start: datetime, end: datetime, limit: int) -> list[AssetEvent]:
+    async def of_asset(
+        self, asset_id: uuid.UUID, start: datetime, end: datetime, limit: int
+    ) -> list[AssetEvent]:
         """Events of one asset in a time range, oldest first."""
-        stmt = (self.select().where(AssetEvent.asset_id == asset_id, AssetEvent.ts >= start, AssetEvent.ts < end)
-                .order_by(AssetEvent.ts).limit(limit))
+        stmt = (
+            self.select()
+            .where(AssetEvent.asset_id == asset_id, AssetEvent.ts >= start, AssetEvent.ts < end)
+            .order_by(AssetEvent.ts)
+            .limit(limit)
+        )
         return list((await self.db.execute(stmt)).scalars())

@@ -33,18 +33,28 @@ class SqlTelemetryStore:
         """Insert a batch in one transaction; a sample already stored (a replay) is skipped."""
         if not samples:
             return
-        rows = [{"asset_id": s.asset_id, "ts": s.ts, "seq": s.seq, "fields": dict(s.fields)} for s in samples]
+        rows = [
+            {"asset_id": s.asset_id, "ts": s.ts, "seq": s.seq, "fields": dict(s.fields)}
+            for s in samples
+        ]
         insert = postgresql.insert if self.dialect == "postgresql" else sqlite.insert
-        stmt = insert(TelemetrySample).on_conflict_do_nothing(index_elements=["asset_id", "seq", "ts"])
+        stmt = insert(TelemetrySample).on_conflict_do_nothing(
+            index_elements=["asset_id", "seq", "ts"]
+        )
         async with self.sessionmaker() as db:
             await db.execute(stmt, rows)
             await db.commit()
 
     async def _rows(self, q: Query) -> list[TelemetrySample]:
-        stmt = (select(TelemetrySample)  # unscoped: the caller resolved the asset through its scope
-                .where(TelemetrySample.asset_id == q.asset_id, TelemetrySample.ts >= q.start,
-                       TelemetrySample.ts < q.end)
-                .order_by(TelemetrySample.ts, TelemetrySample.seq))
+        stmt = (
+            select(TelemetrySample)  # unscoped: the caller resolved the asset through its scope
+            .where(
+                TelemetrySample.asset_id == q.asset_id,
+                TelemetrySample.ts >= q.start,
+                TelemetrySample.ts < q.end,
+            )
+            .order_by(TelemetrySample.ts, TelemetrySample.seq)
+        )
         if q.every_s is None:
             stmt = stmt.limit(q.limit)
         async with self.sessionmaker() as db:
@@ -59,13 +69,18 @@ class SqlTelemetryStore:
         rows = await self._rows(q)
         if q.every_s is None:
             return [{"ts": r.ts.isoformat(), **self._pick(r.fields, q.fields)} for r in rows]
-        return downsample([(r.ts, self._pick(r.fields, q.fields)) for r in rows], q.start, q.every_s,
-                          q.agg)[: q.limit]
+        return downsample(
+            [(r.ts, self._pick(r.fields, q.fields)) for r in rows], q.start, q.every_s, q.agg
+        )[: q.limit]
 
     async def latest(self, asset_id: uuid.UUID) -> dict[str, Any] | None:
         """The newest sample."""
-        stmt = (select(TelemetrySample).where(TelemetrySample.asset_id == asset_id)  # unscoped: see _rows
-                .order_by(TelemetrySample.ts.desc(), TelemetrySample.seq.desc()).limit(1))
+        stmt = (
+            select(TelemetrySample)
+            .where(TelemetrySample.asset_id == asset_id)  # unscoped: see _rows
+            .order_by(TelemetrySample.ts.desc(), TelemetrySample.seq.desc())
+            .limit(1)
+        )
         async with self.sessionmaker() as db:
             row = (await db.execute(stmt)).scalar_one_or_none()
         return None if row is None else {"ts": row.ts.isoformat(), **row.fields}
@@ -78,8 +93,9 @@ class SqlTelemetryStore:
         return int(result.rowcount or 0)  # type: ignore[attr-defined]
 
 
-def downsample(rows: Sequence[tuple[datetime, dict[str, Any]]], start: datetime, every_s: float,
-               agg: str) -> list[dict[str, Any]]:
+def downsample(
+    rows: Sequence[tuple[datetime, dict[str, Any]]], start: datetime, every_s: float, agg: str
+) -> list[dict[str, Any]]:
     """Group rows into `every_s` buckets from `start`: numbers by mean or last, others by last."""
     buckets: dict[int, list[dict[str, Any]]] = {}
     for ts, fields in rows:

@@ -86,7 +86,11 @@ async def retention_loop(store: TelemetryStore, keep_days: float, every_s: float
         try:
             removed = await store.prune(_dt.now(UTC) - timedelta(days=keep_days))
             if removed:
-                log.info("telemetry retention removed %d samples older than %.1f days", removed, keep_days)
+                log.info(
+                    "telemetry retention removed %d samples older than %.1f days",
+                    removed,
+                    keep_days,
+                )
         except asyncio.CancelledError:
             raise
         except Exception:

@@ -63,6 +63,7 @@ class Base(Protocol):
 
 log = logging.getLogger(__name__)
 
+
 @dataclass(frozen=True)
 class CopterConfig:
     """Tunables, named after the ArduPilot parameters they stand for."""
@@ -270,8 +271,11 @@ class Copter(MissionProtocolMixin):
         landed = self.dyn.state.landed
         if landed != self._was_landed:
             self._was_landed = landed
-            log.info("vehicle %s %.3f m from the pad centre", "landed" if landed else "lifted off",
-                     self.pad_distance())
+            log.info(
+                "vehicle %s %.3f m from the pad centre",
+                "landed" if landed else "lifted off",
+                self.pad_distance(),
+            )
             if not landed:
                 self.base.set_pad_load(0.0, False)
                 self._share_battery(None)

@@ -33,9 +33,20 @@ FINAL = ("completed", "aborted", "failed")
 def mission_items(lat: float, lon: float) -> list[dict[str, Any]]:
     """Take off from the pad, fly a small square at 15 m, return to launch (the base)."""
     square = [(0.0003, 0.0), (0.0003, 0.0004), (0.0, 0.0004)]
-    items = [{"command": 22, "frame": 3, "params": [0, 0, 0, None], "lat": lat, "lon": lon, "alt": 15}]
-    items += [{"command": 16, "frame": 3, "params": [0, 0, 0, None], "lat": lat + dn, "lon": lon + de, "alt": 15}
-              for dn, de in square]
+    items = [
+        {"command": 22, "frame": 3, "params": [0, 0, 0, None], "lat": lat, "lon": lon, "alt": 15}
+    ]
+    items += [
+        {
+            "command": 16,
+            "frame": 3,
+            "params": [0, 0, 0, None],
+            "lat": lat + dn,
+            "lon": lon + de,
+            "alt": 15,
+        }
+        for dn, de in square
+    ]
     items.append({"command": 20, "frame": 3, "params": [0, 0, 0, 0], "lat": 0, "lon": 0, "alt": 0})
     return items
 
@@ -57,13 +68,20 @@ class Platform:
         """Wait until both daemons report live telemetry: the UAV with a 3D fix, the base with its PLC up."""
         deadline = time.monotonic() + limit_s
         while time.monotonic() < deadline:
-            uav = await self.api.get(f"/api/v1/assets/{self.ids['uav_id']}/telemetry/latest",
-                                     headers=self.tenant.h("viewer"))
-            base = await self.api.get(f"/api/v1/assets/{self.ids['base_id']}/telemetry/latest",
-                                      headers=self.tenant.h("viewer"))
-            if uav.status_code == base.status_code == 200 and base.json().get("plc_link") == "up" \
-                    and uav.json().get("gnss.fix") in ("3d", "dgps", "rtk_float", "rtk_fixed") \
-                    and base.json().get("uav_present"):
+            uav = await self.api.get(
+                f"/api/v1/assets/{self.ids['uav_id']}/telemetry/latest",
+                headers=self.tenant.h("viewer"),
+            )
+            base = await self.api.get(
+                f"/api/v1/assets/{self.ids['base_id']}/telemetry/latest",
+                headers=self.tenant.h("viewer"),
+            )
+            if (
+                uav.status_code == base.status_code == 200
+                and base.json().get("plc_link") == "up"
+                and uav.json().get("gnss.fix") in ("3d", "dgps", "rtk_float", "rtk_fixed")
+                and base.json().get("uav_present")
+            ):
                 return
             await asyncio.sleep(0.1)
         raise AssertionError("the daemons did not report ready telemetry")
@@ -74,9 +92,13 @@ class Platform:
         return str(r.json()["id"])
 
     async def run_state(self, run_id: str) -> dict[str, Any]:
-        return dict((await self.api.get(f"/api/v1/runs/{run_id}", headers=self.tenant.h("viewer"))).json())
+        return dict(
+            (await self.api.get(f"/api/v1/runs/{run_id}", headers=self.tenant.h("viewer"))).json()
+        )
 
-    async def wait_state(self, run_id: str, states: tuple[str, ...], limit_s: float = 120) -> dict[str, Any]:
+    async def wait_state(
+        self, run_id: str, states: tuple[str, ...], limit_s: float = 120
+    ) -> dict[str, Any]:
         deadline = time.monotonic() + limit_s
         body: dict[str, Any] = {}
         while time.monotonic() < deadline:
@@ -84,13 +106,22 @@ class Platform:
             if body["state"] in states:
                 return body
             await asyncio.sleep(0.1)
-        raise AssertionError(f"run {run_id} did not reach {states}: {body.get('state')} {body.get('timeline')}")
+        raise AssertionError(
+            f"run {run_id} did not reach {states}: {body.get('state')} {body.get('timeline')}"
+        )
 
 
 @contextlib.asynccontextmanager
-async def platform(server_url: str, tenant: Tenant, tmp: Path, *, seed: int = 21,
-                   speed: float = SPEED, agent_server_url: str | None = None,
-                   precland: dict[str, Any] | None = None) -> AsyncIterator[Platform]:
+async def platform(
+    server_url: str,
+    tenant: Tenant,
+    tmp: Path,
+    *,
+    seed: int = 21,
+    speed: float = SPEED,
+    agent_server_url: str | None = None,
+    precland: dict[str, Any] | None = None,
+) -> AsyncIterator[Platform]:
     """World + daemons connected to the server at `server_url`, assets registered in `tenant`.
 
     `precland`: the agent's [precland] section (the world's camera and IR ports are filled in);
@@ -102,26 +133,54 @@ async def platform(server_url: str, tenant: Tenant, tmp: Path, *, seed: int = 21
         base = tenant.create_asset("landing_base", attributes={"latitude": lat, "longitude": lon})
         uav = tenant.create_asset("uav", base_id=base["id"], attributes={"mass_g": 1450})
         async with httpx.AsyncClient(base_url=server_url, timeout=30) as api:
-            r = await api.post("/api/v1/missions", headers=tenant.h("operator"),
-                               json={"name": "pad square", "items": mission_items(lat, lon)})
+            r = await api.post(
+                "/api/v1/missions",
+                headers=tenant.h("operator"),
+                json={"name": "pad square", "items": mission_items(lat, lon)},
+            )
             assert r.status_code == 201, r.text
             ids = {"mission_id": r.json()["id"], "uav_id": uav["id"], "base_id": base["id"]}
             bcfg = decrypt_config(base64.b64decode(base["config_file"]), "asset-password-123")
             ucfg = decrypt_config(base64.b64decode(uav["config_file"]), "asset-password-123")
             sconf = station_config(world.ports["plc"], speed, stable_s=1.0)
-            sconf = sconf.model_copy(update={"rtk": sconf.rtk.model_copy(update={"tcp_port": world.ports["gnss"]})})
+            sconf = sconf.model_copy(
+                update={"rtk": sconf.rtk.model_copy(update={"tcp_port": world.ports["gnss"]})}
+            )
             base_app = setup_base(sconf)
-            aconf = AgentConfig.model_validate({
-                "server": {"state_file": str(tmp / "agent.db"), "url": agent_server_url or server_url},
-                "autopilot": {"url": f"udpout:127.0.0.1:{world.ports['mavlink_udp']}", "link_timeout_s": 2.0},
-                "telemetry": {"rate_hz": 5},
-                **({"precland": {"camera_port": world.ports["camera"], "ir_port": world.ports["ir"],
-                                 **precland}} if precland is not None else {})})
+            aconf = AgentConfig.model_validate(
+                {
+                    "server": {
+                        "state_file": str(tmp / "agent.db"),
+                        "url": agent_server_url or server_url,
+                    },
+                    "autopilot": {
+                        "url": f"udpout:127.0.0.1:{world.ports['mavlink_udp']}",
+                        "link_timeout_s": 2.0,
+                    },
+                    "telemetry": {"rate_hz": 5},
+                    **(
+                        {
+                            "precland": {
+                                "camera_port": world.ports["camera"],
+                                "ir_port": world.ports["ir"],
+                                **precland,
+                            }
+                        }
+                        if precland is not None
+                        else {}
+                    ),
+                }
+            )
             agent = setup_agent(aconf, ucfg)
             stops = {"base": asyncio.Event(), "agent": asyncio.Event()}
             tasks = {
-                "base": asyncio.create_task(run_base(base_app, stops["base"], link=link_runner(
-                    make_link(bcfg, tmp / "base.db", server_url)))),
+                "base": asyncio.create_task(
+                    run_base(
+                        base_app,
+                        stops["base"],
+                        link=link_runner(make_link(bcfg, tmp / "base.db", server_url)),
+                    )
+                ),
                 "agent": asyncio.create_task(run_agent(agent, stops["agent"])),
             }
             p = Platform(world, tenant, api, ids, tasks, stops, agent, base_app)

@@ -16,11 +16,19 @@ from sim.vehicle.standalone import OpenPad
 from tests.conftest import Tenant
 
 
-async def _command(c: httpx.AsyncClient, tenant: Tenant, asset_id: str, name: str, params: dict | None = None,
-                   limit_s: float = 30.0) -> dict:
-    r = await c.post(f"/api/v1/assets/{asset_id}/commands", json={"name": name, "params": params or {},
-                                                                  "timeout_s": limit_s},
-                     headers=tenant.h("operator"))
+async def _command(
+    c: httpx.AsyncClient,
+    tenant: Tenant,
+    asset_id: str,
+    name: str,
+    params: dict | None = None,
+    limit_s: float = 30.0,
+) -> dict:
+    r = await c.post(
+        f"/api/v1/assets/{asset_id}/commands",
+        json={"name": name, "params": params or {}, "timeout_s": limit_s},
+        headers=tenant.h("operator"),
+    )
     assert r.status_code == 202, r.text
     cid = r.json()["id"]
     deadline = time.monotonic() + limit_s + 5
@@ -33,13 +41,40 @@ async def _command(c: httpx.AsyncClient, tenant: Tenant, asset_id: str, name: st
 
 
 def _mission(lat: float, lon: float) -> list[dict]:
-    items = [{"command": 22, "frame": 3, "params": [0, 0, 0, None], "lat": lat, "lon": lon, "alt": 10,
-              "autocontinue": True}]
+    items = [
+        {
+            "command": 22,
+            "frame": 3,
+            "params": [0, 0, 0, None],
+            "lat": lat,
+            "lon": lon,
+            "alt": 10,
+            "autocontinue": True,
+        }
+    ]
     for i in range(4):
-        items.append({"command": 16, "frame": 3, "params": [0, 0, 0, None], "lat": lat + 0.0001 * (i + 1),
-                      "lon": lon, "alt": 10, "autocontinue": True})
-    items.append({"command": 20, "frame": 3, "params": [0, 0, 0, 0], "lat": 0, "lon": 0, "alt": 0,
-                  "autocontinue": True})
+        items.append(
+            {
+                "command": 16,
+                "frame": 3,
+                "params": [0, 0, 0, None],
+                "lat": lat + 0.0001 * (i + 1),
+                "lon": lon,
+                "alt": 10,
+                "autocontinue": True,
+            }
+        )
+    items.append(
+        {
+            "command": 20,
+            "frame": 3,
+            "params": [0, 0, 0, 0],
+            "lat": 0,
+            "lon": 0,
+            "alt": 0,
+            "autocontinue": True,
+        }
+    )
     return items
 
 
@@ -48,17 +83,23 @@ async def test_agent_reports_telemetry_and_answers_commands(live_server, tenant:
     cfg = decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
     pad = OpenPad()
     async with run_vehicle(speed=10.0, seed=3, base=pad) as vehicle:
-        config = AgentConfig.model_validate({
-            "server": {"state_file": str(tmp_path / "agent.db")},
-            "autopilot": {"url": f"udpout:127.0.0.1:{vehicle.udp_port}", "link_timeout_s": 2.0},
-            "telemetry": {"rate_hz": 5}})
+        config = AgentConfig.model_validate(
+            {
+                "server": {"state_file": str(tmp_path / "agent.db")},
+                "autopilot": {"url": f"udpout:127.0.0.1:{vehicle.udp_port}", "link_timeout_s": 2.0},
+                "telemetry": {"rate_hz": 5},
+            }
+        )
         agent = setup(config, cfg)
         stop = asyncio.Event()
         task = asyncio.create_task(run(agent, stop))
         try:
             async with httpx.AsyncClient(base_url=live_server.url) as c:
+
                 async def latest() -> dict | None:
-                    r = await c.get(f"/api/v1/assets/{asset['id']}/telemetry/latest", headers=tenant.h("viewer"))
+                    r = await c.get(
+                        f"/api/v1/assets/{asset['id']}/telemetry/latest", headers=tenant.h("viewer")
+                    )
                     return r.json() if r.status_code == 200 else None
 
                 deadline = time.monotonic() + 30
@@ -73,19 +114,46 @@ async def test_agent_reports_telemetry_and_answers_commands(live_server, tenant:
                 assert check["status"] in ("succeeded", "failed"), check
                 assert isinstance(check["result"]["failed"], list)
                 if check["status"] == "failed":
-                    assert check["reason"] and all("message" in f for f in check["result"]["failed"])
+                    assert check["reason"] and all(
+                        "message" in f for f in check["result"]["failed"]
+                    )
 
                 lat, lon, _ = pad.pad_geodetic
-                up = await _command(c, tenant, asset["id"], "upload_mission", {"items": _mission(lat, lon)})
+                up = await _command(
+                    c, tenant, asset["id"], "upload_mission", {"items": _mission(lat, lon)}
+                )
                 assert up["status"] == "succeeded", up
                 assert up["result"]["count"] == 6
-                steps = [h["status"] for h in (await c.get(f"/api/v1/commands/{up['id']}",
-                                                           headers=tenant.h("viewer"))).json()["history"]]
-                assert steps[:2] == ["queued", "sent"] and "in_progress" in steps and steps[-1] == "succeeded"
+                steps = [
+                    h["status"]
+                    for h in (
+                        await c.get(f"/api/v1/commands/{up['id']}", headers=tenant.h("viewer"))
+                    ).json()["history"]
+                ]
+                assert (
+                    steps[:2] == ["queued", "sent"]
+                    and "in_progress" in steps
+                    and steps[-1] == "succeeded"
+                )
 
-                bad = await _command(c, tenant, asset["id"], "upload_mission",
-                                     {"items": [{"command": 16, "frame": 3, "params": [0, 0, 0, 0], "lat": 123.0,
-                                                 "lon": 0, "alt": 10}]})
+                bad = await _command(
+                    c,
+                    tenant,
+                    asset["id"],
+                    "upload_mission",
+                    {
+                        "items": [
+                            {
+                                "command": 16,
+                                "frame": 3,
+                                "params": [0, 0, 0, 0],
+                                "lat": 123.0,
+                                "lon": 0,
+                                "alt": 10,
+                            }
+                        ]
+                    },
+                )
                 assert bad["status"] == "rejected" and "0" in bad["reason"]
                 unknown = await _command(c, tenant, asset["id"], "teleport")
                 assert unknown["status"] == "rejected" and "unknown command" in unknown["reason"]

@@ -12,19 +12,41 @@ async def test_a_run_walks_the_whole_sequence_and_completes(live_server, tenant:
         body = await p.wait_state(run_id, FINAL, 150)
         assert body["state"] == "completed", (body["reason"], body["timeline"])
         assert [t["to_state"] for t in body["timeline"]] == [
-            "checking", "opening", "uploading", "flying", "landing", "confirming", "closing", "charging",
-            "completed"]
-        assert not body["alert"], (body["reason"], _on_the_pad(p))  # charging started: the contacts are seated
-        assert p.world.base.contacts_seated and not p.world.base.can_vehicle_leave()  # on the pad, closed again
-        report = (await p.api.get(f"/api/v1/runs/{run_id}/report", headers=tenant.h("viewer"))).json()
+            "checking",
+            "opening",
+            "uploading",
+            "flying",
+            "landing",
+            "confirming",
+            "closing",
+            "charging",
+            "completed",
+        ]
+        assert not body["alert"], (
+            body["reason"],
+            _on_the_pad(p),
+        )  # charging started: the contacts are seated
+        assert (
+            p.world.base.contacts_seated and not p.world.base.can_vehicle_leave()
+        )  # on the pad, closed again
+        report = (
+            await p.api.get(f"/api/v1/runs/{run_id}/report", headers=tenant.h("viewer"))
+        ).json()
         assert report["flight_time_s"] > 0 and len(report["track"]) > 10
         # the RTK chain (simulated receiver -> base daemon -> server -> agent -> autopilot) made the fix RTK
-        rows = (await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}/telemetry", headers=tenant.h("viewer"),
-                                params={"fields": "gnss.fix", "limit": 100000})).json()
+        rows = (
+            await p.api.get(
+                f"/api/v1/assets/{p.ids['uav_id']}/telemetry",
+                headers=tenant.h("viewer"),
+                params={"fields": "gnss.fix", "limit": 100000},
+            )
+        ).json()
         assert "rtk_fixed" in {r.get("gnss.fix") for r in rows}
 
 
-async def test_wind_over_the_limit_aborts_at_the_check_and_nothing_moves(live_server, tenant: Tenant, tmp_path):
+async def test_wind_over_the_limit_aborts_at_the_check_and_nothing_moves(
+    live_server, tenant: Tenant, tmp_path
+):
     async with platform(live_server.url, tenant, tmp_path) as p:
         p.world.weather.force(wind_mps=11.0, gust_mps=14.2)
         await _base_sees(p, lambda row: (row.get("weather.gust_m_s") or 0) > 12)
@@ -37,8 +59,9 @@ async def test_wind_over_the_limit_aborts_at_the_check_and_nothing_moves(live_se
         assert len(p.world.base.command_log) == moved_before  # not a single command coil written
 
 
-async def test_panel_stall_while_opening_fails_lift_never_raised_panels_driven_back(live_server, tenant: Tenant,
-                                                                                    tmp_path):
+async def test_panel_stall_while_opening_fails_lift_never_raised_panels_driven_back(
+    live_server, tenant: Tenant, tmp_path
+):
     async with platform(live_server.url, tenant, tmp_path) as p:
         p.world.base.inject_stall("panels")
         run_id = await p.start_run()
@@ -55,24 +78,31 @@ async def test_panel_stall_while_opening_fails_lift_never_raised_panels_driven_b
             assert close["reason"]
 
 
-async def test_uav_landing_off_the_pad_fails_keeps_the_panels_open_and_alerts(live_server, tenant: Tenant,
-                                                                             tmp_path):
+async def test_uav_landing_off_the_pad_fails_keeps_the_panels_open_and_alerts(
+    live_server, tenant: Tenant, tmp_path
+):
     """In flight the UAV's GNSS picks up a 2 m steady error (multipath): it lands 2 m beside the pad and
     the scale never sees it. The run fails, the panels stay open, operators are alerted."""
     async with platform(live_server.url, tenant, tmp_path) as p:
         vehicle = next(part for part in p.world.parts if part.name == "vehicle")
         run_id = await p.start_run()
         await p.wait_state(run_id, ("flying",), 60)
-        await _until(lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out")
+        await _until(
+            lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
+        )
         vehicle.server.copter.gnss.bias_ne_m = (2.0, 0.0)
         body = await p.wait_state(run_id, FINAL, 150)
-        assert body["state"] == "failed" and body["cause"] == "landing_not_confirmed", body["reason"]
+        assert body["state"] == "failed" and body["cause"] == "landing_not_confirmed", body[
+            "reason"
+        ]
         assert body["alert"] and "panels stay open" in body["reason"]
         assert p.world.base.pad_mass_g == 0  # the UAV is not on the lift...
         assert p.world.base.can_vehicle_leave()  # ...so nothing closed: panels open, lift up
 
 
-async def test_uav_link_lost_in_flight_the_run_waits_then_completes(live_server, tenant: Tenant, tmp_path):
+async def test_uav_link_lost_in_flight_the_run_waits_then_completes(
+    live_server, tenant: Tenant, tmp_path
+):
     """The agent's server link is cut while the UAV flies its survey legs; the autopilot goes on, the run
     waits (it neither fails nor moves on), and once the link is back the buffered telemetry and events
     arrive and the run completes. (RTK corrections also stop during the cut: the link is restored before
@@ -82,16 +112,26 @@ async def test_uav_link_lost_in_flight_the_run_waits_then_completes(live_server,
     proxy = await TcpProxy("127.0.0.1", live_server.port).start()
     try:
         # 4x, not 10x: after the link is back, RTK needs a few wall seconds of corrections to be fixed again
-        async with platform(live_server.url, tenant, tmp_path, speed=4.0,
-                            agent_server_url=f"http://127.0.0.1:{proxy.port}") as p:
+        async with platform(
+            live_server.url,
+            tenant,
+            tmp_path,
+            speed=4.0,
+            agent_server_url=f"http://127.0.0.1:{proxy.port}",
+        ) as p:
             run_id = await p.start_run()
             await p.wait_state(run_id, ("flying",), 60)
-            await _until(lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out")
+            await _until(
+                lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
+            )
             proxy.cut()
             cut_seq = p.agent.link.stats.sent
             # the UAV flies on by itself: it reaches the next legs of its mission with no server
-            await _until(lambda: (p.agent.autopilot.state.mission_current or 0) >= 2, 60,
-                         "the UAV to fly on to its next leg while the server link is down")
+            await _until(
+                lambda: (p.agent.autopilot.state.mission_current or 0) >= 2,
+                60,
+                "the UAV to fly on to its next leg while the server link is down",
+            )
             during = await p.run_state(run_id)
             assert during["state"] == "flying", during["state"]  # waiting, not failed
             assert not p.agent.link.connected and p.agent.link.stats.queued > 0
@@ -99,35 +139,57 @@ async def test_uav_link_lost_in_flight_the_run_waits_then_completes(live_server,
             body = await p.wait_state(run_id, FINAL, 120)
             assert body["state"] == "completed", (body["reason"], body["timeline"])
             assert p.agent.link.stats.sent > cut_seq
-            assert await p.agent.link.flush(20)  # everything buffered during the cut was stored and acked
+            assert await p.agent.link.flush(
+                20
+            )  # everything buffered during the cut was stored and acked
             assert p.agent.link.stats.dropped == 0
     finally:
         await proxy.stop()
 
 
-async def test_operator_abort_in_flight_returns_the_uav_lands_and_closes_over_it(live_server, tenant: Tenant,
-                                                                                 tmp_path):
+async def test_operator_abort_in_flight_returns_the_uav_lands_and_closes_over_it(
+    live_server, tenant: Tenant, tmp_path
+):
     """An operator aborts mid-mission: the UAV heads home before finishing its legs, lands on the pad,
     the scale confirms it, and only then does the base close; the run ends aborted, not failed."""
     async with platform(live_server.url, tenant, tmp_path) as p:
         run_id = await p.start_run()
         await p.wait_state(run_id, ("flying",), 60)
-        await _until(lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out")
-        r = await p.api.post(f"/api/v1/runs/{run_id}/abort", json={"reason": "airspace closed"},
-                             headers=p.tenant.h("operator"))
+        await _until(
+            lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
+        )
+        r = await p.api.post(
+            f"/api/v1/runs/{run_id}/abort",
+            json={"reason": "airspace closed"},
+            headers=p.tenant.h("operator"),
+        )
         assert r.status_code == 202, r.text
         body = await p.wait_state(run_id, FINAL, 150)
-        assert body["state"] == "aborted" and body["cause"] == "operator_abort", (body["reason"], body["timeline"])
+        assert body["state"] == "aborted" and body["cause"] == "operator_abort", (
+            body["reason"],
+            body["timeline"],
+        )
         states = [t["to_state"] for t in body["timeline"]]
-        assert states == ["checking", "opening", "uploading", "flying", "landing", "confirming", "closing",
-                          "charging", "aborted"], states
+        assert states == [
+            "checking",
+            "opening",
+            "uploading",
+            "flying",
+            "landing",
+            "confirming",
+            "closing",
+            "charging",
+            "aborted",
+        ], states
         landing = next(t for t in body["timeline"] if t["to_state"] == "landing")
         assert "airspace closed" in landing["reason"] and "return" in landing["reason"]
         # the panels closed only over a UAV the scale had confirmed: it is seated and the base is shut
         assert p.world.base.contacts_seated and not p.world.base.can_vehicle_leave()
 
 
-async def test_server_killed_while_flying_resumes_and_completes(database_url, superuser_email, tmp_path):
+async def test_server_killed_while_flying_resumes_and_completes(
+    database_url, superuser_email, tmp_path
+):
     """The server process dies mid-flight; a new one on the same database resumes the run."""
     import asyncio
 
@@ -149,7 +211,9 @@ async def test_server_killed_while_flying_resumes_and_completes(database_url, su
                 body = await p.wait_state(run_id, FINAL, 150)
                 assert body["state"] == "completed", (body["reason"], body["timeline"])
                 states = [t["to_state"] for t in body["timeline"]]
-                assert states.count("flying") == 1  # resumed where it stood, not restarted from the top
+                assert (
+                    states.count("flying") == 1
+                )  # resumed where it stood, not restarted from the top
     finally:
         await asyncio.to_thread((restarted or server).stop)
 
@@ -158,8 +222,12 @@ def _on_the_pad(p) -> dict[str, object]:  # type: ignore[no-untyped-def]
     """What the world says of the UAV on the pad (for failure messages)."""
     copter = next(part for part in p.world.parts if part.name == "vehicle").server.copter
     charger = p.world.base.charger
-    return {"pad_distance_m": round(copter.pad_distance(), 4), "seated": p.world.base.contacts_seated,
-            "fix": copter.reading.fix_type, "charger": (int(charger.state), charger.uav_soc)}
+    return {
+        "pad_distance_m": round(copter.pad_distance(), 4),
+        "seated": p.world.base.contacts_seated,
+        "fix": copter.reading.fix_type,
+        "charger": (int(charger.state), charger.uav_soc),
+    }
 
 
 async def _until(predicate, limit_s: float, what: str) -> None:  # type: ignore[no-untyped-def]
@@ -179,7 +247,9 @@ async def _base_sees(p, predicate, limit_s: float = 20):  # type: ignore[no-unty
 
     deadline = time.monotonic() + limit_s
     while time.monotonic() < deadline:
-        r = await p.api.get(f"/api/v1/assets/{p.ids['base_id']}/telemetry/latest", headers=p.tenant.h("viewer"))
+        r = await p.api.get(
+            f"/api/v1/assets/{p.ids['base_id']}/telemetry/latest", headers=p.tenant.h("viewer")
+        )
         if r.status_code == 200 and predicate(r.json()):
             return
         await asyncio.sleep(0.1)
@@ -192,9 +262,16 @@ async def _base_command(p, name: str, limit_s: float = 30):  # type: ignore[no-u
 
     deadline = time.monotonic() + limit_s
     while time.monotonic() < deadline:
-        cmds = (await p.api.get(f"/api/v1/assets/{p.ids['base_id']}/commands", headers=p.tenant.h("viewer"))).json()
-        found = [c for c in cmds if c["name"] == name and c["status"] in ("succeeded", "rejected", "failed",
-                                                                            "timed_out")]
+        cmds = (
+            await p.api.get(
+                f"/api/v1/assets/{p.ids['base_id']}/commands", headers=p.tenant.h("viewer")
+            )
+        ).json()
+        found = [
+            c
+            for c in cmds
+            if c["name"] == name and c["status"] in ("succeeded", "rejected", "failed", "timed_out")
+        ]
         if found:
             return found[0]
         await asyncio.sleep(0.1)

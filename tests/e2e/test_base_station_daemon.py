@@ -32,7 +32,10 @@ async def test_base_opens_and_closes_on_operator_commands(live_server, tenant: T
     async with world:
         world.weather.force(wind_mps=2.0, gust_mps=3.0, rain_mm_h=0.0, temperature_c=15.0)
         config = station_config(world.ports["plc"]).model_copy(
-            update={"rtk": station_config(0).rtk.model_copy(update={"tcp_port": world.ports["gnss"]})})
+            update={
+                "rtk": station_config(0).rtk.model_copy(update={"tcp_port": world.ports["gnss"]})
+            }
+        )
         app = setup(config)
         stop = asyncio.Event()
         link = make_link(cfg, tmp_path / "base-link.db", live_server.url)
@@ -42,7 +45,9 @@ async def test_base_opens_and_closes_on_operator_commands(live_server, tenant: T
                 opened = await _command(c, tenant, asset["id"], "open", limit_s=30)
                 assert opened["status"] == "succeeded", opened
                 assert world.base.can_vehicle_leave()
-                history = (await c.get(f"/api/v1/commands/{opened['id']}", headers=tenant.h("viewer"))).json()
+                history = (
+                    await c.get(f"/api/v1/commands/{opened['id']}", headers=tenant.h("viewer"))
+                ).json()
                 progress = [h for h in history["history"] if h["status"] == "in_progress"]
                 assert len(progress) >= 2  # panels, then lift
 
@@ -56,14 +61,22 @@ async def test_base_opens_and_closes_on_operator_commands(live_server, tenant: T
                 deadline = time.monotonic() + 20
                 row = None
                 while time.monotonic() < deadline:
-                    r = await c.get(f"/api/v1/assets/{asset['id']}/telemetry/latest", headers=tenant.h("viewer"))
+                    r = await c.get(
+                        f"/api/v1/assets/{asset['id']}/telemetry/latest", headers=tenant.h("viewer")
+                    )
                     row = r.json() if r.status_code == 200 else None
-                    if row and row.get("panels.state") == "closed" and row.get("rtk.frames_total", 0) > 0:
+                    if (
+                        row
+                        and row.get("panels.state") == "closed"
+                        and row.get("rtk.frames_total", 0) > 0
+                    ):
                         break
                     await asyncio.sleep(0.1)
                 assert row and row["plc_link"] == "up" and row["panels.state"] == "closed"
                 assert row["rtk.frames_total"] > 0 and row["weather.wind_m_s"] >= 0
-                events = (await c.get(f"/api/v1/assets/{asset['id']}/events", headers=tenant.h("viewer"))).json()
+                events = (
+                    await c.get(f"/api/v1/assets/{asset['id']}/events", headers=tenant.h("viewer"))
+                ).json()
                 assert any(e["name"] == "refusal" and "lift" in e["message"] for e in events)
         finally:
             stop.set()

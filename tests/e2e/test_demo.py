@@ -9,12 +9,35 @@ from tests.conftest import free_port
 
 
 def test_demo_runs_a_scheduled_survey_to_completion(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "aerobase.cli", "demo", "--once", "--port", str(free_port()),
-                        "--dir", str(tmp_path / "demo")], capture_output=True, text=True, timeout=240)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "aerobase.cli",
+            "demo",
+            "--once",
+            "--port",
+            str(free_port()),
+            "--dir",
+            str(tmp_path / "demo"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
     out = r.stdout + r.stderr
     assert r.returncode == 0, out
-    for step in ("[1/8] Checking", "[2/8] Opening", "[3/8] Uploading", "[4/8] Flying", "[5/8] Returning",
-                 "[6/8] Confirming", "[7/8] Closing", "[8/8] Starting to charge", "Completed"):
+    for step in (
+        "[1/8] Checking",
+        "[2/8] Opening",
+        "[3/8] Uploading",
+        "[4/8] Flying",
+        "[5/8] Returning",
+        "[6/8] Confirming",
+        "[7/8] Closing",
+        "[8/8] Starting to charge",
+        "Completed",
+    ):
         assert step in out, (step, out)
     assert out.count("[2/8] Opening") == 1  # each step once
     assert "stopping every process" in out

@@ -31,11 +31,15 @@ async def _until(predicate, limit_s: float = 20.0, what: str = "condition") -> N
         await asyncio.sleep(0.02)
 
 
-async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(live_server, tenant: Tenant, tmp_path):
+async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(
+    live_server, tenant: Tenant, tmp_path
+):
     base = tenant.create_asset("landing_base")
     uav = tenant.create_asset("uav", base_id=base["id"])
     bcfg, ucfg = _cfg(base), _cfg(uav)
-    base_link = Link(live_server.url, bcfg.name, bcfg.secret, tmp_path / "base.db", agent="base_station", seed=1)
+    base_link = Link(
+        live_server.url, bcfg.name, bcfg.secret, tmp_path / "base.db", agent="base_station", seed=1
+    )
     uav_link = Link(live_server.url, ucfg.name, ucfg.secret, tmp_path / "uav.db", seed=2)
     at_uav: list[bytes] = []
     uav_link.on_rtcm(at_uav.append)
@@ -47,14 +51,22 @@ async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(live_server, 
         await base_link.wait_connected(15)
         await uav_link.wait_connected(15)
         async with running_receiver(clock=SimClock(5.0)) as receiver:
-            reader = RtkReader(RtkConfig(source=f"tcp://127.0.0.1:{receiver.port}"), on_frame=base_link.send_rtcm)
+            reader = RtkReader(
+                RtkConfig(source=f"tcp://127.0.0.1:{receiver.port}"), on_frame=base_link.send_rtcm
+            )
             reader.start()
             try:
                 await _until(lambda: len(at_uav) >= 8, what="corrections at the UAV")
                 client = GNSSNTRIPClient(retries=0, timeout=5, verbosity=0)
-                client.run(server="127.0.0.1", port=live_server.port, mountpoint=f"ntrip/{base['name']}",
-                           ntripuser=tenant.emails["viewer"], ntrippassword=Tenant.PASSWORD, version="2.0",
-                           output=ntrip_out)
+                client.run(
+                    server="127.0.0.1",
+                    port=live_server.port,
+                    mountpoint=f"ntrip/{base['name']}",
+                    ntripuser=tenant.emails["viewer"],
+                    ntrippassword=Tenant.PASSWORD,
+                    version="2.0",
+                    output=ntrip_out,
+                )
                 await _until(lambda: ntrip_out.qsize() >= 8, what="corrections at the NTRIP client")
             finally:
                 await reader.stop()

@@ -6,8 +6,10 @@ from tests.conftest import Tenant, auth, login
 
 
 def test_login_returns_opaque_bearer_token(api, tenant: Tenant):
-    r = api.post("/api/v1/auth/login", json={"email": tenant.emails["viewer"],
-                                            "password": Tenant.PASSWORD, "force": True})
+    r = api.post(
+        "/api/v1/auth/login",
+        json={"email": tenant.emails["viewer"], "password": Tenant.PASSWORD, "force": True},
+    )
     assert r.status_code == 200
     body = r.json()
     assert body["token_type"] == "bearer"
@@ -16,7 +18,9 @@ def test_login_returns_opaque_bearer_token(api, tenant: Tenant):
 
 
 def test_second_login_is_refused_while_first_session_lives(api, tenant: Tenant):
-    r = api.post("/api/v1/auth/login", json={"email": tenant.emails["operator"], "password": Tenant.PASSWORD})
+    r = api.post(
+        "/api/v1/auth/login", json={"email": tenant.emails["operator"], "password": Tenant.PASSWORD}
+    )
     assert r.status_code == 409
     err = r.json()["error"]
     assert err["code"] == "session_active"
@@ -33,7 +37,9 @@ def test_force_ends_the_first_session_and_is_audited(api, tenant: Tenant):
     assert r.json()["error"]["code"] == "session_ended"
     assert "took this session over" in r.json()["error"]["message"]
     assert api.get("/api/v1/auth/me", headers=auth(new)).status_code == 200
-    events = api.get("/api/v1/audit", params={"action": "session.taken_over"}, headers=tenant.h("admin")).json()
+    events = api.get(
+        "/api/v1/audit", params={"action": "session.taken_over"}, headers=tenant.h("admin")
+    ).json()
     assert any(e["actor_id"] == tenant.user_ids["operator"] for e in events)
 
 
@@ -61,11 +67,20 @@ def test_wrong_password_is_401_without_saying_which_part_was_wrong(api, tenant: 
 
 def test_failed_logins_are_rate_limited_per_account(api, tenant: Tenant):
     email = tenant.emails["viewer"]
-    codes = [api.post("/api/v1/auth/login", json={"email": email, "password": "nope-nope-nope"},
-                      headers={"X-Forwarded-For": f"10.9.{i}.1"}).status_code for i in range(5)]
+    codes = [
+        api.post(
+            "/api/v1/auth/login",
+            json={"email": email, "password": "nope-nope-nope"},
+            headers={"X-Forwarded-For": f"10.9.{i}.1"},
+        ).status_code
+        for i in range(5)
+    ]
     assert codes == [401] * 5
-    r = api.post("/api/v1/auth/login", json={"email": email, "password": Tenant.PASSWORD, "force": True},
-                 headers={"X-Forwarded-For": "10.9.99.1"})
+    r = api.post(
+        "/api/v1/auth/login",
+        json={"email": email, "password": Tenant.PASSWORD, "force": True},
+        headers={"X-Forwarded-For": "10.9.99.1"},
+    )
     assert r.status_code == 429
     assert int(r.headers["Retry-After"]) > 0
     assert r.json()["error"]["code"] == "rate_limited"
@@ -83,15 +98,23 @@ def test_failed_logins_are_rate_limited_per_address(database_url, superuser_emai
             octet = uuid.uuid4().int % 250
             addr = {"X-Forwarded-For": f"10.77.{octet}.1"}
             for i in range(3):
-                r = api.post("/api/v1/auth/login", json={"email": f"u{i}-{uuid.uuid4().hex}@x.test",
-                                                        "password": "whatever-xx"}, headers=addr)
+                r = api.post(
+                    "/api/v1/auth/login",
+                    json={"email": f"u{i}-{uuid.uuid4().hex}@x.test", "password": "whatever-xx"},
+                    headers=addr,
+                )
                 assert r.status_code == 401
-            r = api.post("/api/v1/auth/login", json={"email": superuser_email, "password": "x" * 12},
-                         headers=addr)
+            r = api.post(
+                "/api/v1/auth/login",
+                json={"email": superuser_email, "password": "x" * 12},
+                headers=addr,
+            )
             assert r.status_code == 429 and "address" in r.json()["error"]["message"]
-            other = api.post("/api/v1/auth/login", json={"email": f"z-{uuid.uuid4().hex}@x.test",
-                                                        "password": "whatever-xx"},
-                             headers={"X-Forwarded-For": f"10.78.{octet}.2"})
+            other = api.post(
+                "/api/v1/auth/login",
+                json={"email": f"z-{uuid.uuid4().hex}@x.test", "password": "whatever-xx"},
+                headers={"X-Forwarded-For": f"10.78.{octet}.2"},
+            )
             assert other.status_code == 401
     finally:
         server.stop()
@@ -108,7 +131,9 @@ def test_password_is_stored_as_argon2id(database_url, tenant: Tenant):
     async def fetch() -> str:
         engine = make_engine(database_url)
         async with make_sessionmaker(engine)() as db:
-            user = (await db.execute(select(User).where(User.email == tenant.emails["admin"]))).scalar_one()
+            user = (
+                await db.execute(select(User).where(User.email == tenant.emails["admin"]))
+            ).scalar_one()
         await engine.dispose()
         return user.password_hash
 
@@ -132,8 +157,10 @@ def test_idle_session_expires(database_url, superuser_email):
     server = LiveServer(test_settings(database_url, session_idle_s=10)).start()
     try:
         with httpx.Client(base_url=server.url) as api:
-            r = api.post("/api/v1/auth/login", json={"email": superuser_email, "password": SUPERUSER_PASSWORD,
-                                                    "force": True})
+            r = api.post(
+                "/api/v1/auth/login",
+                json={"email": superuser_email, "password": SUPERUSER_PASSWORD, "force": True},
+            )
             token, sid = r.json()["access_token"], r.json()["session_id"]
             assert api.get("/api/v1/auth/me", headers=auth(token)).status_code == 200
 
@@ -141,8 +168,11 @@ def test_idle_session_expires(database_url, superuser_email):
                 engine = make_engine(database_url)
                 async with make_sessionmaker(engine)() as db:
                     s = await db.get(AuthSession, uuid.UUID(sid))
-                    await db.execute(update(AuthSession).where(AuthSession.id == s.id).values(
-                        last_seen_at=s.last_seen_at - timedelta(seconds=11)))
+                    await db.execute(
+                        update(AuthSession)
+                        .where(AuthSession.id == s.id)
+                        .values(last_seen_at=s.last_seen_at - timedelta(seconds=11))
+                    )
                     await db.commit()
                 await engine.dispose()
 

@@ -48,8 +48,11 @@ def _example(schema: dict[str, Any], spec: dict[str, Any]) -> Any:
         return schema["default"]
     kind = schema.get("type")
     if kind == "object":
-        return {k: _example(v, spec) for k, v in schema.get("properties", {}).items()
-                if k in schema.get("required", [])}
+        return {
+            k: _example(v, spec)
+            for k, v in schema.get("properties", {}).items()
+            if k in schema.get("required", [])
+        }
     if kind == "array":
         return []
     if kind in ("integer", "number"):
@@ -63,7 +66,7 @@ def _example(schema: dict[str, Any], spec: dict[str, Any]) -> Any:
     n = max(schema.get("minLength", 1), 12)
     if "mail" in str(schema.get("title", "")).lower():
         return f"walk-{uuid.uuid4().hex[:8]}@walk.test"
-    return f"walk-{uuid.uuid4().hex}"[:max(n, 16)]
+    return f"walk-{uuid.uuid4().hex}"[: max(n, 16)]
 
 
 class Victim:
@@ -73,17 +76,35 @@ class Victim:
         self.tenant = tenant
         base = tenant.create_asset("landing_base")
         uav = tenant.create_asset("uav", base_id=base["id"])["id"]
-        cmd = tenant.api.post(f"/api/v1/assets/{uav}/commands", json={"name": "check_availability"},
-                              headers=tenant.h("operator"))
+        cmd = tenant.api.post(
+            f"/api/v1/assets/{uav}/commands",
+            json={"name": "check_availability"},
+            headers=tenant.h("operator"),
+        )
         assert cmd.status_code == 202, cmd.text
-        mission = tenant.api.post("/api/v1/missions", headers=tenant.h("operator"), json={
-            "name": "walk-mission", "items": [{"command": 22, "lat": 47.39, "lon": 8.54, "alt": 20}]})
+        mission = tenant.api.post(
+            "/api/v1/missions",
+            headers=tenant.h("operator"),
+            json={
+                "name": "walk-mission",
+                "items": [{"command": 22, "lat": 47.39, "lon": 8.54, "alt": 20}],
+            },
+        )
         assert mission.status_code == 201, mission.text
         ids = {"mission_id": mission.json()["id"], "uav_id": uav, "base_id": base["id"]}
         run = tenant.api.post("/api/v1/runs", headers=tenant.h("operator"), json=ids)
         assert run.status_code == 201, run.text
-        schedule = tenant.api.post("/api/v1/schedules", headers=tenant.h("operator"), json={
-            **ids, "name": "walk-schedule", "kind": "cron", "cron": "0 6 * * *", "timezone": "Europe/Lisbon"})
+        schedule = tenant.api.post(
+            "/api/v1/schedules",
+            headers=tenant.h("operator"),
+            json={
+                **ids,
+                "name": "walk-schedule",
+                "kind": "cron",
+                "cron": "0 6 * * *",
+                "timezone": "Europe/Lisbon",
+            },
+        )
         assert schedule.status_code == 201, schedule.text
         self.ids = {
             "run_id": run.json()["id"],
@@ -100,8 +121,10 @@ class Victim:
         def sub(m: re.Match[str]) -> str:
             name = m.group(1)
             if name not in self.ids:
-                pytest.fail(f"route {path}: the authorization walk does not know how to fill {{{name}}}; "
-                            "add a resource of that kind to Victim")
+                pytest.fail(
+                    f"route {path}: the authorization walk does not know how to fill {{{name}}}; "
+                    "add a resource of that kind to Victim"
+                )
             return self.ids[name]
 
         return re.sub(r"\{(\w+)\}", sub, path)
@@ -131,7 +154,10 @@ def _body(op: dict[str, Any], spec: dict[str, Any]) -> Any:
 def test_every_route_respects_organisations_and_roles(api, superuser_email):
     spec = api.get("/api/openapi.json").json()
     victim = Victim(Tenant(api, superuser_email, "victim"))
-    attackers = [Tenant(api, superuser_email, "attacker-b"), Tenant(api, superuser_email, "attacker-c")]
+    attackers = [
+        Tenant(api, superuser_email, "attacker-b"),
+        Tenant(api, superuser_email, "attacker-c"),
+    ]
     # a fresh tenant for in-organisation role checks (its resources may be changed by the walk)
     home = Tenant(api, superuser_email, "home")
     home_victim = Victim(home)
@@ -148,23 +174,34 @@ def test_every_route_respects_organisations_and_roles(api, superuser_email):
                 assert r.status_code < 500, (method, url, role, r.text)
                 if "{" in path:
                     assert r.status_code in (403, 404, 405, 422), (
-                        f"{role} of another organisation got {r.status_code} on {method} {url}: {r.text}")
+                        f"{role} of another organisation got {r.status_code} on {method} {url}: {r.text}"
+                    )
                     if r.status_code == 403:
                         # role refusal must not depend on the resource: same answer for a random id
-                        r2 = api.request(method, re.sub(r"\{(\w+)\}", str(uuid.uuid4()), path),
-                                         json=_body(op, spec), headers=attacker.h(role))
+                        r2 = api.request(
+                            method,
+                            re.sub(r"\{(\w+)\}", str(uuid.uuid4()), path),
+                            json=_body(op, spec),
+                            headers=attacker.h(role),
+                        )
                         assert r2.status_code == 403, (method, path, role)
                 # the requested id may be echoed in a 404 message; anything else of the victim's is a leak
                 leaked = [v for v in victim.secret_values if v in r.text and v not in url]
-                assert not leaked, f"{method} {url} as {role} of another organisation leaked {leaked}"
+                assert not leaked, (
+                    f"{method} {url} as {role} of another organisation leaked {leaked}"
+                )
         # 2. in-organisation roles
         url = home_victim.fill(path)
         if method != "GET":
             r = api.request(method, url, json=_body(op, spec), headers=home.h("viewer"))
-            assert r.status_code == 403, f"viewer could call {method} {path}: {r.status_code} {r.text}"
+            assert r.status_code == 403, (
+                f"viewer could call {method} {path}: {r.status_code} {r.text}"
+            )
         if _matches(ADMIN_ONLY, method, path) or _matches(SUPERUSER_ONLY, method, path):
             r = api.request(method, url, json=_body(op, spec), headers=home.h("operator"))
-            assert r.status_code == 403, f"operator could call {method} {path}: {r.status_code} {r.text}"
+            assert r.status_code == 403, (
+                f"operator could call {method} {path}: {r.status_code} {r.text}"
+            )
         if _matches(SUPERUSER_ONLY, method, path):
             r = api.request(method, url, json=_body(op, spec), headers=home.h("admin"))
             assert r.status_code == 403, f"admin could call {method} {path}: {r.status_code}"

@@ -12,13 +12,25 @@ import uuid
 from tests.conftest import Tenant, auth
 
 
-def _run(args: list[str], env: dict[str, str], stdin: str | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "aerobase.cli", *args], env={**os.environ, **env},
-                          capture_output=True, text=True, timeout=120, input=stdin)
+def _run(
+    args: list[str], env: dict[str, str], stdin: str | None = None
+) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "aerobase.cli", *args],
+        env={**os.environ, **env},
+        capture_output=True,
+        text=True,
+        timeout=120,
+        input=stdin,
+    )
 
 
 def test_admin_bootstrap_and_token(database_url, api):
-    env = {"DATABASE_URL": database_url, "AEROBASE_ARGON2_MEMORY_KIB": "8192", "AEROBASE_ARGON2_TIME_COST": "1"}
+    env = {
+        "DATABASE_URL": database_url,
+        "AEROBASE_ARGON2_MEMORY_KIB": "8192",
+        "AEROBASE_ARGON2_TIME_COST": "1",
+    }
     assert _run(["admin", "migrate"], env).returncode == 0
     org, email = f"cli-org-{uuid.uuid4().hex[:8]}", f"cli-{uuid.uuid4().hex[:8]}@x.test"
     r = _run(["admin", "create-org", org], env)
@@ -26,13 +38,38 @@ def test_admin_bootstrap_and_token(database_url, api):
     org_id = r.stdout.strip()
     r = _run(["admin", "create-org", org], env)
     assert r.returncode == 1 and "already exists" in r.stderr and "Traceback" not in r.stderr
-    r = _run(["admin", "create-user", "--org", org, "--email", email, "--role", "operator"],
-             {**env, "AEROBASE_PASSWORD": "cli-password-123"})
+    r = _run(
+        ["admin", "create-user", "--org", org, "--email", email, "--role", "operator"],
+        {**env, "AEROBASE_PASSWORD": "cli-password-123"},
+    )
     assert r.returncode == 0, r.stderr
-    r = _run(["admin", "create-user", "--org", org, "--email", f"short-{uuid.uuid4().hex[:8]}@x.test", "--role", "viewer",
-              "--password", "short"], env)
+    r = _run(
+        [
+            "admin",
+            "create-user",
+            "--org",
+            org,
+            "--email",
+            f"short-{uuid.uuid4().hex[:8]}@x.test",
+            "--role",
+            "viewer",
+            "--password",
+            "short",
+        ],
+        env,
+    )
     assert r.returncode == 1 and "12 characters" in r.stderr
-    r = _run(["admin", "create-superuser", "--email", f"root-{uuid.uuid4().hex[:8]}@x.test", "--password", "root-password-123"], env)
+    r = _run(
+        [
+            "admin",
+            "create-superuser",
+            "--email",
+            f"root-{uuid.uuid4().hex[:8]}@x.test",
+            "--password",
+            "root-password-123",
+        ],
+        env,
+    )
     assert r.returncode == 0, r.stderr
     token = _run(["admin", "token", "--email", email], env).stdout.strip()
     me = api.get("/api/v1/auth/me", headers=auth(token)).json()

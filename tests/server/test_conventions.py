@@ -15,7 +15,11 @@ def test_every_raw_select_in_a_repository_says_why_it_is_unscoped():
         if path.name != "repository.py" and "repositories" not in path.parts:
             continue
         for n, line in enumerate(path.read_text().splitlines(), 1):
-            if re.search(r"\bselect\(", line) and "self.select()" not in line and "# unscoped:" not in line:
+            if (
+                re.search(r"\bselect\(", line)
+                and "self.select()" not in line
+                and "# unscoped:" not in line
+            ):
                 offenders.append(f"{path.relative_to(ROOT)}:{n}: {line.strip()}")
     assert not offenders, "raw select() without '# unscoped: <why>':\n" + "\n".join(offenders)
 

@@ -18,15 +18,22 @@ def test_no_route_answers_5xx(api, live_server, superuser_email):
     failures: list[str] = []
     operations = [r.ok() for r in schema.get_all_operations()]
     assert len(operations) >= 10
+
     def check(operation, headers) -> None:  # type: ignore[no-untyped-def]
-        @settings(max_examples=EXAMPLES, deadline=None, database=None,
-                  suppress_health_check=list(HealthCheck))
+        @settings(
+            max_examples=EXAMPLES,
+            deadline=None,
+            database=None,
+            suppress_health_check=list(HealthCheck),
+        )
         @given(case=operation.as_strategy())
         def run(case) -> None:  # type: ignore[no-untyped-def]
             response = case.call(base_url=live_server.url, headers=headers)
             if response.status_code >= 500:
-                failures.append(f"{case.method} {case.formatted_path} -> {response.status_code}: "
-                                f"{response.text[:200]}")
+                failures.append(
+                    f"{case.method} {case.formatted_path} -> {response.status_code}: "
+                    f"{response.text[:200]}"
+                )
 
         run()
 

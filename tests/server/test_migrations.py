@@ -21,7 +21,9 @@ def _diff(url: str) -> list:
     async def run() -> list:
         engine = create_async_engine(url)
         async with engine.connect() as conn:
-            diff = await conn.run_sync(lambda c: compare_metadata(MigrationContext.configure(c), Base.metadata))
+            diff = await conn.run_sync(
+                lambda c: compare_metadata(MigrationContext.configure(c), Base.metadata)
+            )
         await engine.dispose()
         return diff
 
@@ -43,7 +45,9 @@ def test_sqlite_upgrade_downgrade_upgrade_and_no_autogenerate_diff():
 
 def test_postgresql_upgrade_downgrade_upgrade_and_no_autogenerate_diff():
     need_service("PostgreSQL", "127.0.0.1", 5432)
-    url = os.environ.get("AEROBASE_MIGRATION_TEST_PG_URL", PG_URL_DEFAULT.replace("/test", "/postgres"))
+    url = os.environ.get(
+        "AEROBASE_MIGRATION_TEST_PG_URL", PG_URL_DEFAULT.replace("/test", "/postgres")
+    )
     # a database of its own, so the suite's live server (which may use /test) is not disturbed
     import asyncpg
 

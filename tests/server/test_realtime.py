@@ -25,8 +25,11 @@ def _cfg(asset: dict, password: str = "asset-password-123"):  # type: ignore[no-
 
 
 def _sample(i: int) -> UavTelemetry:
-    return UavTelemetry(position=Position(lat=41.0 + i * 1e-6, lon=-8.6, alt_msl_m=120.0, alt_rel_m=float(i % 50)),
-                        battery=Battery(percent=90.0, voltage_v=16.4, current_a=1.0), armed=False)
+    return UavTelemetry(
+        position=Position(lat=41.0 + i * 1e-6, lon=-8.6, alt_msl_m=120.0, alt_rel_m=float(i % 50)),
+        battery=Battery(percent=90.0, voltage_v=16.4, current_a=1.0),
+        armed=False,
+    )
 
 
 async def _wait(predicate, limit_s: float = 15.0, what: str = "condition"):  # type: ignore[no-untyped-def]
@@ -44,20 +47,34 @@ async def _wait(predicate, limit_s: float = 15.0, what: str = "condition"):  # t
 
 async def _count(server_url: str, tenant: Tenant, asset_id: str) -> list:
     async with httpx.AsyncClient(base_url=server_url) as c:
-        r = await c.get(f"/api/v1/assets/{asset_id}/telemetry",
-                        params={"start": "2000-01-01T00:00:00Z", "end": "2100-01-01T00:00:00Z"},
-                        headers=tenant.h("viewer"))
+        r = await c.get(
+            f"/api/v1/assets/{asset_id}/telemetry",
+            params={"start": "2000-01-01T00:00:00Z", "end": "2100-01-01T00:00:00Z"},
+            headers=tenant.h("viewer"),
+        )
         assert r.status_code == 200, r.text
         return list(r.json())
 
 
-async def test_telemetry_is_stored_acked_and_reaches_operators(live_server, tenant: Tenant, tmp_path):
+async def test_telemetry_is_stored_acked_and_reaches_operators(
+    live_server, tenant: Tenant, tmp_path
+):
     asset = tenant.create_asset("uav")
     cfg = _cfg(asset)
     url = live_server.url.replace("http", "ws") + f"/ws/operator?token={tenant.tokens['viewer']}"
     async with websockets.connect(url) as op:
-        await op.send(json.dumps({"v": 1, "type": "subscribe", "id": "6f1c3a3e-58a4-4d1e-9f55-000000000001",
-                                  "seq": 0, "ts": 0, "payload": {"asset_ids": [asset["id"]]}}))
+        await op.send(
+            json.dumps(
+                {
+                    "v": 1,
+                    "type": "subscribe",
+                    "id": "6f1c3a3e-58a4-4d1e-9f55-000000000001",
+                    "seq": 0,
+                    "ts": 0,
+                    "payload": {"asset_ids": [asset["id"]]},
+                }
+            )
+        )
         link = Link(live_server.url, cfg.name, cfg.secret, tmp_path / "link.db", seed=1)
         await link.start()
         try:
@@ -77,19 +94,37 @@ async def test_telemetry_is_stored_acked_and_reaches_operators(live_server, tena
     rows = await _count(live_server.url, tenant, asset["id"])
     assert len(rows) == 20
     async with httpx.AsyncClient(base_url=live_server.url) as c:
-        latest = (await c.get(f"/api/v1/assets/{asset['id']}/telemetry/latest", headers=tenant.h("viewer"))).json()
+        latest = (
+            await c.get(
+                f"/api/v1/assets/{asset['id']}/telemetry/latest", headers=tenant.h("viewer")
+            )
+        ).json()
         assert latest["position.alt_rel_m"] == 19.0
-        events = (await c.get(f"/api/v1/assets/{asset['id']}/events", headers=tenant.h("viewer"))).json()
+        events = (
+            await c.get(f"/api/v1/assets/{asset['id']}/events", headers=tenant.h("viewer"))
+        ).json()
         assert [e["name"] for e in events] == ["armed"]
 
 
-async def test_operator_cannot_subscribe_to_another_organisation(live_server, tenant: Tenant, api, superuser_email):
+async def test_operator_cannot_subscribe_to_another_organisation(
+    live_server, tenant: Tenant, api, superuser_email
+):
     other = Tenant(api, superuser_email, "other")
     foreign = other.create_asset("uav")
     url = live_server.url.replace("http", "ws") + f"/ws/operator?token={tenant.tokens['admin']}"
     async with websockets.connect(url) as op:
-        await op.send(json.dumps({"v": 1, "type": "subscribe", "id": "6f1c3a3e-58a4-4d1e-9f55-000000000002",
-                                  "seq": 0, "ts": 0, "payload": {"asset_ids": [foreign["id"]]}}))
+        await op.send(
+            json.dumps(
+                {
+                    "v": 1,
+                    "type": "subscribe",
+                    "id": "6f1c3a3e-58a4-4d1e-9f55-000000000002",
+                    "seq": 0,
+                    "ts": 0,
+                    "payload": {"asset_ids": [foreign["id"]]},
+                }
+            )
+        )
         reply = json.loads(await asyncio.wait_for(op.recv(), 10))
     assert reply["type"] == "error" and reply["payload"]["code"] == "not_found"
 
@@ -97,12 +132,15 @@ async def test_operator_cannot_subscribe_to_another_organisation(live_server, te
 async def test_command_round_trip_and_status_history(live_server, tenant: Tenant, tmp_path):
     asset = tenant.create_asset("landing_base")
     cfg = _cfg(asset)
-    link = Link(live_server.url, cfg.name, cfg.secret, tmp_path / "link.db", agent="base_station", seed=2)
+    link = Link(
+        live_server.url, cfg.name, cfg.secret, tmp_path / "link.db", agent="base_station", seed=2
+    )
     calls = []
 
     async def check(request):  # type: ignore[no-untyped-def]
         calls.append(request.id)
         from protocol.commands import result
+
         return result("succeeded", "all conditions met", {"wind_mps": 3.0})
 
     link.on_command("check_availability", check)
@@ -110,8 +148,11 @@ async def test_command_round_trip_and_status_history(live_server, tenant: Tenant
     try:
         await link.wait_connected(15)
         async with httpx.AsyncClient(base_url=live_server.url) as c:
-            r = await c.post(f"/api/v1/assets/{asset['id']}/commands", json={"name": "check_availability"},
-                             headers=tenant.h("operator"))
+            r = await c.post(
+                f"/api/v1/assets/{asset['id']}/commands",
+                json={"name": "check_availability"},
+                headers=tenant.h("operator"),
+            )
             assert r.status_code == 202
             cid = r.json()["id"]
 
@@ -129,8 +170,13 @@ async def test_command_round_trip_and_status_history(live_server, tenant: Tenant
 async def test_unanswered_command_times_out(live_server, tenant: Tenant):
     asset = tenant.create_asset("uav")
     async with httpx.AsyncClient(base_url=live_server.url) as c:
-        cid = (await c.post(f"/api/v1/assets/{asset['id']}/commands", json={"name": "land", "timeout_s": 1},
-                            headers=tenant.h("operator"))).json()["id"]
+        cid = (
+            await c.post(
+                f"/api/v1/assets/{asset['id']}/commands",
+                json={"name": "land", "timeout_s": 1},
+                headers=tenant.h("operator"),
+            )
+        ).json()["id"]
 
         async def timed_out():  # type: ignore[no-untyped-def]
             body = (await c.get(f"/api/v1/commands/{cid}", headers=tenant.h("viewer"))).json()
@@ -148,13 +194,19 @@ async def test_duplicate_asset_connection_is_closed_4409(live_server, tenant: Te
     try:
         await link.wait_connected(15)
         async with httpx.AsyncClient(base_url=live_server.url) as c:
-            token = (await c.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret,
-                                                               "force": False})).status_code
+            token = (
+                await c.post(
+                    "/api/v1/assets/login",
+                    json={"name": cfg.name, "secret": cfg.secret, "force": False},
+                )
+            ).status_code
             assert token == 409  # the live link's session blocks a second login
         # a second socket with the link's own token: refused with 4409
         own = link._token.access_token
         ws_url = live_server.url.replace("http", "ws") + "/ws/asset"
-        async with websockets.connect(ws_url, additional_headers={"Authorization": f"Bearer {own}"}) as ws:
+        async with websockets.connect(
+            ws_url, additional_headers={"Authorization": f"Bearer {own}"}
+        ) as ws:
             with pytest.raises(websockets.ConnectionClosed) as info:
                 await asyncio.wait_for(ws.recv(), 10)
         assert info.value.rcvd.code == 4409
@@ -166,17 +218,46 @@ async def test_bad_input_gets_errors_and_oversize_closes_1009(live_server, tenan
     asset = tenant.create_asset("uav")
     cfg = _cfg(asset)
     async with httpx.AsyncClient(base_url=live_server.url) as c:
-        token = (await c.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret})).json()["access_token"]
+        token = (
+            await c.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret})
+        ).json()["access_token"]
     ws_url = live_server.url.replace("http", "ws") + "/ws/asset"
-    async with websockets.connect(ws_url, additional_headers={"Authorization": f"Bearer {token}"},
-                                  max_size=None) as ws:
-        await ws.send(json.dumps({"v": 1, "type": "hello", "id": "6f1c3a3e-58a4-4d1e-9f55-000000000003", "seq": 0,
-                                  "ts": 0, "payload": {"stream": "6f1c3a3e-58a4-4d1e-9f55-0000000000aa",
-                                                       "agent": "asset_agent", "version": "t"}}))
+    async with websockets.connect(
+        ws_url, additional_headers={"Authorization": f"Bearer {token}"}, max_size=None
+    ) as ws:
+        await ws.send(
+            json.dumps(
+                {
+                    "v": 1,
+                    "type": "hello",
+                    "id": "6f1c3a3e-58a4-4d1e-9f55-000000000003",
+                    "seq": 0,
+                    "ts": 0,
+                    "payload": {
+                        "stream": "6f1c3a3e-58a4-4d1e-9f55-0000000000aa",
+                        "agent": "asset_agent",
+                        "version": "t",
+                    },
+                }
+            )
+        )
         assert json.loads(await ws.recv())["type"] == "welcome"
-        for bad in ("{not json", json.dumps({"v": 1, "type": "telemetry", "id": "x", "seq": "a", "ts": 0, "payload": {}}),
-                    json.dumps({"v": 1, "type": "teleport", "id": "6f1c3a3e-58a4-4d1e-9f55-000000000004",
-                                "seq": 1, "ts": 0, "payload": {}})):
+        for bad in (
+            "{not json",
+            json.dumps(
+                {"v": 1, "type": "telemetry", "id": "x", "seq": "a", "ts": 0, "payload": {}}
+            ),
+            json.dumps(
+                {
+                    "v": 1,
+                    "type": "teleport",
+                    "id": "6f1c3a3e-58a4-4d1e-9f55-000000000004",
+                    "seq": 1,
+                    "ts": 0,
+                    "payload": {},
+                }
+            ),
+        ):
             await ws.send(bad)
             reply = json.loads(await asyncio.wait_for(ws.recv(), 10))
             assert reply["type"] == "error", reply
@@ -187,14 +268,23 @@ async def test_bad_input_gets_errors_and_oversize_closes_1009(live_server, tenan
         assert info.value.rcvd.code == 1009
 
 
-async def test_link_cut_and_server_restart_lose_nothing_and_duplicate_nothing(database_url, tenant: Tenant,
-                                                                              tmp_path):
+async def test_link_cut_and_server_restart_lose_nothing_and_duplicate_nothing(
+    database_url, tenant: Tenant, tmp_path
+):
     """10 Hz telemetry; the server is stopped and restarted mid-stream; the store holds each sample once."""
     asset = tenant.create_asset("uav")
     cfg = _cfg(asset)
     server = LiveServer(test_settings(database_url)).start()
     port = server.port
-    link = Link(server.url, cfg.name, cfg.secret, tmp_path / "link.db", backoff_min=0.05, backoff_max=0.3, seed=4)
+    link = Link(
+        server.url,
+        cfg.name,
+        cfg.secret,
+        tmp_path / "link.db",
+        backoff_min=0.05,
+        backoff_max=0.3,
+        seed=4,
+    )
     await link.start()
     sent = 0
     try:
@@ -214,9 +304,19 @@ async def test_link_cut_and_server_restart_lose_nothing_and_duplicate_nothing(da
         LiveServer.__init__(restarted, settings)
         restarted.port, restarted.url = port, f"http://127.0.0.1:{port}"
         import uvicorn
-        restarted.server = uvicorn.Server(uvicorn.Config(restarted.app, host="127.0.0.1", port=port, log_config=None,
-                                                         ws_max_size=1 << 20, lifespan="on"))
+
+        restarted.server = uvicorn.Server(
+            uvicorn.Config(
+                restarted.app,
+                host="127.0.0.1",
+                port=port,
+                log_config=None,
+                ws_max_size=1 << 20,
+                lifespan="on",
+            )
+        )
         import threading
+
         restarted.thread = threading.Thread(target=restarted.server.run, daemon=True)
         settings.port = port
         restarted.start()
@@ -240,8 +340,16 @@ async def test_a_30_second_link_cut_loses_nothing(live_server, tenant: Tenant, t
     asset = tenant.create_asset("uav")
     cfg = _cfg(asset)
     proxy = await TcpProxy("127.0.0.1", live_server.port).start()
-    link = Link(f"http://127.0.0.1:{proxy.port}", cfg.name, cfg.secret, tmp_path / "link.db",
-                backoff_min=0.1, backoff_max=1.0, heartbeat_s=2.0, seed=5)
+    link = Link(
+        f"http://127.0.0.1:{proxy.port}",
+        cfg.name,
+        cfg.secret,
+        tmp_path / "link.db",
+        backoff_min=0.1,
+        backoff_max=1.0,
+        heartbeat_s=2.0,
+        seed=5,
+    )
     await link.start()
     sent = 0
     try:
@@ -265,17 +373,23 @@ async def test_a_30_second_link_cut_loses_nothing(live_server, tenant: Tenant, t
         await proxy.stop()
     rows = await _count(live_server.url, tenant, asset["id"])
     assert len(rows) == sent >= 300
-    assert sorted(r["position.alt_rel_m"] for r in rows) == sorted(float(i % 50) for i in range(sent))
+    assert sorted(r["position.alt_rel_m"] for r in rows) == sorted(
+        float(i % 50) for i in range(sent)
+    )
 
 
-async def test_a_flooding_asset_is_limited_and_others_keep_their_service(live_server, tenant: Tenant, tmp_path):
+async def test_a_flooding_asset_is_limited_and_others_keep_their_service(
+    live_server, tenant: Tenant, tmp_path
+):
     """One asset floods 10,000 messages/s: the excess is refused with an error and counted, the flooder's
     socket is closed (it must replay from its last ack: nothing it sent past a refusal is acked), and
     another asset's telemetry still reaches its operator."""
     flooder, quiet = tenant.create_asset("uav"), tenant.create_asset("uav")
     fcfg, qcfg = _cfg(flooder), _cfg(quiet)
     async with httpx.AsyncClient(base_url=live_server.url) as c:
-        token = (await c.post("/api/v1/assets/login", json={"name": fcfg.name, "secret": fcfg.secret})).json()["access_token"]
+        token = (
+            await c.post("/api/v1/assets/login", json={"name": fcfg.name, "secret": fcfg.secret})
+        ).json()["access_token"]
     before = live_server.app.state.hub.counters.rate_limited
     link = Link(live_server.url, qcfg.name, qcfg.secret, tmp_path / "quiet.db", seed=6)
     await link.start()
@@ -284,13 +398,40 @@ async def test_a_flooding_asset_is_limited_and_others_keep_their_service(live_se
     sent = 0
     try:
         await link.wait_connected(15)
-        async with websockets.connect(f"{ws_url}/ws/operator?token={tenant.tokens['viewer']}") as op, \
-                websockets.connect(f"{ws_url}/ws/asset", additional_headers={"Authorization": f"Bearer {token}"}) as fl:
-            await op.send(json.dumps({"v": 1, "type": "subscribe", "id": "6f1c3a3e-58a4-4d1e-9f55-000000000009",
-                                      "seq": 0, "ts": 0, "payload": {"asset_ids": [quiet["id"]]}}))
-            await fl.send(json.dumps({"v": 1, "type": "hello", "id": "6f1c3a3e-58a4-4d1e-9f55-000000000010", "seq": 0,
-                                      "ts": 0, "payload": {"stream": "6f1c3a3e-58a4-4d1e-9f55-0000000000bb",
-                                                           "agent": "asset_agent", "version": "t"}}))
+        async with (
+            websockets.connect(f"{ws_url}/ws/operator?token={tenant.tokens['viewer']}") as op,
+            websockets.connect(
+                f"{ws_url}/ws/asset", additional_headers={"Authorization": f"Bearer {token}"}
+            ) as fl,
+        ):
+            await op.send(
+                json.dumps(
+                    {
+                        "v": 1,
+                        "type": "subscribe",
+                        "id": "6f1c3a3e-58a4-4d1e-9f55-000000000009",
+                        "seq": 0,
+                        "ts": 0,
+                        "payload": {"asset_ids": [quiet["id"]]},
+                    }
+                )
+            )
+            await fl.send(
+                json.dumps(
+                    {
+                        "v": 1,
+                        "type": "hello",
+                        "id": "6f1c3a3e-58a4-4d1e-9f55-000000000010",
+                        "seq": 0,
+                        "ts": 0,
+                        "payload": {
+                            "stream": "6f1c3a3e-58a4-4d1e-9f55-0000000000bb",
+                            "agent": "asset_agent",
+                            "version": "t",
+                        },
+                    }
+                )
+            )
             assert json.loads(await fl.recv())["type"] == "welcome"
 
             async def drain() -> int:
@@ -305,8 +446,18 @@ async def test_a_flooding_asset_is_limited_and_others_keep_their_service(live_se
             started = time.monotonic()
             with contextlib.suppress(websockets.ConnectionClosed):
                 for seq in range(1, 10_001):
-                    await fl.send(json.dumps({"v": 1, "type": "event", "id": str(uuid.uuid4()), "seq": seq, "ts": 0,
-                                              "payload": {"name": "flood", "message": ""}}))
+                    await fl.send(
+                        json.dumps(
+                            {
+                                "v": 1,
+                                "type": "event",
+                                "id": str(uuid.uuid4()),
+                                "seq": seq,
+                                "ts": 0,
+                                "payload": {"name": "flood", "message": ""},
+                            }
+                        )
+                    )
                     sent = seq
                     if seq % 1000 == 0:
                         await asyncio.sleep(max(0.0, started + seq / 10_000 - time.monotonic()))
@@ -329,9 +480,13 @@ async def test_a_flooding_asset_is_limited_and_others_keep_their_service(live_se
     acked = max((m["payload"]["seq"] for m in replies if m["type"] == "ack"), default=0)
     assert acked < sent  # nothing past the refusal is acknowledged: the client still holds it
     async with httpx.AsyncClient(base_url=live_server.url) as c:
-        stored = (await c.get(f"/api/v1/assets/{flooder['id']}/events",
-                              params={"limit": 10000, "start": "1970-01-01T00:00:00Z"},
-                              headers=tenant.h("viewer"))).json()
+        stored = (
+            await c.get(
+                f"/api/v1/assets/{flooder['id']}/events",
+                params={"limit": 10000, "start": "1970-01-01T00:00:00Z"},
+                headers=tenant.h("viewer"),
+            )
+        ).json()
     assert len(stored) >= acked  # every acknowledged message is stored
 
 
@@ -353,16 +508,37 @@ async def test_sql_store_retention_prunes_old_samples(database_url):
 
     org_id, asset_id = _uuid.uuid4(), _uuid.uuid4()
     async with make_sessionmaker(engine)() as db:
-        await db.execute(insert(Organization).values(id=org_id, name=f"ret-{org_id.hex[:8]}", created_at=datetime.now(UTC)))
+        await db.execute(
+            insert(Organization).values(
+                id=org_id, name=f"ret-{org_id.hex[:8]}", created_at=datetime.now(UTC)
+            )
+        )
         now = datetime.now(UTC)
-        await db.execute(insert(Asset).values(id=asset_id, organization_id=org_id, name=f"ret-{asset_id.hex[:8]}",
-                                              kind="uav", description="", secret_hash="x", secret_rotated_at=now,
-                                              attributes={}, created_at=now, updated_at=now))
+        await db.execute(
+            insert(Asset).values(
+                id=asset_id,
+                organization_id=org_id,
+                name=f"ret-{asset_id.hex[:8]}",
+                kind="uav",
+                description="",
+                secret_hash="x",
+                secret_rotated_at=now,
+                attributes={},
+                created_at=now,
+                updated_at=now,
+            )
+        )
         await db.commit()
     now = datetime.now(UTC)
-    await store.write([Sample(asset_id, now - timedelta(days=10), 1, {"a": 1.0}),
-                       Sample(asset_id, now - timedelta(minutes=1), 2, {"a": 2.0})])
-    await store.write([Sample(asset_id, now - timedelta(minutes=1), 2, {"a": 2.0})])  # a replay: ignored
+    await store.write(
+        [
+            Sample(asset_id, now - timedelta(days=10), 1, {"a": 1.0}),
+            Sample(asset_id, now - timedelta(minutes=1), 2, {"a": 2.0}),
+        ]
+    )
+    await store.write(
+        [Sample(asset_id, now - timedelta(minutes=1), 2, {"a": 2.0})]
+    )  # a replay: ignored
     assert await store.prune(now - timedelta(days=1)) == 1
     rows = await store.query(Query(asset_id, now - timedelta(days=30), now))
     assert [r["a"] for r in rows] == [2.0]
@@ -372,11 +548,27 @@ async def test_sql_store_retention_prunes_old_samples(database_url):
 async def test_force_login_closes_the_old_sessions_sockets_with_4001(live_server, tenant: Tenant):
     url = live_server.url.replace("http", "ws") + f"/ws/operator?token={tenant.tokens['operator']}"
     async with websockets.connect(url) as ws:
-        await ws.send(json.dumps({"v": 1, "type": "subscribe", "id": "6f1c3a3e-58a4-4d1e-9f55-000000000020",
-                                  "seq": 0, "ts": 0, "payload": {"asset_ids": []}}))
+        await ws.send(
+            json.dumps(
+                {
+                    "v": 1,
+                    "type": "subscribe",
+                    "id": "6f1c3a3e-58a4-4d1e-9f55-000000000020",
+                    "seq": 0,
+                    "ts": 0,
+                    "payload": {"asset_ids": []},
+                }
+            )
+        )
         async with httpx.AsyncClient(base_url=live_server.url) as c:
-            r = await c.post("/api/v1/auth/login", json={"email": tenant.emails["operator"],
-                                                        "password": Tenant.PASSWORD, "force": True})
+            r = await c.post(
+                "/api/v1/auth/login",
+                json={
+                    "email": tenant.emails["operator"],
+                    "password": Tenant.PASSWORD,
+                    "force": True,
+                },
+            )
             assert r.status_code == 200
         with pytest.raises(websockets.ConnectionClosed) as info:
             while True:

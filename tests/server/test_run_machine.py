@@ -20,10 +20,15 @@ def test_the_happy_path_walks_the_whole_sequence():
     path = [State.pending]
     feeds = {
         State.pending: obs(),
-        State.checking: obs(commands={("base", "check_availability"): OK, ("uav", "check_availability"): OK}),
+        State.checking: obs(
+            commands={("base", "check_availability"): OK, ("uav", "check_availability"): OK}
+        ),
         State.opening: obs(commands={("base", "open"): OK}),
         State.uploading: obs(commands={("uav", "upload_mission"): OK}),
-        State.flying: obs(commands={("uav", "start_mission"): OK}, uav_events=["armed", "took_off", "mission_finished"]),
+        State.flying: obs(
+            commands={("uav", "start_mission"): OK},
+            uav_events=["armed", "took_off", "mission_finished"],
+        ),
         State.landing: obs(commands={("uav", "return_to_base"): OK}, uav_landed=True),
         State.confirming: obs(base_events=["landing_confirmed"]),
         State.closing: obs(commands={("base", "close"): OK}),
@@ -33,16 +38,35 @@ def test_the_happy_path_walks_the_whole_sequence():
         t = advance(path[-1], feeds[path[-1]])
         assert t is not None, path
         path.append(t.to)
-    assert path == [State.pending, State.checking, State.opening, State.uploading, State.flying, State.landing,
-                    State.confirming, State.closing, State.charging, State.completed]
+    assert path == [
+        State.pending,
+        State.checking,
+        State.opening,
+        State.uploading,
+        State.flying,
+        State.landing,
+        State.confirming,
+        State.closing,
+        State.charging,
+        State.completed,
+    ]
 
 
 def test_failed_availability_aborts_listing_every_condition():
-    failed = CommandOutcome("failed", "2 conditions failed", {"failed": [
-        {"name": "gust", "message": "gust 14.2 m/s over the 12.0 m/s limit"},
-        {"name": "rain", "message": "rain 3.1 mm/h over the 0.5 mm/h limit"}]})
-    t = advance(State.checking, obs(commands={("base", "check_availability"): failed,
-                                             ("uav", "check_availability"): OK}))
+    failed = CommandOutcome(
+        "failed",
+        "2 conditions failed",
+        {
+            "failed": [
+                {"name": "gust", "message": "gust 14.2 m/s over the 12.0 m/s limit"},
+                {"name": "rain", "message": "rain 3.1 mm/h over the 0.5 mm/h limit"},
+            ]
+        },
+    )
+    t = advance(
+        State.checking,
+        obs(commands={("base", "check_availability"): failed, ("uav", "check_availability"): OK}),
+    )
     assert t is not None and t.to is State.aborted and t.cause == "not_available"
     assert "gust 14.2 m/s over the 12.0 m/s limit" in t.reason and "rain 3.1" in t.reason
     assert not t.extra_actions  # nothing moved, nothing to undo
@@ -55,14 +79,28 @@ def test_waiting_steps_wait_and_then_time_out():
 
 
 def test_panel_stall_while_opening_fails_and_closes_the_base():
-    t = advance(State.opening, obs(commands={("base", "open"): CommandOutcome("failed", "panel motor stalled at 40 %")}))
+    t = advance(
+        State.opening,
+        obs(commands={("base", "open"): CommandOutcome("failed", "panel motor stalled at 40 %")}),
+    )
     assert t is not None and t.to is State.failed and "panel motor stalled" in t.reason
     assert [(a.target, a.command) for a in t.extra_actions] == [("base", "close")]
 
 
 def test_lost_uav_link_in_flight_is_waited_out():
-    assert advance(State.flying, obs(elapsed_s=500, timeout_s=3600, uav_link_up=False,
-                                     commands={("uav", "start_mission"): OK}, uav_events=["took_off"])) is None
+    assert (
+        advance(
+            State.flying,
+            obs(
+                elapsed_s=500,
+                timeout_s=3600,
+                uav_link_up=False,
+                commands={("uav", "start_mission"): OK},
+                uav_events=["took_off"],
+            ),
+        )
+        is None
+    )
 
 
 def test_mission_overrun_sends_the_uav_home():
@@ -79,21 +117,43 @@ def test_unconfirmed_landing_fails_and_leaves_the_panels_open():
 
 @pytest.mark.parametrize("state", [State.flying, State.landing, State.confirming])
 def test_no_failure_after_take_off_closes_the_panels(state):
-    for o in (obs(elapsed_s=10_000, timeout_s=1, uav_events=["took_off"]),
-              obs(elapsed_s=10_000, timeout_s=1, uav_events=["took_off"], commands={
-                  (a.target, a.command): CommandOutcome("failed", "x") for a in STEPS[state].actions})):
+    for o in (
+        obs(elapsed_s=10_000, timeout_s=1, uav_events=["took_off"]),
+        obs(
+            elapsed_s=10_000,
+            timeout_s=1,
+            uav_events=["took_off"],
+            commands={
+                (a.target, a.command): CommandOutcome("failed", "x") for a in STEPS[state].actions
+            },
+        ),
+    ):
         t = advance(state, o)
         if t is not None:
-            assert not any(a.command in ("close", "close_panels") for a in t.extra_actions), (state, t)
+            assert not any(a.command in ("close", "close_panels") for a in t.extra_actions), (
+                state,
+                t,
+            )
 
 
-@pytest.mark.parametrize(("state", "to", "closes"), [
-    (State.pending, State.aborted, False), (State.checking, State.aborted, False),
-    (State.opening, State.closing, True), (State.uploading, State.closing, True),
-    (State.flying, State.landing, False)])
+@pytest.mark.parametrize(
+    ("state", "to", "closes"),
+    [
+        (State.pending, State.aborted, False),
+        (State.checking, State.aborted, False),
+        (State.opening, State.closing, True),
+        (State.uploading, State.closing, True),
+        (State.flying, State.landing, False),
+    ],
+)
 def test_operator_abort_has_the_safe_outcome_of_each_step(state, to, closes):
     t = advance(state, obs(abort_requested=True, abort_reason="bird strike risk"))
-    assert t is not None and t.to is to and t.cause == "operator_abort" and "bird strike risk" in t.reason
+    assert (
+        t is not None
+        and t.to is to
+        and t.cause == "operator_abort"
+        and "bird strike risk" in t.reason
+    )
     assert (State.closing is t.to) == closes
 
 
@@ -103,11 +163,21 @@ def test_an_aborted_run_that_gets_home_ends_aborted():
 
 
 def test_takeoff_failure_closes_the_base_while_the_uav_is_still_on_the_lift():
-    t = advance(State.flying, obs(commands={("uav", "start_mission"): CommandOutcome("failed", "PreArm: GPS")},
-                                  uav_landed=True))
-    assert t is not None and t.to is State.failed and [a.command for a in t.extra_actions] == ["close"]
+    t = advance(
+        State.flying,
+        obs(
+            commands={("uav", "start_mission"): CommandOutcome("failed", "PreArm: GPS")},
+            uav_landed=True,
+        ),
+    )
+    assert (
+        t is not None and t.to is State.failed and [a.command for a in t.extra_actions] == ["close"]
+    )
     # without telemetry showing the UAV disarmed on the lift, nothing closes
-    t = advance(State.flying, obs(commands={("uav", "start_mission"): CommandOutcome("failed", "PreArm: GPS")}))
+    t = advance(
+        State.flying,
+        obs(commands={("uav", "start_mission"): CommandOutcome("failed", "PreArm: GPS")}),
+    )
     assert t is not None and t.to is State.failed and not t.extra_actions and t.alert
 
 

@@ -10,18 +10,29 @@ from tests.conftest import Tenant, wait_for
 def _setup(api, tenant: Tenant) -> dict:  # type: ignore[no-untyped-def]
     base = tenant.create_asset("landing_base")
     uav = tenant.create_asset("uav", base_id=base["id"])
-    mission = api.post("/api/v1/missions", headers=tenant.h("operator"), json={
-        "name": "square", "items": [{"command": 22, "lat": 41.178, "lon": -8.598, "alt": 20},
-                                    {"command": 16, "lat": 41.179, "lon": -8.598, "alt": 20},
-                                    {"command": 20}]})
+    mission = api.post(
+        "/api/v1/missions",
+        headers=tenant.h("operator"),
+        json={
+            "name": "square",
+            "items": [
+                {"command": 22, "lat": 41.178, "lon": -8.598, "alt": 20},
+                {"command": 16, "lat": 41.179, "lon": -8.598, "alt": 20},
+                {"command": 20},
+            ],
+        },
+    )
     assert mission.status_code == 201, mission.text
     return {"mission_id": mission.json()["id"], "uav_id": uav["id"], "base_id": base["id"]}
 
 
 def test_run_validation_and_one_run_per_asset(api, tenant: Tenant):
     ids = _setup(api, tenant)
-    swapped = api.post("/api/v1/runs", headers=tenant.h("operator"),
-                       json={**ids, "uav_id": ids["base_id"], "base_id": ids["uav_id"]})
+    swapped = api.post(
+        "/api/v1/runs",
+        headers=tenant.h("operator"),
+        json={**ids, "uav_id": ids["base_id"], "base_id": ids["uav_id"]},
+    )
     assert swapped.status_code == 422 and "not a UAV" in swapped.json()["error"]["message"]
     first = api.post("/api/v1/runs", headers=tenant.h("operator"), json=ids)
     assert first.status_code == 201, first.text
@@ -34,7 +45,11 @@ def test_run_validation_and_one_run_per_asset(api, tenant: Tenant):
 def test_abort_before_take_off_ends_aborted_with_a_readable_timeline(api, tenant: Tenant):
     ids = _setup(api, tenant)
     run = api.post("/api/v1/runs", headers=tenant.h("operator"), json=ids).json()
-    r = api.post(f"/api/v1/runs/{run['id']}/abort", headers=tenant.h("operator"), json={"reason": "fog rolling in"})
+    r = api.post(
+        f"/api/v1/runs/{run['id']}/abort",
+        headers=tenant.h("operator"),
+        json={"reason": "fog rolling in"},
+    )
     assert r.status_code == 202
 
     def finished():  # type: ignore[no-untyped-def]
@@ -46,11 +61,20 @@ def test_abort_before_take_off_ends_aborted_with_a_readable_timeline(api, tenant
     assert "fog rolling in" in body["reason"] and "nothing had moved" in body["reason"]
     assert body["timeline"][0]["from_state"] == "pending"
     assert body["timeline"][-1]["to_state"] == "aborted"
-    assert api.post(f"/api/v1/runs/{run['id']}/abort", headers=tenant.h("operator"), json={}).status_code == 409
+    assert (
+        api.post(
+            f"/api/v1/runs/{run['id']}/abort", headers=tenant.h("operator"), json={}
+        ).status_code
+        == 409
+    )
     report = api.get(f"/api/v1/runs/{run['id']}/report", headers=tenant.h("viewer")).json()
     assert report["run"]["id"] == run["id"] and report["flight_time_s"] is None
     fleet = api.get("/api/v1/reports/fleet", headers=tenant.h("viewer")).json()
-    assert fleet["runs"] == 1 and fleet["aborted"] == 1 and fleet["failures_by_cause"] == {"operator_abort": 1}
+    assert (
+        fleet["runs"] == 1
+        and fleet["aborted"] == 1
+        and fleet["failures_by_cause"] == {"operator_abort": 1}
+    )
     assert fleet["success_rate"] == 0.0
 
 
@@ -71,15 +95,24 @@ def test_unanswered_availability_check_aborts_the_run(api, tenant: Tenant):
 
 def test_schedules_validate_and_fire_per_policy(api, tenant: Tenant):
     ids = _setup(api, tenant)
-    bad = api.post("/api/v1/schedules", headers=tenant.h("operator"),
-                   json={**ids, "name": "bad", "kind": "cron", "cron": "61 * * * *"})
+    bad = api.post(
+        "/api/v1/schedules",
+        headers=tenant.h("operator"),
+        json={**ids, "name": "bad", "kind": "cron", "cron": "61 * * * *"},
+    )
     assert bad.status_code == 422 and "cron" in bad.json()["error"]["message"]
-    bad_tz = api.post("/api/v1/schedules", headers=tenant.h("operator"),
-                      json={**ids, "name": "bad", "kind": "cron", "cron": "0 6 * * *", "timezone": "Mars/Base"})
+    bad_tz = api.post(
+        "/api/v1/schedules",
+        headers=tenant.h("operator"),
+        json={**ids, "name": "bad", "kind": "cron", "cron": "0 6 * * *", "timezone": "Mars/Base"},
+    )
     assert bad_tz.status_code == 422
     long_ago = (datetime.now(UTC) - timedelta(hours=3)).isoformat()
-    skipped = api.post("/api/v1/schedules", headers=tenant.h("operator"),
-                       json={**ids, "name": "missed", "kind": "once", "at": long_ago, "missed_policy": "skip"}).json()
+    skipped = api.post(
+        "/api/v1/schedules",
+        headers=tenant.h("operator"),
+        json={**ids, "name": "missed", "kind": "once", "at": long_ago, "missed_policy": "skip"},
+    ).json()
 
     def fired(sid: str):  # type: ignore[no-untyped-def]
         body = api.get(f"/api/v1/schedules/{sid}", headers=tenant.h("viewer")).json()
@@ -88,12 +121,18 @@ def test_schedules_validate_and_fire_per_policy(api, tenant: Tenant):
     body = wait_for(lambda: fired(skipped["id"]), 15, what="the missed schedule to be handled")
     assert "skipped" in body["last_result"] and body["last_run_id"] is None and not body["enabled"]
     soon = (datetime.now(UTC) + timedelta(seconds=1)).isoformat()
-    once = api.post("/api/v1/schedules", headers=tenant.h("operator"),
-                    json={**ids, "name": "soon", "kind": "once", "at": soon}).json()
+    once = api.post(
+        "/api/v1/schedules",
+        headers=tenant.h("operator"),
+        json={**ids, "name": "soon", "kind": "once", "at": soon},
+    ).json()
     body = wait_for(lambda: fired(once["id"]), 15, what="the schedule to fire")
     assert body["last_run_id"] and "started run" in body["last_result"]
     run = api.get(f"/api/v1/runs/{body['last_run_id']}", headers=tenant.h("viewer")).json()
     assert run["schedule_id"] == once["id"]
     runs = api.get("/api/v1/runs", headers=tenant.h("viewer")).json()
     assert [r["id"] for r in runs if r["schedule_id"] == once["id"]] == [body["last_run_id"]]
-    assert api.get(f"/api/v1/schedules/{once['id']}", headers=tenant.h("viewer")).json()["enabled"] is False
+    assert (
+        api.get(f"/api/v1/schedules/{once['id']}", headers=tenant.h("viewer")).json()["enabled"]
+        is False
+    )

@@ -25,12 +25,24 @@ REDIS_URL = os.environ.get("REDIS_TEST_URL", "redis://127.0.0.1:6379/0")
 
 
 def _start(database_url: str, port: int, log) -> subprocess.Popen:  # type: ignore[no-untyped-def]
-    env = {**os.environ, "DATABASE_URL": database_url, "REDIS_URL": REDIS_URL, "AEROBASE_PORT": str(port),
-           "AEROBASE_ARGON2_MEMORY_KIB": "8192", "AEROBASE_ARGON2_TIME_COST": "1",
-           "AEROBASE_ARGON2_PARALLELISM": "1", "AEROBASE_CONFIG_SCRYPT_LOG_N": "12",
-           "AEROBASE_LOGIN_MAX_FAILURES_ADDRESS": "10000", "AEROBASE_LOG_FORMAT": "json"}
-    proc = subprocess.Popen([sys.executable, "-m", "aerobase.cli", "server", "--port", str(port)], env=env,
-                            stdout=log, stderr=subprocess.STDOUT)
+    env = {
+        **os.environ,
+        "DATABASE_URL": database_url,
+        "REDIS_URL": REDIS_URL,
+        "AEROBASE_PORT": str(port),
+        "AEROBASE_ARGON2_MEMORY_KIB": "8192",
+        "AEROBASE_ARGON2_TIME_COST": "1",
+        "AEROBASE_ARGON2_PARALLELISM": "1",
+        "AEROBASE_CONFIG_SCRYPT_LOG_N": "12",
+        "AEROBASE_LOGIN_MAX_FAILURES_ADDRESS": "10000",
+        "AEROBASE_LOG_FORMAT": "json",
+    }
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "aerobase.cli", "server", "--port", str(port)],
+        env=env,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
         if proc.poll() is not None:
@@ -67,7 +79,9 @@ def two_servers(database_url: str, tmp_path) -> Iterator[tuple[str, str]]:  # ty
 
 async def test_two_processes_act_as_one(two_servers, api, superuser_email, tmp_path):
     url_a, url_b = two_servers
-    tenant = Tenant(api, superuser_email, "scale")  # built through the session's server: same database
+    tenant = Tenant(
+        api, superuser_email, "scale"
+    )  # built through the session's server: same database
     asset = tenant.create_asset("uav")
     cfg = decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
     link = Link(url_b, cfg.name, cfg.secret, tmp_path / "link.db", seed=7)
@@ -88,28 +102,50 @@ async def test_two_processes_act_as_one(two_servers, api, superuser_email, tmp_p
         # an operator on A receives live telemetry of the asset connected to B
         ws_a = url_a.replace("http", "ws") + f"/ws/operator?token={tenant.tokens['viewer']}"
         async with websockets.connect(ws_a) as op:
-            await op.send(json.dumps({"v": 1, "type": "subscribe", "id": "1b7e1b2e-0000-4000-8000-000000000001",
-                                      "seq": 0, "ts": 0, "payload": {"asset_ids": [asset["id"]]}}))
+            await op.send(
+                json.dumps(
+                    {
+                        "v": 1,
+                        "type": "subscribe",
+                        "id": "1b7e1b2e-0000-4000-8000-000000000001",
+                        "seq": 0,
+                        "ts": 0,
+                        "payload": {"asset_ids": [asset["id"]]},
+                    }
+                )
+            )
             got = None
             for i in range(100):  # keep sending until the subscription (async in Redis) is in place
-                await link.send_telemetry(UavTelemetry(position=Position(lat=41.0, lon=-8.6, alt_msl_m=120,
-                                                                         alt_rel_m=float(i))))
+                await link.send_telemetry(
+                    UavTelemetry(
+                        position=Position(lat=41.0, lon=-8.6, alt_msl_m=120, alt_rel_m=float(i))
+                    )
+                )
                 try:
                     got = json.loads(await asyncio.wait_for(op.recv(), 0.2))
                     break
                 except TimeoutError:
                     continue
-            assert got is not None and got["type"] == "telemetry" and got["payload"]["asset_id"] == asset["id"]
+            assert (
+                got is not None
+                and got["type"] == "telemetry"
+                and got["payload"]["asset_id"] == asset["id"]
+            )
             # a command posted to A reaches the asset on B and its result comes back (to A's operator too)
             async with httpx.AsyncClient(base_url=url_a) as a:
-                r = await a.post(f"/api/v1/assets/{asset['id']}/commands", json={"name": "check_availability"},
-                                 headers=tenant.h("operator"))
+                r = await a.post(
+                    f"/api/v1/assets/{asset['id']}/commands",
+                    json={"name": "check_availability"},
+                    headers=tenant.h("operator"),
+                )
                 assert r.status_code == 202, r.text
                 cid = r.json()["id"]
                 deadline = time.monotonic() + 20
                 status = None
                 while time.monotonic() < deadline:
-                    status = (await a.get(f"/api/v1/commands/{cid}", headers=tenant.h("viewer"))).json()["status"]
+                    status = (
+                        await a.get(f"/api/v1/commands/{cid}", headers=tenant.h("viewer"))
+                    ).json()["status"]
                     if status == "succeeded":
                         break
                     await asyncio.sleep(0.05)
@@ -123,7 +159,9 @@ async def test_two_processes_act_as_one(two_servers, api, superuser_email, tmp_p
         await link.stop()
 
 
-def test_two_processes_sharing_a_schedule_start_its_run_exactly_once(two_servers, api, superuser_email):
+def test_two_processes_sharing_a_schedule_start_its_run_exactly_once(
+    two_servers, api, superuser_email
+):
     from datetime import UTC, datetime, timedelta
 
     from tests.conftest import wait_for
@@ -132,16 +170,40 @@ def test_two_processes_sharing_a_schedule_start_its_run_exactly_once(two_servers
     tenant = Tenant(api, superuser_email, "sched")
     base = tenant.create_asset("landing_base")
     uav = tenant.create_asset("uav", base_id=base["id"])
-    mission = api.post("/api/v1/missions", headers=tenant.h("operator"), json={
-        "name": "m", "items": [{"command": 22, "lat": 41.178, "lon": -8.598, "alt": 20}, {"command": 20}]}).json()
+    mission = api.post(
+        "/api/v1/missions",
+        headers=tenant.h("operator"),
+        json={
+            "name": "m",
+            "items": [{"command": 22, "lat": 41.178, "lon": -8.598, "alt": 20}, {"command": 20}],
+        },
+    ).json()
     ids = {"mission_id": mission["id"], "uav_id": uav["id"], "base_id": base["id"]}
     with httpx.Client(base_url=url_a) as a, httpx.Client(base_url=url_b) as b:
         due = (datetime.now(UTC) + timedelta(seconds=2)).isoformat()
-        s = a.post("/api/v1/schedules", headers=tenant.h("operator"),
-                   json={**ids, "name": "dawn patrol", "kind": "once", "at": due}).json()
+        s = a.post(
+            "/api/v1/schedules",
+            headers=tenant.h("operator"),
+            json={**ids, "name": "dawn patrol", "kind": "once", "at": due},
+        ).json()
         # fired and disabled in the same transaction: after this no process can fire it again
-        wait_for(lambda: not b.get(f"/api/v1/schedules/{s['id']}", headers=tenant.h("viewer")).json()["enabled"],
-                 30, what="the schedule to fire")
-        runs_a = [r for r in a.get("/api/v1/runs", headers=tenant.h("viewer")).json() if r["schedule_id"] == s["id"]]
-        runs_b = [r for r in b.get("/api/v1/runs", headers=tenant.h("viewer")).json() if r["schedule_id"] == s["id"]]
+        wait_for(
+            lambda: (
+                not b.get(f"/api/v1/schedules/{s['id']}", headers=tenant.h("viewer")).json()[
+                    "enabled"
+                ]
+            ),
+            30,
+            what="the schedule to fire",
+        )
+        runs_a = [
+            r
+            for r in a.get("/api/v1/runs", headers=tenant.h("viewer")).json()
+            if r["schedule_id"] == s["id"]
+        ]
+        runs_b = [
+            r
+            for r in b.get("/api/v1/runs", headers=tenant.h("viewer")).json()
+            if r["schedule_id"] == s["id"]
+        ]
     assert len(runs_a) == 1 and [r["id"] for r in runs_a] == [r["id"] for r in runs_b]

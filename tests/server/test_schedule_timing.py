@@ -27,7 +27,9 @@ def test_cron_follows_the_time_zone_across_a_dst_change():
     second = next_after("cron", first, cron="0 6 * * *", tz="Europe/Lisbon")
     assert first == datetime(2026, 3, 29, 5, 0, tzinfo=UTC)
     assert second == datetime(2026, 3, 30, 5, 0, tzinfo=UTC)
-    before = next_after("cron", datetime(2026, 3, 20, tzinfo=UTC), cron="0 6 * * *", tz="Europe/Lisbon")
+    before = next_after(
+        "cron", datetime(2026, 3, 20, tzinfo=UTC), cron="0 6 * * *", tz="Europe/Lisbon"
+    )
     assert before == datetime(2026, 3, 20, 6, 0, tzinfo=UTC)
 
 
