@@ -5,23 +5,17 @@ from __future__ import annotations
 from tests.conftest import Tenant
 from tests.e2e.harness import FINAL, platform
 
+WHOLE_SEQUENCE = [
+    "checking", "opening", "uploading", "flying", "landing", "confirming", "closing", "charging",
+]  # fmt: skip
+
 
 async def test_a_run_walks_the_whole_sequence_and_completes(live_server, tenant: Tenant, tmp_path):
     async with platform(live_server.url, tenant, tmp_path) as p:
         run_id = await p.start_run()
         body = await p.wait_state(run_id, FINAL, 150)
         assert body["state"] == "completed", (body["reason"], body["timeline"])
-        assert [t["to_state"] for t in body["timeline"]] == [
-            "checking",
-            "opening",
-            "uploading",
-            "flying",
-            "landing",
-            "confirming",
-            "closing",
-            "charging",
-            "completed",
-        ]
+        assert [t["to_state"] for t in body["timeline"]] == [*WHOLE_SEQUENCE, "completed"]
         assert not body["alert"], (
             body["reason"],
             _on_the_pad(p),
@@ -170,17 +164,7 @@ async def test_operator_abort_in_flight_returns_the_uav_lands_and_closes_over_it
             body["timeline"],
         )
         states = [t["to_state"] for t in body["timeline"]]
-        assert states == [
-            "checking",
-            "opening",
-            "uploading",
-            "flying",
-            "landing",
-            "confirming",
-            "closing",
-            "charging",
-            "aborted",
-        ], states
+        assert states == [*WHOLE_SEQUENCE, "aborted"], states
         landing = next(t for t in body["timeline"] if t["to_state"] == "landing")
         assert "airspace closed" in landing["reason"] and "return" in landing["reason"]
         # the panels closed only over a UAV the scale had confirmed: it is seated and the base is shut
