@@ -35,6 +35,7 @@ from asset_agent.precland.pipeline import Tick, VehicleState
 from asset_agent.precland.transport import IrReceiver, frames_forever
 from protocol.commands import CommandRequest, result
 from protocol.messages import CommandResultPayload
+from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 
@@ -107,6 +108,10 @@ class SensorClock:
         await asyncio.sleep(max(0.0, seconds) / self.rate)
 
 
+# LANDING_TARGET only while the pad is below the camera: body z over distance (ArduPilot's check)
+MIN_BELOW = 0.1
+
+
 @dataclass
 class LandingStats:
     """What precision landing did, for logs and tests."""
@@ -115,6 +120,7 @@ class LandingStats:
     frames: int = 0
     ir_readings: int = 0
     targets_sent: int = 0
+    targets_withheld: int = 0  # the pad was not below the camera (on the ground): not sent
     first_sent_t: float | None = None  # sensor clock
     last_sent_t: float | None = None
 
@@ -294,6 +300,11 @@ class PrecisionLander:
         lt = tick.landing_target
         if lt is None:
             return
+        if not lt.z > MIN_BELOW * lt.distance:
+            # level with the camera (touched down, the estimate at the pad's height): ArduPilot
+            # refuses a line of sight that is not below the vehicle, so there is nothing to send
+            self.stats.targets_withheld += 1
+            return
         self.autopilot.send_landing_target(
             lt.angle_x, lt.angle_y, lt.distance, lt.frame, (lt.x, lt.y, lt.z)
         )
@@ -337,11 +348,7 @@ class PrecisionLander:
 
 
 async def _cancel(task: asyncio.Task[Any] | None) -> None:
-    if task is None:
-        return
-    task.cancel()
-    with contextlib.suppress(asyncio.CancelledError, Exception):
-        await task
+    await cancel_and_wait([task])
 
 
 def stream_rates(section: PreclandSection) -> dict[int, float]:

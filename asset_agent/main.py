@@ -29,6 +29,7 @@ from asset_agent.telemetry import to_event, to_telemetry
 from protocol.configfile import AssetConfig, ConfigFileError
 from protocol.configfile_cli import PasswordSourceError, load_config
 from protocol.link import Link
+from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger("asset_agent")
 
@@ -126,10 +127,7 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
     try:
         await _report(agent, stop)
     finally:
-        if lander is not None:
-            lander.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await lander
+        await cancel_and_wait([lander])
         await agent.link.stop()
         await agent.autopilot.close()
 

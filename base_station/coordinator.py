@@ -31,6 +31,7 @@ from base_station.plc import (
     WatchdogWriter,
 )
 from base_station.snapshot import Snapshot
+from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 
@@ -67,11 +68,7 @@ class Coordinator:
 
     async def stop(self) -> None:
         """Stop the loops and close the connection."""
-        for task in self._tasks:
-            task.cancel()
-        for task in self._tasks:
-            with contextlib.suppress(asyncio.CancelledError):
-                await task
+        await cancel_and_wait(self._tasks)
         self._tasks = []
         self.client.close()
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from base_station.config import StationConfig, load_config
 from base_station.coordinator import Coordinator
 from base_station.station import Station
+from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 
@@ -76,13 +77,7 @@ async def run(app: App, stop: asyncio.Event | None = None, link: LinkRunner | No
     try:
         await stop.wait()
     finally:
-        if link_task is not None:
-            link_task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                try:
-                    await link_task
-                except Exception:
-                    log.exception("the server link ended with an error")
+        await cancel_and_wait([link_task])  # logs what the link ended with
         await app.station.shutdown()
         await app.coordinator.stop()
 

@@ -21,6 +21,7 @@ from urllib.parse import parse_qs, urlsplit
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from protocol.rtcm import Reframer, message_type
+from protocol.tasks import cancel_and_wait
 from protocol.telemetry import Rtk
 
 log = logging.getLogger(__name__)
@@ -309,11 +310,8 @@ class RtkReader:
 
     async def stop(self) -> None:
         """Stop the background task started by `start`."""
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
-            self._task = None
+        await cancel_and_wait([self._task])
+        self._task = None
 
     async def run(self) -> None:
         """Connect, read and reconnect with backoff until cancelled."""

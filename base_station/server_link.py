@@ -8,7 +8,6 @@ the GNSS reference receiver go out as `rtcm` messages.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 from collections.abc import AsyncIterator
 from pathlib import Path
@@ -23,6 +22,7 @@ from protocol.commands import CommandRequest
 from protocol.configfile import AssetConfig
 from protocol.link import Link
 from protocol.messages import CommandProgress, CommandResultPayload, EventPayload, Severity
+from protocol.tasks import cancel_and_wait
 from protocol.telemetry import Actuator, Charger, Faults, LandingBaseTelemetry, Power, Rtk, Weather
 
 log = logging.getLogger(__name__)
@@ -161,9 +161,7 @@ def link_runner(link: Link):  # type: ignore[no-untyped-def]
                         log.exception("telemetry sample %d could not be sent", failures)
                 await asyncio.sleep(period)  # the telemetry rate itself
         finally:
-            forwarder.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await forwarder
+            await cancel_and_wait([forwarder])
             events.close()
             if reader:
                 await reader.stop()

@@ -13,7 +13,6 @@ carry seq >= 1; RTCM frames, hello and error replies are sent only while connect
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import random
 import time
@@ -38,6 +37,7 @@ from protocol.conversation import (
 )
 from protocol.messages import AgentKind, EventPayload, HelloPayload, RtcmPayload, envelope, now_ms
 from protocol.outbox import AsyncOutbox, Token
+from protocol.tasks import cancel_and_wait
 from protocol.telemetry import LandingBaseTelemetry, UavTelemetry
 
 __all__ = ["Link", "LinkClosed", "LinkStats", "SessionEnded", "backoff_delay", "renew_at", "ws_url"]
@@ -216,11 +216,8 @@ class Link:
         if core is None:
             return
         await core.dispatcher.stop()
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
-            self._task = None
+        await cancel_and_wait([self._task])
+        self._task = None
         if logout and self._token is not None and self._session is not None:
             try:
                 await self._session.logout(self._token.access_token)

@@ -20,7 +20,6 @@ Datagram (one reading, 28 bytes, little-endian)::
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import math
 import struct
@@ -29,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from protocol.tasks import cancel_and_wait
 from sim.camera.render import CAM_FROM_BODY, Pose, rotation_world_from_body
 
 log = logging.getLogger(__name__)
@@ -131,10 +131,7 @@ class IrBeaconSensor:
 
     async def stop(self) -> None:
         """Stop sending and close the socket."""
-        if self._task:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
+        await cancel_and_wait([self._task])
         if self._transport:
             self._transport.close()
 

@@ -27,6 +27,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from protocol.tasks import cancel_and_wait
 from sim.clock import SimClock
 from sim.plc import BaseParams, LandingBase, PlcServer
 from sim.power import PowerParams, PowerSystem
@@ -163,10 +164,7 @@ class World:
             self._control.should_exit = True
             with contextlib.suppress(Exception):
                 await asyncio.wait_for(self._control_task, 5.0)
-        if self._loop_task is not None:
-            self._loop_task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._loop_task
+        await cancel_and_wait([self._loop_task])
         for part in reversed(self.parts):
             await part.stop()
         await self.plc.stop()

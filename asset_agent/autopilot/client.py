@@ -31,6 +31,7 @@ from asset_agent.autopilot.items import MissionItem
 from asset_agent.autopilot.link import MavlinkLink
 from asset_agent.autopilot.setpoints import SetpointsMixin
 from asset_agent.autopilot.state import MODE_NUMBERS, Notification, UavState
+from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 
@@ -112,11 +113,7 @@ class Autopilot(SetpointsMixin):
 
     async def close(self) -> None:
         """Stop every task and close the link."""
-        for t in self._tasks:
-            t.cancel()
-        for t in self._tasks:
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await t
+        await cancel_and_wait(self._tasks)
         await self._link.close()
 
     async def wait_link(self, within_s: float) -> None:

@@ -10,7 +10,6 @@ autopilot; vehicle states come in through `vehicle()`.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import time
 from collections.abc import Awaitable, Callable
@@ -19,6 +18,7 @@ from asset_agent.precland.config import FaultConfig, PrecisionLandingConfig
 from asset_agent.precland.detect import Detections, PadDetector
 from asset_agent.precland.pipeline import LandingPipeline, Tick, VehicleState
 from asset_agent.precland.transport import Frame, IrReading
+from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 
@@ -81,9 +81,7 @@ class PrecisionLandingLoop:
                         log.exception("on_tick callback failed")
                 await self.sleep_fn(period)
         finally:
-            detect.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await detect
+            await cancel_and_wait([detect])
 
     async def _detect_loop(self) -> None:
         while True:

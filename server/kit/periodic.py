@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 from collections.abc import Awaitable, Callable
+
+from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 
@@ -25,10 +26,7 @@ class Periodic:
 
     async def stop(self) -> None:
         """Stop the loop."""
-        if self._task:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
+        await cancel_and_wait([self._task])
 
     async def _loop(self) -> None:
         while True:

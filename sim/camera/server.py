@@ -19,7 +19,6 @@ what a landing controller wants. The server only renders while someone is subscr
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import struct
 from collections.abc import Callable
@@ -29,6 +28,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 
+from protocol.tasks import cancel_and_wait
 from sim.camera.render import PadRenderer, Pose
 
 log = logging.getLogger(__name__)
@@ -116,10 +116,7 @@ class CameraServer:
 
     async def stop(self) -> None:
         """Stop capturing and close every connection."""
-        if self._task:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
+        await cancel_and_wait([self._task])
         if self._server:
             self._server.close()
             for slot in list(self._slots):

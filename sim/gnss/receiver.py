@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from protocol.tasks import cancel_and_wait
 from sim.clock import SimClock
 from sim.gnss.station import BaseStationModel, GnssConfig
 
@@ -102,11 +103,8 @@ class GnssReceiver:
 
     async def stop(self) -> None:
         """Stop streaming, close every client and stop listening."""
-        if self._task is not None:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
-            self._task = None
+        await cancel_and_wait([self._task])
+        self._task = None
         if self._server is not None:
             self._server.close()
         await self.disconnect_clients()

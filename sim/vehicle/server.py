@@ -26,6 +26,7 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from protocol.tasks import cancel_and_wait
 from sim.clock import SimClock
 from sim.vehicle.copter import Base, Copter, CopterConfig
 from sim.vehicle.standalone import OpenPad
@@ -139,10 +140,7 @@ class VehicleServer:
 
     async def close(self) -> None:
         """Stop the loop and close every socket."""
-        if self._task:
-            self._task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._task
+        await cancel_and_wait([self._task])
         if self._tcp_server:
             self._tcp_server.close()
         for w in list(self._writers):
