@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 from sqlalchemy.exc import IntegrityError
 
 from server.kit.errors import Conflict
@@ -24,10 +22,7 @@ class MissionRepository(ScopedRepository[Mission]):
         stmt = self.select().order_by(Mission.created_at, Mission.id).limit(limit).offset(offset)
         if kind:
             stmt = stmt.where(Mission.kind == kind)
-        rows: Any = (
-            await self.db.execute(stmt)
-        ).scalars()  # Select[tuple[M]] types scalars as tuples
-        return list(rows)
+        return list((await self.db.execute(stmt)).scalars())
 
     async def add(self, mission: Mission) -> Mission:
         """Insert a mission into the current unit of work."""
