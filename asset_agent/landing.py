@@ -165,6 +165,7 @@ class PrecisionLander:
         self._loop_task: asyncio.Task[None] | None = None
         self._camera_task: asyncio.Task[None] | None = None
         self._position: tuple[float, float, float] | None = None
+        self._velocity: tuple[float, float, float] | None = None
         self._attitude: tuple[float, float, float] | None = None
         if self.config.mode != "landing_target":
             log.warning(
@@ -340,9 +341,12 @@ class PrecisionLander:
                         self._attitude = (msg.roll, msg.pitch, msg.yaw)
                     else:
                         self._position = (msg.x, msg.y, msg.z)
+                        self._velocity = (msg.vx, msg.vy, msg.vz)
                     if self.loop is not None and self._attitude and self._position:
                         t = self.clock.now()
-                        self.loop.vehicle(VehicleState(t, self._position, self._attitude))
+                        self.loop.vehicle(
+                            VehicleState(t, self._position, self._attitude, self._velocity)
+                        )
                 except Exception:
                     log.exception("precland: bad autopilot state skipped")
 

@@ -8,7 +8,8 @@ limits, attitude from the acceleration it demands plus the wind it leans into (m
 part of the wind its velocity loop has not yet integrated away (gusts) leaking into ground speed,
 and a seat at camera height 0.25 m.
 Start 10 m (or 6 m) high and 2 m off; the surveyed pad position carries a setup error of up to
-1 m; GNSS without RTK adds a Gauss-Markov error (0.5 m, 120 s) to the positions the agent sees.
+1 m; GNSS without RTK adds a Gauss-Markov error (0.5 m, 120 s) to the positions the agent sees,
+and the velocities it sees (the autopilot EKF's, GNSS Doppler + IMU) carry `EkfVelocityError`.
 Prints a table (scenario, mean / max landing error in cm, heading error, mean landing time) and,
 with --json, one JSON object last.
 """
@@ -22,6 +23,7 @@ import statistics
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
@@ -152,6 +154,41 @@ class SharedVehicle:
 VEHICLES = {"shared": SharedVehicle, "kinematic": KinematicVehicle}
 
 
+class EkfVelocityError:
+    """The error of the autopilot EKF's velocity (LOCAL_POSITION_NED vx, vy, vz), per axis: a
+    noise of 0.05 m/s, new at each 5 Hz GNSS epoch, plus a bias of 0.03 m/s wandering over 30 s.
+
+    Why these: the EKF's velocity follows the receiver's Doppler velocity, which u-blox M8/M9/F9
+    class receivers specify at 0.05 m/s and deliver at 5-10 Hz; the EKF smooths it with the IMU
+    between epochs, which changes how it looks but not how it adds up: integrated it is a random
+    walk of 0.05 x sqrt(0.2 s) = 0.022 m/sqrt(s), modelled as a Gauss-Markov noise of 0.05 m/s
+    and 0.1 s (same low-frequency content). Slow errors (IMU bias and tilt not yet corrected, the
+    EKF pulled by GNSS position innovations) are the bias: at 0.03 m/s over 30 s it exceeds the
+    part of the GNSS model's own drift that stays correlated over tens of seconds (the mean rate
+    over 30 s of a 0.5 m / 120 s Gauss-Markov error is ~0.012 m/s), so the velocity is not made
+    cleaner than the positions it is compared with.
+    """
+
+    NOISE_SIGMA, NOISE_TAU = 0.05, 0.1
+    BIAS_SIGMA, BIAS_TAU = 0.03, 30.0
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self.rng = rng
+        self.noise = rng.normal(0, self.NOISE_SIGMA, 3)
+        self.bias = rng.normal(0, self.BIAS_SIGMA, 3)
+
+    def step(self, dt: float) -> np.ndarray:
+        """Advance dt seconds; the current error (m/s, NED)."""
+        for attr, sigma, tau in (
+            ("noise", self.NOISE_SIGMA, self.NOISE_TAU),
+            ("bias", self.BIAS_SIGMA, self.BIAS_TAU),
+        ):
+            decay = math.exp(-dt / tau)
+            drive = self.rng.normal(0, sigma * math.sqrt(1 - decay**2), 3)
+            setattr(self, attr, getattr(self, attr) * decay + drive)
+        return self.noise + self.bias
+
+
 @dataclass(frozen=True)
 class Scenario:
     """One evaluation scenario: the sensors used, their faults, the approach, the start."""
@@ -221,9 +258,14 @@ class Trial:
 
 
 def run_trial(
-    sc: Scenario, seed: int, max_time: float = 150.0, vehicle_model: str = "shared"
+    sc: Scenario,
+    seed: int,
+    max_time: float = 150.0,
+    vehicle_model: str = "shared",
+    motion: Literal["position", "velocity"] | None = None,
 ) -> Trial:
-    """Fly one closed-loop landing of scenario `sc` with the chosen vehicle model."""
+    """Fly one closed-loop landing of scenario `sc` with the chosen vehicle model (and what
+    predicts the agent's filter, when not its configured default)."""
     rng = np.random.default_rng(seed)
     a0, yaw0 = rng.uniform(0, 2 * math.pi), rng.uniform(-math.pi, math.pi)
     vehicle = VEHICLES[vehicle_model](2.0 * math.cos(a0), 2.0 * math.sin(a0), sc.start_height, yaw0)
@@ -239,6 +281,7 @@ def run_trial(
             "fusion": base.fusion.model_copy(
                 update={"sources": {k: v for k, v in base.fusion.sources.items() if k in sources}}
             ),
+            "kalman": base.kalman.model_copy(update={"motion": motion or base.kalman.motion}),
         }
     )
     pipeline = LandingPipeline(cfg, seed=seed)
@@ -253,8 +296,14 @@ def run_trial(
     gust_phase = rng.uniform(0, 2 * math.pi)
     wind_dir = rng.uniform(0, 2 * math.pi)
 
+    # its own generator, so that the other random streams are the same as without it
+    vel_error = EkfVelocityError(np.random.default_rng((seed, 1)))
+
+    def true_position() -> np.ndarray:
+        return np.array([vehicle.n, vehicle.e, -vehicle.pose()[2]])
+
     def gnss_position() -> tuple[float, float, float]:
-        p = np.array([vehicle.n, vehicle.e, -vehicle.pose()[2]]) + gnss
+        p = true_position() + gnss
         return (float(p[0]), float(p[1]), float(p[2]))
 
     # prior: surveyed pad position (true + setup error) minus the GNSS position
@@ -264,14 +313,24 @@ def run_trial(
     k = 0
     while t < max_time and not vehicle.landed:
         speed = sc.wind + sc.gust * math.sin(0.7 * t + gust_phase) + rng.normal(0, 0.3)
+        before = true_position()
         vehicle.step(dt, sp, (speed * math.cos(wind_dir), speed * math.sin(wind_dir)))
+        # the ground velocity over the step (wind leak included), as the EKF would estimate it
+        vel = (true_position() - before) / dt + vel_error.step(dt)
         decay = math.exp(-dt / tau)
         gnss = gnss * decay + rng.normal(0, sigma * math.sqrt(1 - decay**2), 3) * np.array(
             [1, 1, 0.5]
         )
         t += dt
         pose = vehicle.pose()
-        pipeline.vehicle(VehicleState(t, gnss_position(), (pose[3], pose[4], pose[5])))
+        pipeline.vehicle(
+            VehicleState(
+                t,
+                gnss_position(),
+                (pose[3], pose[4], pose[5]),
+                (float(vel[0]), float(vel[1]), float(vel[2])),
+            )
+        )
         if "ir" in sc.sensors and k % 2 == 0:
             ok, ax, ay = ir_reading(pose, ir_cfg, rng)
             pipeline.ir(t, ok, ax, ay)
@@ -352,13 +411,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--vehicle", choices=list(VEHICLES), default="shared")
+    ap.add_argument(
+        "--motion",
+        choices=["velocity", "position"],
+        help="what predicts the agent's filter: the autopilot's velocity or its position "
+        "deltas (default: the agent's configuration)",
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(list(sys.argv[1:] if argv is None else argv))
+    motion = args.motion or PrecisionLandingConfig().kalman.motion
     chosen = args.scenario or [*SCENARIOS, PER_SOURCE]
     results: dict = {
         "trials": args.trials,
         "scenarios": {},
         "vehicle_model": args.vehicle,
+        "motion": motion,
     }
     print(
         f"{'scenario':<32}{'landed':>8}{'mean cm':>9}{'max cm':>8}{'hdg °':>7}{'time s':>8}   published (cm, mean / max)"
@@ -367,7 +434,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if name == PER_SOURCE:
             continue
         trials = [
-            run_trial(SCENARIOS[name], args.seed * 1000 + i, vehicle_model=args.vehicle)
+            run_trial(
+                SCENARIOS[name], args.seed * 1000 + i, vehicle_model=args.vehicle, motion=motion
+            )
             for i in range(args.trials)
         ]
         errs = [100 * tr.error_m for tr in trials]

@@ -126,8 +126,17 @@ class KalmanConfig(_Model):
 
     initial_sigma_m: float = 1.5
     initial_heading_sigma: float = math.pi
+    # what predicts the filter horizontally: the autopilot's position deltas (they carry the
+    # GNSS drift) or, once it has had a measurement, its velocity (LOCAL_POSITION_NED vx, vy:
+    # GNSS Doppler + IMU) integrated; position deltas when the states carry no velocity
+    motion: Literal["position", "velocity"] = "position"
     process_per_metre: float = 0.02  # GNSS delta error per metre moved
     process_per_second: float = 0.05  # GNSS drift per second
+    velocity_process_per_second: float = 0.03  # integrated velocity error per sqrt(second)
+    # the horizontal velocity's slow bias (IMU, EKF corrections), learnt while measurements
+    # come in; tau 0: not estimated
+    velocity_bias_sigma: float = 0.03
+    velocity_bias_tau_s: float = 30.0
     heading_process_per_second: float = 0.01
     vision_sigma_per_metre: float = 0.01  # measurement sigma grows with height (pixel error)
     vision_sigma_floor: float = 0.003
@@ -166,9 +175,20 @@ class RetryConfig(_Model):
     default_height: float = 5.0
     climb_speed: float = 0.8
     reached_tolerance_m: float = 0.2
+    climb_margin_m: float = 0.5  # climb this far above where the target was last seen
     max_attempts: int = 3
-    blind_descent: float = 0.5  # ArduPilot's LAND_SPEED; blind, speed limits the GNSS drift
+    blind_descent: float = 0.5  # ArduPilot's LAND_SPEED: the touchdown speed, blind
+    # after losing a target it had seen (height known from vision): descend this fast, flaring
+    # at blind_flare_decel to blind_descent this far above touchdown; blind, the estimate drifts
+    # with time, so the less time the better (blind_fast_descent = blind_descent: off)
+    blind_fast_descent: float = 1.5  # ArduPilot's WPNAV_SPEED_DN
+    blind_flare_decel: float = 1.5  # m/s², half the vehicle's acceleration limit
+    blind_flare_margin_m: float = 0.1
     blind_slow_final: bool = False  # slowing down blind only lets the GNSS drift grow
+    recentre: bool = True  # after a retry, centre over the target before descending again
+    recentre_tolerance_m: float = 0.03
+    recentre_settle_s: float = 1.0  # vision fresh this long first: the filter has converged
+    recentre_timeout_s: float = 10.0  # then descend anyway
 
 
 class PrecisionLandingConfig(_Model):

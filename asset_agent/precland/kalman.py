@@ -1,10 +1,12 @@
 """Kalman filter of the pad's position relative to the vehicle (paper §2.5.2).
 
-State: pad centre minus vehicle in NED (3), plus the pad's yaw as a separate angular state.
-Predict with the autopilot's position *deltas* (so a wrong surveyed pad position, a constant
-offset, never enters the motion model): rel ← rel − Δvehicle, with noise growing with distance
-moved and time. Update with vision (or IR), the measurement noise growing with height (pixel
-error). Until the first vision update the estimate is the GNSS one, with a large uncertainty.
+State: pad centre minus vehicle in NED (3) and the bias of the horizontal autopilot velocity it
+may be predicted with (2, a Gauss-Markov process), plus the pad's yaw as a separate angular state.
+Predict with the vehicle's displacement — the autopilot's position *deltas*, or horizontally its
+velocity integrated (so a wrong surveyed pad position, a constant offset, never enters the motion
+model): rel ← rel − Δvehicle, with noise growing with distance moved and time. Update with
+vision (or IR), the measurement noise growing with height (pixel error). Until the first vision
+update the estimate is the GNSS one, with a large uncertainty.
 """
 
 from __future__ import annotations
@@ -29,35 +31,58 @@ class Estimate:
 
 
 class TargetKalman:
-    """Linear KF on the relative position; a 1-D angular KF on the pad heading."""
+    """Linear KF on the relative position (and, predicting by velocity, the velocity's slow
+    bias: while vision is there the filter learns it, so it does not drift the estimate once
+    vision is gone); a 1-D angular KF on the pad heading."""
 
     def __init__(self, config: KalmanConfig | None = None) -> None:
         self.config = config or KalmanConfig()
-        self.x = np.zeros(3)
-        self.p = np.eye(3) * self.config.initial_sigma_m**2
-        self.heading: float | None = None
-        self.heading_var = self.config.initial_heading_sigma**2
         self.initialised = False
         self.updates = 0
+        self.reset(np.zeros(3))
+        self.initialised = False  # no prior yet: the first measurement will be one
+
+    @property
+    def x(self) -> np.ndarray:
+        """The relative position (pad minus vehicle, NED)."""
+        return self._x[:3]
+
+    @property
+    def velocity_bias(self) -> np.ndarray:
+        """The estimated bias of the horizontal velocities predicted with (north, east, m/s)."""
+        return self._x[3:]
 
     def reset(self, rel_ned, sigma_m: float | None = None, heading: float | None = None) -> None:
         """Start from a prior, e.g. the surveyed pad position minus the GNSS position."""
-        s = self.config.initial_sigma_m if sigma_m is None else sigma_m
-        self.x = np.asarray(rel_ned, dtype=np.float64).copy()
-        self.p = np.eye(3) * s**2
+        c = self.config
+        s = c.initial_sigma_m if sigma_m is None else sigma_m
+        self._x = np.concatenate([np.asarray(rel_ned, dtype=np.float64), np.zeros(2)])
+        self.p = np.diag([s**2] * 3 + [c.velocity_bias_sigma**2] * 2)
         self.heading = heading
-        self.heading_var = self.config.initial_heading_sigma**2
+        self.heading_var = c.initial_heading_sigma**2
         self.initialised = True
 
-    def predict(self, delta_vehicle_ned, dt: float) -> None:
-        """The vehicle moved by `delta_vehicle_ned` (autopilot position delta) over `dt` seconds."""
+    def predict(self, delta_vehicle_ned, dt: float, by_velocity: bool = False) -> None:
+        """The vehicle moved by `delta_vehicle_ned` over `dt` seconds: an autopilot position
+        delta, or (`by_velocity`) horizontally its velocity integrated over dt, less the
+        estimated bias."""
+        c = self.config
         d = np.asarray(delta_vehicle_ned, dtype=np.float64)
-        self.x = self.x - d
-        q = self.config.process_per_metre * float(
-            np.linalg.norm(d)
-        ) + self.config.process_per_second * max(dt, 0.0)
-        self.p = self.p + np.eye(3) * q**2
-        self.heading_var += (self.config.heading_process_per_second * max(dt, 0.0)) ** 2
+        dt = max(dt, 0.0)
+        f = np.eye(5)
+        q = np.zeros(5)
+        q[:3] = (c.process_per_metre * float(np.linalg.norm(d)) + c.process_per_second * dt) ** 2
+        if by_velocity:  # a random walk, whatever the rate of the states, plus the slow bias
+            q[:2] = c.velocity_process_per_second**2 * dt
+            if c.velocity_bias_tau_s > 0:
+                f[:2, 3:] = np.eye(2) * dt  # rel += bias x dt
+                phi = math.exp(-dt / c.velocity_bias_tau_s)
+                f[3:, 3:] = np.eye(2) * phi
+                q[3:] = c.velocity_bias_sigma**2 * (1 - phi**2)
+        self._x = f @ self._x
+        self._x[:3] -= d
+        self.p = f @ self.p @ f.T + np.diag(q)
+        self.heading_var += (c.heading_process_per_second * dt) ** 2
 
     def update(self, rel_ned, sigma_m: float | None = None, heading: float | None = None) -> None:
         """Fuse a measurement; sigma defaults to the vision model at the measured height."""
@@ -70,9 +95,10 @@ class TargetKalman:
             self.reset(z, sigma_m)
         else:
             r = np.eye(3) * sigma_m**2
-            k = self.p @ np.linalg.inv(self.p + r)
-            self.x = self.x + k @ (z - self.x)
-            self.p = (np.eye(3) - k) @ self.p
+            k = self.p[:, :3] @ np.linalg.inv(self.p[:3, :3] + r)  # H = [I 0]
+            self._x = self._x + k @ (z - self._x[:3])
+            p = self.p - k @ self.p[:3, :]
+            self.p = (p + p.T) / 2
         if heading is not None:
             if self.heading is None:
                 self.heading, self.heading_var = heading, self.config.heading_sigma**2
@@ -87,7 +113,7 @@ class TargetKalman:
         """The current estimate."""
         return Estimate(
             (float(self.x[0]), float(self.x[1]), float(self.x[2])),
-            math.sqrt(float(np.trace(self.p)) / 3),
+            math.sqrt(float(np.trace(self.p[:3, :3])) / 3),
             self.heading,
             math.sqrt(self.heading_var),
         )

@@ -30,11 +30,13 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class VehicleState:
-    """The autopilot's view at time t: local NED position (m) and attitude (rad)."""
+    """The autopilot's view at time t: local NED position (m), attitude (rad) and, when known,
+    local NED velocity (m/s)."""
 
     t: float
     position_ned: tuple[float, float, float]
     attitude: Attitude
+    velocity_ned: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -62,6 +64,9 @@ class LandingPipeline:
         self.kalman = TargetKalman(self.config.kalman)
         self.sequence = LandingSequence(self.config.control, self.config.retry)
         self._states: deque[VehicleState] = deque()
+        # the vehicle's displacement as the filter is predicted with, summed: where it is
+        # "now" against where a late frame saw the pad from
+        self._odometry: deque[np.ndarray] = deque()
 
     # -- inputs ------------------------------------------------------------------------------
 
@@ -74,26 +79,55 @@ class LandingPipeline:
         self.faults.set(source, fault, now)
 
     def vehicle(self, state: VehicleState) -> None:
-        """A new autopilot state: predicts the filter with the position delta."""
+        """A new autopilot state: predicts the filter with the vehicle's displacement."""
+        odometry = np.zeros(3)
         if self._states:
             prev = self._states[-1]
             if state.t < prev.t:
                 log.warning("vehicle state out of order dropped")
                 return
-            delta = np.subtract(state.position_ned, prev.position_ned)
-            self.kalman.predict(delta, state.t - prev.t)
+            delta, by_velocity = self._displacement(prev, state)
+            self.kalman.predict(delta, state.t - prev.t, by_velocity)
+            odometry = self._odometry[-1] + delta
         self._states.append(state)
+        self._odometry.append(odometry)
         while self._states and state.t - self._states[0].t > self.HISTORY_S:
             self._states.popleft()
+            self._odometry.popleft()
 
-    def state_at(self, t: float) -> VehicleState | None:
-        """The recorded vehicle state nearest to time t."""
+    def _displacement(self, prev: VehicleState, state: VehicleState) -> tuple[np.ndarray, bool]:
+        """How far the vehicle moved between two states, and whether horizontally from its
+        velocity (trapezoidal) rather than its position delta.
+
+        The velocity only once the filter has had a measurement: from then on it learns the
+        velocity's slow bias, which unchecked would drift the estimate without bound (the GNSS
+        error stays bounded). The height always from the positions: the autopilot's is
+        baro-aided, and nothing else may measure it (IR alone does not).
+        """
+        delta = np.subtract(state.position_ned, prev.position_ned)
+        if (
+            self.config.kalman.motion != "velocity"
+            or self.kalman.updates == 0
+            or prev.velocity_ned is None
+            or state.velocity_ned is None
+        ):
+            return delta, False
+        mean_v = np.add(prev.velocity_ned, state.velocity_ned) / 2
+        delta[:2] = mean_v[:2] * (state.t - prev.t)
+        return delta, True
+
+    def _index_at(self, t: float) -> int | None:
         if not self._states:
             return None
         times = [s.t for s in self._states]
         i = bisect.bisect_left(times, t)
-        cands = [self._states[j] for j in (i - 1, i) if 0 <= j < len(times)]
-        return min(cands, key=lambda s: abs(s.t - t))
+        cands = [j for j in (i - 1, i) if 0 <= j < len(times)]
+        return min(cands, key=lambda j: abs(times[j] - t))
+
+    def state_at(self, t: float) -> VehicleState | None:
+        """The recorded vehicle state nearest to time t."""
+        i = self._index_at(t)
+        return None if i is None else self._states[i]
 
     def detections(
         self, t: float, det: Detections, attitude: Attitude | None = None
@@ -158,6 +192,7 @@ class LandingPipeline:
                     est.heading,
                     state.position_ned,
                     state.attitude[2],
+                    fresh=target is not None and target.kind != "held",
                 )
             elif target is not None:
                 lt = landing_target(
@@ -166,7 +201,7 @@ class LandingPipeline:
         return Tick(now, target, est, cmd, lt)
 
     def _moved_since(self, t: float) -> np.ndarray:
-        then = self.state_at(t)
-        if then is None or not self._states:
+        i = self._index_at(t)
+        if i is None:
             return np.zeros(3)
-        return np.subtract(self._states[-1].position_ned, then.position_ned)
+        return self._odometry[-1] - self._odometry[i]

@@ -1,13 +1,19 @@
 """The landing sequence with the thesis's cautious retries, as a table-driven state machine.
 
-approach ─lost→ pause (cautious, attempts left) or blind  pause ─target→ approach
-pause ─timeout→ climb (attempts left) or blind             climb ─target→ approach
+approach ─lost→ pause (cautious, attempts left) or blind  pause ─target→ recentre
+pause ─timeout→ climb (attempts left) or blind             climb ─target→ recentre
 climb ─reached→ pause                                      blind ─target→ approach
+recentre ─centred→ approach                                recentre ─lost→ pause or blind
 any ─touchdown→ landed
 
-Climbing goes back to where the target was last seen (its horizontal position and height), or
-straight up to a default height when it was never seen. Blind descent keeps steering towards the
-Kalman estimate (GNSS-propagated) at the blind descent speed.
+Climbing goes back to where the target was last *measured* (its horizontal position, and its
+height plus a margin, since whatever lost it at that height may lose it there again; a value the
+fusion merely holds does not count), or straight up to a default height when it was
+never seen. Re-centring hovers there until the vision has been fresh for a while and the vehicle
+is over the pad, so the next descent through the failing zone starts from a converged estimate.
+Blind descent keeps steering towards the Kalman estimate; after losing a target it had seen (the
+height then comes from vision) it descends fast and flares to the blind descent speed near the
+ground, since the estimate drifts with time, not with height.
 """
 
 from __future__ import annotations
@@ -24,16 +30,20 @@ log = logging.getLogger(__name__)
 TRANSITIONS: dict[tuple[str, str], str] = {
     ("approach", "lost"): "pause",
     ("approach", "lost_default"): "blind",
-    ("pause", "target"): "approach",
+    ("pause", "target"): "recentre",
     ("pause", "retry"): "climb",
     ("pause", "give_up"): "blind",
-    ("climb", "target"): "approach",
+    ("climb", "target"): "recentre",
     ("climb", "reached"): "pause",
+    ("recentre", "centred"): "approach",
+    ("recentre", "lost"): "pause",
+    ("recentre", "lost_default"): "blind",
     ("blind", "target"): "approach",
     ("approach", "touchdown"): "landed",
     ("blind", "touchdown"): "landed",
     ("pause", "touchdown"): "landed",
     ("climb", "touchdown"): "landed",
+    ("recentre", "touchdown"): "landed",
 }
 
 
@@ -44,6 +54,17 @@ class Command:
     state: str
     setpoint: VelocitySetpoint
     attempts: int
+
+
+def blind_profile(above_touchdown: float, retry: RetryConfig) -> float:
+    """Blind descent speed after a target was seen: fast, slowing at `blind_flare_decel` so as to
+    be down to `blind_descent` (a safe touchdown speed) `blind_flare_margin_m` above touchdown,
+    the height error a few blind seconds may have grown."""
+    v0 = retry.blind_descent
+    above = max(above_touchdown - retry.blind_flare_margin_m, 0.0)
+    return max(
+        v0, min(retry.blind_fast_descent, math.sqrt(v0**2 + 2 * retry.blind_flare_decel * above))
+    )
 
 
 class LandingSequence:
@@ -77,10 +98,13 @@ class LandingSequence:
         pad_heading: float | None,
         vehicle_ned,
         yaw: float,
+        fresh: bool | None = None,
     ) -> Command:
         """One control step. `rel_ned` is the filter's estimate (pad minus vehicle, NED),
-        `vehicle_ned` the autopilot's local position."""
+        `vehicle_ned` the autopilot's local position; `fresh` says the target is a new
+        measurement, not one the fusion holds (default: `target_seen`)."""
         a = float(rel_ned[2])
+        fresh = target_seen if fresh is None else fresh
         dt = 0.0 if self._last_t is None else max(0.0, min(now - self._last_t, 0.5))
         self._last_t = now
         if self.state == "landed":
@@ -92,11 +116,13 @@ class LandingSequence:
                 VelocitySetpoint(0, 0, self.control.slow_descent, land=True),
                 self.attempts,
             )
-        if target_seen:
+        if fresh:
             self._last_seen = (float(vehicle_ned[0]), float(vehicle_ned[1]), a)
-            if self.state != "approach":
-                self._fire("target", now)
-        elif self.state == "approach":
+        if target_seen:
+            self._fire("target", now)  # from pause, climb, blind; elsewhere no transition
+            if self.state == "recentre" and self._centred(now, fresh, rel_ned):
+                self._fire("centred", now)
+        elif self.state in ("approach", "recentre"):
             # cautious: pause and retry while attempts remain; the last loss goes blind at once
             # (another pause would only let the GNSS drift grow before the same blind descent)
             retry = self.retry.cautious and self.attempts < self.retry.max_attempts
@@ -114,10 +140,19 @@ class LandingSequence:
             self.state, self._setpoint(rel_ned, pad_heading, vehicle_ned, yaw, dt), self.attempts
         )
 
+    def _centred(self, now: float, fresh: bool, rel_ned) -> bool:
+        """Re-centring is done: vision fresh and the vehicle over the pad after settling, or
+        the time allowed for it is up; at once when off or before the first retry."""
+        r = self.retry
+        if not r.recentre or self.attempts == 0 or now - self._since >= r.recentre_timeout_s:
+            return True
+        over = math.hypot(float(rel_ned[0]), float(rel_ned[1])) <= r.recentre_tolerance_m
+        return fresh and over and now - self._since >= r.recentre_settle_s
+
     def _climb_goal(self, vehicle_ned, a: float) -> tuple[float, float, float]:
         if self._last_seen is not None:
             n, e, h = self._last_seen
-            return n, e, max(h, a)
+            return n, e, max(h + self.retry.climb_margin_m, a)
         return float(vehicle_ned[0]), float(vehicle_ned[1]), max(self.retry.default_height, a)
 
     def _reached(self, vehicle_ned, a: float) -> bool:
@@ -143,6 +178,10 @@ class LandingSequence:
         if self.state == "approach":
             sp = cone_setpoint(rel_ned, pad_heading, yaw, c)
             return self._integrate(sp, rel_ned, dt)
+        if self.state == "recentre":  # centre over the pad at this height
+            sp = cone_setpoint(rel_ned, pad_heading, yaw, c)
+            sp = self._integrate(sp, rel_ned, dt)
+            return VelocitySetpoint(sp.vn, sp.ve, 0.0, sp.yaw_rate)
         if self.state == "pause":
             return HOVER
         if self.state == "climb":
@@ -153,9 +192,11 @@ class LandingSequence:
             )
             vd = -min(self.retry.climb_speed, c.kp_z * max(h - float(rel_ned[2]), 0.0) + 0.1)
             return VelocitySetpoint(vn, ve, vd)
-        # blind: steer to the estimate, descend slowly
+        # blind: steer to the estimate and descend
         vn, ve = clip_xy(c.kp_xy * float(rel_ned[0]), c.kp_xy * float(rel_ned[1]), c.max_speed_xy)
         vd = self.retry.blind_descent
+        if self._last_seen is not None:
+            vd = blind_profile(float(rel_ned[2]) - c.touchdown_height, self.retry)
         if self.retry.blind_slow_final and float(rel_ned[2]) < c.touchdown_height + c.slow_height:
             vd = min(vd, c.slow_descent)
         return VelocitySetpoint(vn, ve, vd)

@@ -16,7 +16,7 @@ from asset_agent.precland.control import (
     landing_target,
 )
 from asset_agent.precland.geometry import rotation_world_from_body
-from asset_agent.precland.retry import LandingSequence
+from asset_agent.precland.retry import LandingSequence, blind_profile
 
 C = ControlConfig()
 
@@ -83,31 +83,109 @@ def run(seq, t, seen, rel, vehicle=(0.0, 0.0)):
 
 
 def test_cautious_retry_pause_climb_back_retry_then_blind():
-    seq = LandingSequence(C, RetryConfig(cautious=True, pause_s=2.0, max_attempts=2))
+    retry = RetryConfig(cautious=True, pause_s=2.0, max_attempts=2, recentre=False)
+    seq = LandingSequence(C, retry)
     assert run(seq, 0.0, True, (0.0, 0.0, 2.5), (5.0, 5.0)).state == "approach"
     # lost at 2 m: pause (hover)
     cmd = run(seq, 1.0, False, (0.0, 0.0, 2.0), (5.0, 5.1))
     assert cmd.state == "pause" and (cmd.setpoint.vn, cmd.setpoint.ve, cmd.setpoint.vd) == (0, 0, 0)
     assert run(seq, 2.9, False, (0.0, 0.0, 2.0)).state == "pause"
-    # still lost after pause_s: climb back to where it was last seen (5, 5) at 2.5 m
+    # still lost after pause_s: climb back to where it was last seen (5, 5), above its 2.5 m
     cmd = run(seq, 3.0, False, (0.0, 0.0, 2.0), (5.0, 5.1))
     assert cmd.state == "climb" and cmd.attempts == 1 and cmd.setpoint.vd < 0
     assert cmd.setpoint.ve < 0  # back towards east = 5.0
-    cmd = run(seq, 4.0, False, (0.0, 0.0, 2.55), (5.0, 5.0))
-    assert cmd.state == "pause"  # reached: wait again
+    assert run(seq, 3.5, False, (0.0, 0.0, 2.55), (5.0, 5.0)).state == "climb"
+    cmd = run(seq, 4.0, False, (0.0, 0.0, 2.85), (5.0, 5.0))
+    assert cmd.state == "pause"  # reached (2.5 m + margin, within the tolerance): wait again
     # seen again during the pause: approach resumes
     assert run(seq, 4.5, True, (0.1, 0.0, 2.5), (5.0, 5.0)).state == "approach"
     # lost again: pause, climb (attempt 2), reached, pause, then no attempts left: blind
     run(seq, 5.0, False, (0.0, 0.0, 1.0))
     assert run(seq, 7.1, False, (0.0, 0.0, 1.0)).attempts == 2
-    assert run(seq, 8.0, False, (0.0, 0.0, 2.5), (5.0, 5.0)).state == "pause"
-    cmd = run(seq, 10.1, False, (0.0, 0.0, 2.5), (5.0, 5.0))
-    assert cmd.state == "blind" and cmd.setpoint.vd == pytest.approx(RetryConfig().blind_descent)
+    assert run(seq, 8.0, False, (0.0, 0.0, 2.85), (5.0, 5.0)).state == "pause"
+    cmd = run(seq, 10.1, False, (0.0, 0.0, 2.85), (5.0, 5.0))
+    assert cmd.state == "blind"
+    assert cmd.setpoint.vd == pytest.approx(blind_profile(2.85 - C.touchdown_height, retry))
     # seen again, then lost with no attempts left: straight to blind, no more pausing
     assert run(seq, 10.2, True, (0.0, 0.0, 2.4), (5.0, 5.0)).state == "approach"
     assert run(seq, 10.3, False, (0.0, 0.0, 2.3), (5.0, 5.0)).state == "blind"
     assert run(seq, 11.0, False, (0.0, 0.0, 0.26)).state == "landed"
     assert run(seq, 12.0, True, (0.0, 0.0, 0.26)).setpoint.land
+
+
+def test_climb_goes_back_above_the_last_measurement_not_a_held_value():
+    seq = LandingSequence(C, RetryConfig(pause_s=1.0, climb_margin_m=0.5, recentre=False))
+    seq.step(0.0, True, (0.0, 0.0, 3.1), 0.0, (1.0, 2.0), 0.0)  # measured at 3.1 m over (1, 2)
+    # the fusion still holds that value while the vehicle descends: not a sighting
+    seq.step(0.5, True, (0.0, 0.0, 2.6), 0.0, (1.5, 2.0), 0.0, fresh=False)
+    assert run(seq, 1.0, False, (0.0, 0.0, 2.2), (1.5, 2.0)).state == "pause"
+    cmd = run(seq, 2.1, False, (0.0, 0.0, 2.2), (1.5, 2.0))
+    assert cmd.state == "climb" and cmd.setpoint.vn < 0  # back north, to 1.0
+    # goal 3.1 + 0.5 m: at the height where the target was lost it is not reached yet
+    assert run(seq, 3.0, False, (0.0, 0.0, 3.1), (1.0, 2.0)).state == "climb"
+    assert run(seq, 3.5, False, (0.0, 0.0, 3.45), (1.0, 2.0)).state == "pause"
+
+
+def test_blind_after_a_sighting_descends_fast_and_flares_to_the_touchdown_speed():
+    r = RetryConfig(
+        blind_descent=0.5, blind_fast_descent=1.5, blind_flare_decel=1.5, blind_flare_margin_m=0.1
+    )
+    assert blind_profile(2.5, r) == pytest.approx(1.5)
+    assert blind_profile(0.1, r) == pytest.approx(0.5)  # down to the touchdown speed 10 cm up
+    assert blind_profile(0.0, r) == pytest.approx(0.5)
+    # v² = v0² + 2 a h, h above the margin
+    assert blind_profile(0.5, r) == pytest.approx(math.sqrt(0.5**2 + 2 * 1.5 * 0.4))
+    speeds = [blind_profile(h, r) for h in np.linspace(-0.1, 3.0, 32)]
+    assert all(0.5 <= v <= 1.5 for v in speeds) and speeds == sorted(speeds)
+    # a vehicle tracking the profile with a 3 m/s² limit touches down at about blind_descent
+    h, v, dt = 2.75, 0.0, 0.01
+    while h > 0:
+        want = blind_profile(h, r)
+        v += max(-3.0 * dt, min(3.0 * dt, want - v))
+        h -= v * dt
+    assert v <= 0.5 + 1e-9
+    # in the sequence: fast after losing a target it had seen, slow when it never saw one
+    seq = LandingSequence(C, RetryConfig(cautious=False, blind_fast_descent=1.5))
+    run(seq, 0.0, True, (0.0, 0.0, 3.0))
+    cmd = run(seq, 0.1, False, (0.0, 0.0, 2.9))
+    assert cmd.state == "blind" and cmd.setpoint.vd == pytest.approx(1.5)
+    assert run(seq, 0.2, False, (0.0, 0.0, C.touchdown_height + 0.1)).setpoint.vd < 1.0
+    never = LandingSequence(C, RetryConfig(cautious=False, blind_fast_descent=1.5))
+    assert run(never, 0.0, False, (0.0, 0.0, 8.0)).setpoint.vd == pytest.approx(0.5)
+
+
+def test_a_retry_recentres_over_the_pad_before_descending_again():
+    r = RetryConfig(
+        pause_s=1.0,
+        recentre=True,
+        recentre_tolerance_m=0.03,
+        recentre_settle_s=1.0,
+        recentre_timeout_s=5.0,
+    )
+    seq = LandingSequence(C, r)
+    run(seq, 0.0, True, (0.0, 0.0, 3.1))
+    assert run(seq, 0.5, False, (0.0, 0.0, 2.5)).state == "pause"
+    assert run(seq, 1.6, False, (0.0, 0.0, 2.5)).state == "climb"
+    cmd = run(seq, 2.5, True, (0.2, 0.0, 3.2))  # seen again while climbing back
+    assert cmd.state == "recentre" and cmd.setpoint.vd == 0.0 and cmd.setpoint.vn > 0
+    assert run(seq, 3.0, True, (0.01, 0.0, 3.2)).state == "recentre"  # over it, not settled
+    held = seq.step(3.6, True, (0.01, 0.0, 3.2), 0.0, (0.0, 0.0), 0.0, fresh=False)
+    assert held.state == "recentre"  # the fusion's held value is not a fresh sighting
+    assert run(seq, 3.7, True, (0.05, 0.0, 3.2)).state == "recentre"  # beyond the tolerance
+    cmd = run(seq, 3.8, True, (0.01, 0.0, 3.2))
+    assert cmd.state == "approach" and cmd.setpoint.vd > 0
+    # never centred: descend anyway once the time allowed is up
+    seq = LandingSequence(C, r)
+    run(seq, 0.0, True, (0.0, 0.0, 3.1))
+    run(seq, 0.5, False, (0.0, 0.0, 2.5))
+    run(seq, 1.6, False, (0.0, 0.0, 2.5))
+    assert run(seq, 2.5, True, (0.2, 0.0, 3.2)).state == "recentre"
+    assert run(seq, 7.4, True, (0.2, 0.0, 3.2)).state == "recentre"
+    assert run(seq, 7.5, True, (0.2, 0.0, 3.2)).state == "approach"
+    # before any retry (or with re-centring off) a re-acquired target is followed at once
+    seq = LandingSequence(C, r)
+    assert run(seq, 0.0, False, (0.0, 0.0, 8.0)).state == "pause"
+    assert run(seq, 0.5, True, (0.3, 0.0, 8.0)).state == "approach"
 
 
 def test_never_seen_climbs_to_the_default_height():

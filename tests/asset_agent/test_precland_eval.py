@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import json
 
-from sim.precland_eval import SCENARIOS, main, run_trial
+import numpy as np
+
+from sim.precland_eval import SCENARIOS, EkfVelocityError, main, run_trial
 
 
 def test_a_fused_landing_from_6m_seats_on_the_contacts():
@@ -28,3 +30,13 @@ def test_cli_prints_a_table_and_one_json_object_last(capsys):
     assert set(result["scenarios"]) == {"ir", "none"}
     row = result["scenarios"]["ir"]
     assert row["landed"] == 2 and row["max_cm"] >= row["mean_cm"] > 0
+
+
+def test_the_ekf_velocity_error_has_its_modelled_noise_and_slow_bias():
+    err = EkfVelocityError(np.random.default_rng(5))
+    e = np.array([err.step(0.01) for _ in range(60_000)])  # 600 s at 100 Hz
+    total = float(np.hypot(err.NOISE_SIGMA, err.BIAS_SIGMA))
+    assert 0.8 * total < float(e.std()) < 1.2 * total
+    # averaged over 2 s the noise mostly averages out and the bias is left
+    slow = e.reshape(-1, 200, 3).mean(axis=1)
+    assert 0.6 * err.BIAS_SIGMA < float(slow.std()) < 1.4 * err.BIAS_SIGMA

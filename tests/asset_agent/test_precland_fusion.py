@@ -12,6 +12,7 @@ from asset_agent.precland.config import (
     FaultConfig,
     FusionConfig,
     KalmanConfig,
+    PrecisionLandingConfig,
     SourceConfig,
 )
 from asset_agent.precland.faults import FaultInjector
@@ -19,6 +20,7 @@ from asset_agent.precland.fusion import Fusion
 from asset_agent.precland.geometry import ElementPose
 from asset_agent.precland.kalman import TargetKalman
 from asset_agent.precland.measure import Measurement, from_element, from_ir
+from asset_agent.precland.pipeline import LandingPipeline, VehicleState
 from sim.ir import IrSensorConfig, ir_reading
 
 CFG = FusionConfig(
@@ -172,6 +174,63 @@ def test_kalman_without_vision_follows_gnss_deltas():
     kf.predict((0.5, 0.5, 1.0), 1.0)
     assert kf.estimate().rel_ned == pytest.approx((0.5, 1.5, 4.0))
     assert kf.estimate().heading is None
+
+
+def test_kalman_velocity_noise_does_not_depend_on_how_often_it_is_predicted():
+    once, often = TargetKalman(), TargetKalman()
+    once.reset((0.0, 0.0, 5.0), 0.1)
+    often.reset((0.0, 0.0, 5.0), 0.1)
+    once.predict((0.3, 0.0, 0.0), 1.0, by_velocity=True)
+    for _ in range(100):
+        often.predict((0.003, 0.0, 0.0), 0.01, by_velocity=True)
+    assert often.p[:2, :2] == pytest.approx(once.p[:2, :2], rel=1e-3)
+    assert often.estimate().rel_ned == pytest.approx(once.estimate().rel_ned)
+
+
+def drift_after_vision_is_lost(config: KalmanConfig) -> float:
+    """Hover over the pad with vision for 20 s on velocities biased by 3 cm/s, then 3 s blind:
+    the estimate's horizontal error at the end (m)."""
+    kf = TargetKalman(config)
+    kf.reset((0.5, -0.3, 4.0), 1.0)
+    bias = np.array([0.03, -0.02, 0.0])  # the autopilot's velocity error; truth: not moving
+    dt = 0.01
+    for k in range(2300):
+        kf.predict(bias * dt, dt, by_velocity=True)
+        if k < 2000 and k % 3 == 0:
+            kf.update((0.0, 0.0, 4.0), sigma_m=0.01)
+    return math.hypot(*kf.estimate().rel_ned[:2])
+
+
+def test_kalman_predicting_by_velocity_learns_its_slow_bias_while_vision_is_there():
+    learnt = drift_after_vision_is_lost(KalmanConfig(motion="velocity"))
+    ignored = drift_after_vision_is_lost(KalmanConfig(motion="velocity", velocity_bias_tau_s=0))
+    assert ignored == pytest.approx(3.0 * math.hypot(0.03, 0.02), rel=0.1)
+    assert learnt < 0.2 * ignored
+
+
+def vehicle_state(t, position, velocity=None):
+    return VehicleState(t, position, (0.0, 0.0, 0.0), velocity)
+
+
+def test_pipeline_predicts_with_the_velocity_when_so_configured_else_the_positions():
+    by_velocity = LandingPipeline(PrecisionLandingConfig(kalman=KalmanConfig(motion="velocity")))
+    by_position = LandingPipeline(PrecisionLandingConfig(kalman=KalmanConfig(motion="position")))
+    for p in (by_velocity, by_position):
+        p.set_pad_prior((1.0, 0.0, 5.0), 0.5)
+        # GNSS jumps 0.4 m east while the vehicle moves 0.2 m north at 1 m/s
+        p.vehicle(vehicle_state(0.0, (0.0, 0.0, -5.0), (1.0, 0.0, 0.0)))
+        p.vehicle(vehicle_state(0.2, (0.2, 0.4, -5.0), (1.0, 0.0, 0.0)))
+        # before any measurement both follow the positions: an unlearnt velocity bias would
+        # drift the estimate without bound, the GNSS error stays bounded
+        assert p.kalman.estimate().rel_ned == pytest.approx((0.8, -0.4, 5.0))
+        p.kalman.update((0.8, 0.0, 5.0), sigma_m=1e-6)  # a sighting
+        # the same again, descending 0.1 m (the height always from the positions)
+        p.vehicle(vehicle_state(0.4, (0.4, 0.8, -4.9), (1.0, 0.0, 0.3)))
+    assert by_velocity.kalman.estimate().rel_ned == pytest.approx((0.6, 0.0, 4.9), abs=1e-6)
+    assert by_position.kalman.estimate().rel_ned == pytest.approx((0.6, -0.4, 4.9), abs=1e-6)
+    # no velocity in the states (an autopilot that does not send it): position deltas
+    by_velocity.vehicle(vehicle_state(0.6, (0.6, 0.8, -4.9)))
+    assert by_velocity.kalman.estimate().rel_ned == pytest.approx((0.4, 0.0, 4.9), abs=1e-6)
 
 
 # -- measurements ----------------------------------------------------------------------------------
