@@ -108,10 +108,6 @@ class SensorClock:
         await asyncio.sleep(max(0.0, seconds) / self.rate)
 
 
-# LANDING_TARGET only while the pad is below the camera: body z over distance (ArduPilot's check)
-MIN_BELOW = 0.1
-
-
 @dataclass
 class LandingStats:
     """What precision landing did, for logs and tests."""
@@ -120,7 +116,6 @@ class LandingStats:
     frames: int = 0
     ir_readings: int = 0
     targets_sent: int = 0
-    targets_withheld: int = 0  # the pad was not below the camera (on the ground): not sent
     first_sent_t: float | None = None  # sensor clock
     last_sent_t: float | None = None
 
@@ -237,9 +232,7 @@ class PrecisionLander:
                     await asyncio.wait_for(stop.wait(), 0.05)
         finally:
             await self._stop_loop()
-            await _cancel(self._camera_task)
-            for t in tasks:
-                await _cancel(t)
+            await cancel_and_wait([self._camera_task, *tasks])
             if ir is not None:
                 ir.close()
 
@@ -280,7 +273,7 @@ class PrecisionLander:
     async def _stop_loop(self) -> None:
         task, self._loop_task, self.loop = self._loop_task, None, None
         if task is not None:
-            await _cancel(task)
+            await cancel_and_wait([task])
             log.info("precland: inactive (%d LANDING_TARGET sent)", self.stats.targets_sent)
 
     def _pad_prior(self, state: Any) -> tuple[float, float, float] | None:
@@ -300,11 +293,6 @@ class PrecisionLander:
     def _on_tick(self, tick: Tick) -> None:
         lt = tick.landing_target
         if lt is None:
-            return
-        if not lt.z > MIN_BELOW * lt.distance:
-            # level with the camera (touched down, the estimate at the pad's height): ArduPilot
-            # refuses a line of sight that is not below the vehicle, so there is nothing to send
-            self.stats.targets_withheld += 1
             return
         self.autopilot.send_landing_target(
             lt.angle_x, lt.angle_y, lt.distance, lt.frame, (lt.x, lt.y, lt.z)
@@ -349,10 +337,6 @@ class PrecisionLander:
                         )
                 except Exception:
                     log.exception("precland: bad autopilot state skipped")
-
-
-async def _cancel(task: asyncio.Task[Any] | None) -> None:
-    await cancel_and_wait([task])
 
 
 def stream_rates(section: PreclandSection) -> dict[int, float]:

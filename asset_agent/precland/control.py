@@ -40,6 +40,15 @@ class LandingTarget:
     type: int
     position_valid: int
 
+    @property
+    def below(self) -> bool:
+        """The pad is below the camera, as ArduPilot requires (not level with it: touched down)."""
+        return self.z > MIN_BELOW * self.distance
+
+
+# ArduPilot refuses a line of sight that is not below the vehicle (body z over distance)
+MIN_BELOW = 0.1
+
 
 def landing_target(
     rel_ned, attitude: Attitude, t: float, target_size_m: float = 0.75

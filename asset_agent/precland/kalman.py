@@ -37,9 +37,8 @@ class TargetKalman:
 
     def __init__(self, config: KalmanConfig | None = None) -> None:
         self.config = config or KalmanConfig()
-        self.initialised = False
         self.updates = 0
-        self.reset(np.zeros(3))
+        self._start(np.zeros(3), None, None)
         self.initialised = False  # no prior yet: the first measurement will be one
 
     @property
@@ -54,13 +53,16 @@ class TargetKalman:
 
     def reset(self, rel_ned, sigma_m: float | None = None, heading: float | None = None) -> None:
         """Start from a prior, e.g. the surveyed pad position minus the GNSS position."""
+        self._start(rel_ned, sigma_m, heading)
+        self.initialised = True
+
+    def _start(self, rel_ned, sigma_m: float | None, heading: float | None) -> None:
         c = self.config
         s = c.initial_sigma_m if sigma_m is None else sigma_m
         self._x = np.concatenate([np.asarray(rel_ned, dtype=np.float64), np.zeros(2)])
         self.p = np.diag([s**2] * 3 + [c.velocity_bias_sigma**2] * 2)
         self.heading = heading
         self.heading_var = c.initial_heading_sigma**2
-        self.initialised = True
 
     def predict(self, delta_vehicle_ned, dt: float, by_velocity: bool = False) -> None:
         """The vehicle moved by `delta_vehicle_ned` over `dt` seconds: an autopilot position

@@ -63,10 +63,10 @@ class LandingPipeline:
         self.fusion = Fusion(self.config.fusion)
         self.kalman = TargetKalman(self.config.kalman)
         self.sequence = LandingSequence(self.config.control, self.config.retry)
-        self._states: deque[VehicleState] = deque()
-        # the vehicle's displacement as the filter is predicted with, summed: where it is
-        # "now" against where a late frame saw the pad from
-        self._odometry: deque[np.ndarray] = deque()
+        # recent vehicle states, each with its odometry: the displacement the filter was
+        # predicted with, summed (where the vehicle is "now" against where a late frame saw
+        # the pad from)
+        self._track: deque[tuple[VehicleState, np.ndarray]] = deque()
 
     # -- inputs ------------------------------------------------------------------------------
 
@@ -81,19 +81,17 @@ class LandingPipeline:
     def vehicle(self, state: VehicleState) -> None:
         """A new autopilot state: predicts the filter with the vehicle's displacement."""
         odometry = np.zeros(3)
-        if self._states:
-            prev = self._states[-1]
+        if self._track:
+            prev, prev_odometry = self._track[-1]
             if state.t < prev.t:
                 log.warning("vehicle state out of order dropped")
                 return
             delta, by_velocity = self._displacement(prev, state)
             self.kalman.predict(delta, state.t - prev.t, by_velocity)
-            odometry = self._odometry[-1] + delta
-        self._states.append(state)
-        self._odometry.append(odometry)
-        while self._states and state.t - self._states[0].t > self.HISTORY_S:
-            self._states.popleft()
-            self._odometry.popleft()
+            odometry = prev_odometry + delta
+        self._track.append((state, odometry))
+        while state.t - self._track[0][0].t > self.HISTORY_S:
+            self._track.popleft()
 
     def _displacement(self, prev: VehicleState, state: VehicleState) -> tuple[np.ndarray, bool]:
         """How far the vehicle moved between two states, and whether horizontally from its
@@ -117,9 +115,9 @@ class LandingPipeline:
         return delta, True
 
     def _index_at(self, t: float) -> int | None:
-        if not self._states:
+        if not self._track:
             return None
-        times = [s.t for s in self._states]
+        times = [s.t for s, _ in self._track]
         i = bisect.bisect_left(times, t)
         cands = [j for j in (i - 1, i) if 0 <= j < len(times)]
         return min(cands, key=lambda j: abs(times[j] - t))
@@ -127,7 +125,7 @@ class LandingPipeline:
     def state_at(self, t: float) -> VehicleState | None:
         """The recorded vehicle state nearest to time t."""
         i = self._index_at(t)
-        return None if i is None else self._states[i]
+        return None if i is None else self._track[i][0]
 
     def detections(
         self, t: float, det: Detections, attitude: Attitude | None = None
@@ -181,7 +179,7 @@ class LandingPipeline:
             rel = np.asarray(target.rel_ned) - self._moved_since(target.t)
             self.kalman.update(rel, heading=target.heading)
         est = self.kalman.estimate()
-        state = self._states[-1] if self._states else None
+        state = self._track[-1][0] if self._track else None
         cmd = lt = None
         if state is not None and self.kalman.initialised:
             if self.config.mode == "companion":
@@ -198,10 +196,12 @@ class LandingPipeline:
                 lt = landing_target(
                     est.rel_ned, state.attitude, now, 2 * self.config.pad.pattern_radius
                 )
+                if not lt.below:  # level with the camera: the autopilot would refuse it
+                    lt = None
         return Tick(now, target, est, cmd, lt)
 
     def _moved_since(self, t: float) -> np.ndarray:
         i = self._index_at(t)
         if i is None:
             return np.zeros(3)
-        return self._odometry[-1] - self._odometry[i]
+        return self._track[-1][1] - self._track[i][1]

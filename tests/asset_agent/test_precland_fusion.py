@@ -249,3 +249,19 @@ def test_measurements_from_elements_and_ir_agree_with_the_truth():
     assert ok
     ir = from_ir(ax, ay, 4.0, pose[3:], 3.0, cam)
     assert ir.rel_ned == pytest.approx(truth, abs=1e-9) and ir.heading is None
+
+
+def test_no_landing_target_is_made_once_the_pad_is_level_with_the_camera():
+    """ArduPilot refuses a line of sight that is not below the vehicle: on touchdown the pad is at
+    the camera's height, and the pipeline makes no LANDING_TARGET of it."""
+    p = LandingPipeline(PrecisionLandingConfig(mode="landing_target"))
+    p.vehicle(vehicle_state(0.0, (0.0, 0.0, -3.0)))
+    p.set_pad_prior((0.05, 0.0, 3.0), 0.01)
+    p.ir(0.0, True, 0.0, 0.0)
+    above = p.tick(0.01)
+    assert above.target is not None and above.landing_target is not None
+    assert above.landing_target.below
+    p.set_pad_prior((0.05, 0.0, 0.0), 0.01)  # touched down
+    p.ir(0.02, True, 0.0, 0.0)
+    level = p.tick(0.03)
+    assert level.target is not None and level.landing_target is None
