@@ -1,4 +1,4 @@
-"""The UAV charger: when charging may start."""
+"""The UAV charger: when charging may start, and why it is not charging."""
 
 from __future__ import annotations
 
@@ -7,10 +7,8 @@ from base_station.plc.codec import PlcState
 from base_station.plc.registers import FaultBit
 
 
-def check_start_charging(plc: PlcState | None, link_up: bool) -> Decision:
-    """Charging needs the link, no E-stop, the lift fully down, contacts seated, no charger fault."""
-    if not link_up or plc is None:
-        return Decision(False, "start_charging refused: PLC link down")
+def _blockers(plc: PlcState) -> list[str]:
+    """What keeps the charger from charging, in the PLC's own interlocks."""
     reasons = []
     if plc.estop_active:
         reasons.append("E-stop active")
@@ -20,7 +18,14 @@ def check_start_charging(plc: PlcState | None, link_up: bool) -> Decision:
         reasons.append("UAV contacts not seated on the pad")
     if plc.fault_bits & FaultBit.CHARGER:
         reasons.append("charger fault")
-    if reasons:
+    return reasons
+
+
+def check_start_charging(plc: PlcState | None, link_up: bool) -> Decision:
+    """Charging needs the link, no E-stop, the lift fully down, contacts seated, no charger fault."""
+    if not link_up or plc is None:
+        return Decision(False, "start_charging refused: PLC link down")
+    if reasons := _blockers(plc):
         return Decision(False, "start_charging refused: " + "; ".join(reasons))
     return Decision(True)
 
@@ -30,11 +35,11 @@ def charger_idle_reason(plc: PlcState | None, link_up: bool) -> str:
     if not link_up or plc is None:
         return "PLC link down"
     state = "unknown" if plc.charger_state is None else plc.charger_state.name.lower()
-    why = check_start_charging(plc, link_up)
-    if not why.allowed:
-        return f"charger {state}; {why.reason.removeprefix('start_charging refused: ')}"
+    reasons = _blockers(plc)
     if not plc.charger_enable:
-        return f"charger {state}; CHARGER_ENABLE is off"
+        reasons.append("CHARGER_ENABLE is off")
     if plc.uav_battery_soc_pct is None:
-        return f"charger {state}; no battery link to the UAV's pack"
-    return f"charger {state} although enabled with the contacts seated"
+        reasons.append("no battery link to the UAV's pack")
+    if not reasons:
+        return f"charger {state} although enabled with the contacts seated"
+    return f"charger {state}; " + "; ".join(reasons)
