@@ -23,7 +23,7 @@ import statistics
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -154,6 +154,15 @@ class SharedVehicle:
 VEHICLES = {"shared": SharedVehicle, "kinematic": KinematicVehicle}
 
 
+def gauss_markov(
+    x: np.ndarray, sigma: float, tau: float, dt: float, rng: np.random.Generator, scale: Any = 1.0
+) -> np.ndarray:
+    """One step of a first-order Gauss-Markov process of stationary sigma and time constant tau
+    (the driving noise multiplied by `scale`, e.g. a smaller vertical part)."""
+    decay = math.exp(-dt / tau)
+    return x * decay + rng.normal(0, sigma * math.sqrt(1 - decay**2), len(x)) * scale
+
+
 class EkfVelocityError:
     """The error of the autopilot EKF's velocity (LOCAL_POSITION_NED vx, vy, vz), per axis: a
     noise of 0.05 m/s, new at each 5 Hz GNSS epoch, plus a bias of 0.03 m/s wandering over 30 s.
@@ -179,13 +188,8 @@ class EkfVelocityError:
 
     def step(self, dt: float) -> np.ndarray:
         """Advance dt seconds; the current error (m/s, NED)."""
-        for attr, sigma, tau in (
-            ("noise", self.NOISE_SIGMA, self.NOISE_TAU),
-            ("bias", self.BIAS_SIGMA, self.BIAS_TAU),
-        ):
-            decay = math.exp(-dt / tau)
-            drive = self.rng.normal(0, sigma * math.sqrt(1 - decay**2), 3)
-            setattr(self, attr, getattr(self, attr) * decay + drive)
+        self.noise = gauss_markov(self.noise, self.NOISE_SIGMA, self.NOISE_TAU, dt, self.rng)
+        self.bias = gauss_markov(self.bias, self.BIAS_SIGMA, self.BIAS_TAU, dt, self.rng)
         return self.noise + self.bias
 
 
@@ -317,10 +321,7 @@ def run_trial(
         vehicle.step(dt, sp, (speed * math.cos(wind_dir), speed * math.sin(wind_dir)))
         # the ground velocity over the step (wind leak included), as the EKF would estimate it
         vel = (true_position() - before) / dt + vel_error.step(dt)
-        decay = math.exp(-dt / tau)
-        gnss = gnss * decay + rng.normal(0, sigma * math.sqrt(1 - decay**2), 3) * np.array(
-            [1, 1, 0.5]
-        )
+        gnss = gauss_markov(gnss, sigma, tau, dt, rng, scale=np.array([1, 1, 0.5]))
         t += dt
         pose = vehicle.pose()
         pipeline.vehicle(
