@@ -18,6 +18,7 @@ from typing import Any
 
 from protocol.messages import Command, CommandProgress, CommandResultPayload, now_ms
 from protocol.outbox import AsyncOutbox
+from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 
@@ -121,10 +122,7 @@ class CommandDispatcher:
 
     async def stop(self) -> None:
         """Cancel running commands; each records a `canceled` result."""
-        tasks = list(self._tasks.values())
-        for task in tasks:
-            task.cancel()
-        await asyncio.gather(*tasks, return_exceptions=True)
+        await cancel_and_wait(list(self._tasks.values()))
 
     async def _run(self, handler: Handler, request: CommandRequest) -> None:
         cid = str(request.id)

@@ -23,6 +23,7 @@ from protocol.codec import DecodeError, decode, encode
 from protocol.commands import CommandDispatcher
 from protocol.messages import Ack, Command, Error, HelloPayload, Rtcm, Welcome, envelope
 from protocol.outbox import AsyncOutbox
+from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 
@@ -176,9 +177,7 @@ class Conversation:
                 task.result()
             raise LinkClosed(ws.close_code or 1006, ws.close_reason or "")
         finally:
-            for task in tasks:
-                task.cancel()
-            await asyncio.gather(*tasks, return_exceptions=True)
+            await cancel_and_wait(tasks)
 
     async def _welcome(self) -> Welcome:
         while True:

@@ -15,6 +15,8 @@ from collections import defaultdict
 from collections.abc import AsyncIterator, Callable
 from typing import Any, Protocol
 
+from protocol.tasks import cancel_and_wait
+
 log = logging.getLogger(__name__)
 
 Handler = Callable[[dict[str, Any]], None]
@@ -152,10 +154,7 @@ class RedisBroker:
 
     async def close(self) -> None:
         """Stop the reader and disconnect."""
-        if self._reader:
-            self._reader.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await self._reader
+        await cancel_and_wait([self._reader])
         if self._pubsub:
             await self._pubsub.aclose()
         if self._redis:

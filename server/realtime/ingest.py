@@ -17,6 +17,7 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
+from protocol.tasks import cancel_and_wait
 from server.commands.service import apply_result
 from server.telemetry.models import AssetEvent, AssetStream
 from server.telemetry.store import Sample, TelemetryStore, flatten
@@ -69,12 +70,7 @@ class Ingest:
 
     async def stop(self) -> None:
         """Store what is queued, then stop."""
-        if self._task:
-            self._task.cancel()
-            try:
-                await self._task
-            except asyncio.CancelledError:
-                pass
+        await cancel_and_wait([self._task])
 
     async def last_seq(self, stream_id: uuid.UUID, asset_id: uuid.UUID) -> int:
         """The highest stored seq of a stream (0 for a new stream)."""

@@ -108,10 +108,7 @@ class GnssReceiver:
         if self._server is not None:
             self._server.close()
         await self.disconnect_clients()
-        for task in list(self._handlers):
-            task.cancel()
-        if self._handlers:
-            await asyncio.gather(*self._handlers, return_exceptions=True)
+        await cancel_and_wait(list(self._handlers))
         if self._server is not None:
             await self._server.wait_closed()
             self._server = None

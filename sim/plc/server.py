@@ -23,6 +23,7 @@ from typing import Any
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from protocol.tasks import cancel_and_wait
 from sim.plc.model import N_COILS, N_DISCRETE, N_HOLDING, N_INPUT, LandingBase
 
 log = logging.getLogger(__name__)
@@ -129,10 +130,7 @@ class PlcServer:
         if self._relay is not None:
             self._relay.close()
         self._close_all()
-        for task in list(self._tasks):
-            task.cancel()
-        if self._tasks:
-            await asyncio.gather(*self._tasks, return_exceptions=True)
+        await cancel_and_wait(list(self._tasks))
         if self._modbus is not None:
             await self._modbus.shutdown()
         if self._relay is not None:
