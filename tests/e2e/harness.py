@@ -51,6 +51,15 @@ def mission_items(lat: float, lon: float) -> list[dict[str, Any]]:
     return items
 
 
+async def until(predicate: Any, limit_s: float = 20.0, what: str = "condition") -> None:
+    """Poll `predicate` until it holds; fail after `limit_s` wall seconds."""
+    deadline = time.monotonic() + limit_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        await asyncio.sleep(0.05)
+
+
 @dataclass
 class Platform:
     """A running platform and handles to act on it."""
@@ -63,6 +72,11 @@ class Platform:
     stops: dict[str, asyncio.Event]
     agent: Any
     base: Any
+
+    @property
+    def copter(self) -> Any:
+        """The simulated vehicle's autopilot model (ground truth, fault injection)."""
+        return next(part for part in self.world.parts if part.name == "vehicle").server.copter
 
     async def ready(self, limit_s: float = 30) -> None:
         """Wait until both daemons report live telemetry: the UAV with a 3D fix, the base with its PLC up."""

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from tests.conftest import Tenant
-from tests.e2e.harness import FINAL, platform
+from tests.e2e.harness import FINAL, platform, until
 
 WHOLE_SEQUENCE = [
     "checking", "opening", "uploading", "flying", "landing", "confirming", "closing", "charging",
@@ -78,13 +78,10 @@ async def test_uav_landing_off_the_pad_fails_keeps_the_panels_open_and_alerts(
     """In flight the UAV's GNSS picks up a 2 m steady error (multipath): it lands 2 m beside the pad and
     the scale never sees it. The run fails, the panels stay open, operators are alerted."""
     async with platform(live_server.url, tenant, tmp_path) as p:
-        vehicle = next(part for part in p.world.parts if part.name == "vehicle")
         run_id = await p.start_run()
         await p.wait_state(run_id, ("flying",), 60)
-        await _until(
-            lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
-        )
-        vehicle.server.copter.gnss.bias_ne_m = (2.0, 0.0)
+        await until(lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out")
+        p.copter.gnss.bias_ne_m = (2.0, 0.0)
         body = await p.wait_state(run_id, FINAL, 150)
         assert body["state"] == "failed" and body["cause"] == "landing_not_confirmed", body[
             "reason"
@@ -117,13 +114,13 @@ async def test_uav_link_lost_in_flight_the_run_waits_then_completes(
         ) as p:
             run_id = await p.start_run()
             await p.wait_state(run_id, ("flying",), 60)
-            await _until(
+            await until(
                 lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
             )
             proxy.cut()
             cut_seq = p.agent.link.stats.sent
             # the UAV flies on by itself: it reaches the next legs of its mission with no server
-            await _until(
+            await until(
                 lambda: (p.agent.autopilot.state.mission_current or 0) >= 2,
                 60,
                 "the UAV to fly on to its next leg while the server link is down",
@@ -151,9 +148,7 @@ async def test_operator_abort_in_flight_returns_the_uav_lands_and_closes_over_it
     async with platform(live_server.url, tenant, tmp_path) as p:
         run_id = await p.start_run()
         await p.wait_state(run_id, ("flying",), 60)
-        await _until(
-            lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
-        )
+        await until(lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out")
         r = await p.api.post(
             f"/api/v1/runs/{run_id}/abort",
             json={"reason": "airspace closed"},
@@ -191,7 +186,7 @@ async def test_server_killed_while_flying_resumes_and_completes(
             async with platform(server.url, tenant, tmp_path) as p:
                 run_id = await p.start_run()
                 await p.wait_state(run_id, ("flying",), 60)
-                await _until(lambda: p.world.base.pad_mass_g == 0, 60, "the UAV to take off")
+                await until(lambda: p.world.base.pad_mass_g == 0, 60, "the UAV to take off")
                 await asyncio.to_thread(server.stop)
                 restarted = await asyncio.to_thread(server.restarted)
                 body = await p.wait_state(run_id, FINAL, 150)
@@ -206,7 +201,7 @@ async def test_server_killed_while_flying_resumes_and_completes(
 
 def _on_the_pad(p) -> dict[str, object]:  # type: ignore[no-untyped-def]
     """What the world says of the UAV on the pad (for failure messages)."""
-    copter = next(part for part in p.world.parts if part.name == "vehicle").server.copter
+    copter = p.copter
     charger = p.world.base.charger
     return {
         "pad_distance_m": round(copter.pad_distance(), 4),
@@ -214,17 +209,6 @@ def _on_the_pad(p) -> dict[str, object]:  # type: ignore[no-untyped-def]
         "fix": copter.reading.fix_type,
         "charger": (int(charger.state), charger.uav_soc),
     }
-
-
-async def _until(predicate, limit_s: float, what: str) -> None:  # type: ignore[no-untyped-def]
-    import asyncio
-    import time
-
-    deadline = time.monotonic() + limit_s
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        await asyncio.sleep(0.05)
 
 
 async def _base_sees(p, predicate, limit_s: float = 20):  # type: ignore[no-untyped-def]

@@ -9,18 +9,10 @@ import socket
 import time
 
 from tests.conftest import Tenant
-from tests.e2e.harness import FINAL, platform
+from tests.e2e.harness import FINAL, platform, until
 
 SPEED = 4.0  # slow enough for the detector to see the descent frame by frame
 SEED = 21
-
-
-async def _until(predicate, limit_s: float, what: str) -> None:  # type: ignore[no-untyped-def]
-    deadline = time.monotonic() + limit_s
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        await asyncio.sleep(0.05)
 
 
 async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
@@ -30,7 +22,7 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         live_server.url, tenant, tmp_path, speed=SPEED, seed=SEED, precland={}
     ) as p:
         p.world.weather.force(wind_mps=6.0, gust_mps=8.0)  # steady 6 m/s with gusts, not calm
-        copter = next(part for part in p.world.parts if part.name == "vehicle").server.copter
+        copter = p.copter
         lander = p.agent.lander
         assert lander is not None
         # a fault injected at run time through the server: IR readings dropped at random (the marker
@@ -42,9 +34,7 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         assert lander.faults["ir"].r_drop == 0.3
         run_id = await p.start_run()
         await p.wait_state(run_id, ("flying",), 60)
-        await _until(
-            lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
-        )
+        await until(lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out")
         # multipath: a 40 cm GNSS error that RTK does not remove; on GNSS alone the UAV would land
         # on the scale but beside the contacts
         copter.gnss.bias_ne_m = (0.3, -0.27)
@@ -74,7 +64,7 @@ async def test_unreachable_sensors_leave_the_landing_to_gnss(live_server, tenant
         "ir_port": _closed_port(socket.SOCK_DGRAM),
     }
     async with platform(live_server.url, tenant, tmp_path, precland=dead) as p:
-        copter = next(part for part in p.world.parts if part.name == "vehicle").server.copter
+        copter = p.copter
         run_id = await p.start_run()
         body = await p.wait_state(run_id, FINAL, 120)
         assert body["state"] == "completed", (body["reason"], body["timeline"])

@@ -3,10 +3,8 @@ base link -> server -> (a) the UAV bound to that base, (b) a third-party NTRIP c
 
 from __future__ import annotations
 
-import asyncio
 import base64
 import queue
-import time
 
 from pygnssutils import GNSSNTRIPClient
 
@@ -17,18 +15,11 @@ from protocol.rtcm import frame_ok, message_type
 from sim.clock import SimClock
 from sim.gnss.receiver import running_receiver
 from tests.conftest import Tenant
+from tests.e2e.harness import until
 
 
 def _cfg(asset: dict):  # type: ignore[no-untyped-def]
     return decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
-
-
-async def _until(predicate, limit_s: float = 20.0, what: str = "condition") -> None:  # type: ignore[no-untyped-def]
-    deadline = time.monotonic() + limit_s
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        await asyncio.sleep(0.02)
 
 
 async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(
@@ -56,7 +47,7 @@ async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(
             )
             reader.start()
             try:
-                await _until(lambda: len(at_uav) >= 8, what="corrections at the UAV")
+                await until(lambda: len(at_uav) >= 8, what="corrections at the UAV")
                 client = GNSSNTRIPClient(retries=0, timeout=5, verbosity=0)
                 client.run(
                     server="127.0.0.1",
@@ -67,7 +58,7 @@ async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(
                     version="2.0",
                     output=ntrip_out,
                 )
-                await _until(lambda: ntrip_out.qsize() >= 8, what="corrections at the NTRIP client")
+                await until(lambda: ntrip_out.qsize() >= 8, what="corrections at the NTRIP client")
             finally:
                 await reader.stop()
     finally:
