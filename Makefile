@@ -25,7 +25,7 @@ test: $(STAMP) lint
 	$(BIN)/python -m pytest $(PYTEST_ARGS)
 
 bench: $(STAMP)
-	$(BIN)/python bench/telemetry.py
+	$(BIN)/python bench/telemetry_load.py
 
 clean:
 	rm -rf $(VENV) var .pytest_cache

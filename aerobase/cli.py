@@ -20,7 +20,6 @@ commands:
   base-station --config F   run the landing-base daemon
   agent --config F          run the companion-computer daemon
   sim world                 serve the simulated world
-  sim precland-eval         evaluate precision landing in the simulated world
   demo                      everything on embedded defaults, one autonomous mission
 """
 
@@ -28,11 +27,10 @@ commands:
 ROUTES: dict[tuple[str, ...], str] = {
     ("server",): "server.cli:server_main",
     ("admin",): "server.cli:admin_main",
-    ("asset",): "protocol.configfile_cli:main",
+    ("asset",): "assetlink.configfile_cli:main",
     ("base-station",): "base_station.main:main",
     ("agent",): "asset_agent.main:main",
     ("sim", "world"): "sim.assemble:main",
-    ("sim", "precland-eval"): "sim.precland_eval:main",
     ("demo",): "aerobase.demo:main",
 }
 

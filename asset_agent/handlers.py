@@ -14,7 +14,7 @@ from asset_agent.autopilot import (
     items_from_dicts,
 )
 from asset_agent.availability import AvailabilityLimits, check_availability
-from protocol.commands import CommandRequest, result
+from assetlink.dispatch import CommandRequest, result
 from protocol.messages import CommandProgress, CommandResultPayload
 
 

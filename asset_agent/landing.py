@@ -33,9 +33,9 @@ from asset_agent.precland.config import SOURCES, FaultConfig
 from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import Tick, VehicleState
 from asset_agent.precland.transport import IrReceiver, frames_forever
-from protocol.commands import CommandRequest, result
+from assetlink.dispatch import CommandRequest, result
+from asynckit.tasks import cancel_and_wait
 from protocol.messages import CommandResultPayload
-from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 

@@ -25,11 +25,11 @@ from asset_agent.config import AgentConfig
 from asset_agent.events import EventLimits, EventTracker
 from asset_agent.handlers import Handlers
 from asset_agent.landing import PrecisionLander, stream_rates
-from asset_agent.telemetry import to_event, to_telemetry
-from protocol.configfile import AssetConfig, ConfigFileError
-from protocol.configfile_cli import PasswordSourceError, load_config
-from protocol.link import Link
-from protocol.tasks import cancel_and_wait
+from asset_agent.uav_telemetry import to_event, to_telemetry
+from assetlink.configfile import AssetConfig, ConfigFileError
+from assetlink.configfile_cli import PasswordSourceError, load_config
+from assetlink.link import Link
+from asynckit.tasks import cancel_and_wait
 
 log = logging.getLogger("asset_agent")
 

@@ -16,6 +16,7 @@ import contextlib
 import logging
 import time
 
+from asynckit.tasks import cancel_and_wait
 from base_station.config import StationConfig
 from base_station.devices.axis import AxisTracker
 from base_station.devices.lift import LIFT
@@ -31,7 +32,6 @@ from base_station.plc import (
     WatchdogWriter,
 )
 from base_station.snapshot import Snapshot
-from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 

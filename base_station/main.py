@@ -17,10 +17,10 @@ import signal
 from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass
 
+from asynckit.tasks import cancel_and_wait
 from base_station.config import StationConfig, load_config
 from base_station.coordinator import Coordinator
 from base_station.station import Station
-from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 
@@ -52,8 +52,8 @@ def server_link(config: StationConfig) -> LinkRunner | None:
         return None
     from pathlib import Path
 
+    from assetlink.configfile_cli import load_config as load_asset
     from base_station.server_link import link_runner, make_link
-    from protocol.configfile_cli import load_config as load_asset
 
     asset = load_asset(
         Path(config.server.config_file).expanduser(), config.server.password_file or None
@@ -96,8 +96,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (OSError, ValueError) as err:
         log.error("cannot load configuration %s: %s", args.config, err)
         return 2
-    from protocol.configfile import ConfigFileError
-    from protocol.configfile_cli import PasswordSourceError
+    from assetlink.configfile import ConfigFileError
+    from assetlink.configfile_cli import PasswordSourceError
 
     try:
         link = server_link(config)

@@ -20,9 +20,9 @@ from urllib.parse import parse_qs, urlsplit
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from asynckit.tasks import cancel_and_wait
 from protocol.rtcm import Reframer, message_type
-from protocol.tasks import cancel_and_wait
-from protocol.telemetry import Rtk
+from protocol.telemetry_payloads import Rtk
 
 log = logging.getLogger(__name__)
 

@@ -12,18 +12,26 @@ import logging
 from collections.abc import AsyncIterator
 from pathlib import Path
 
+from assetlink.configfile import AssetConfig
+from assetlink.dispatch import CommandRequest
+from assetlink.link import Link
+from asynckit.tasks import cancel_and_wait
+from base_station.base_telemetry import AxisTelemetry, StationTelemetry
 from base_station.config import StationConfig
 from base_station.events import Event, EventKind
 from base_station.rtk import RtkConfig as ReaderConfig
 from base_station.rtk import RtkReader, source_url, to_telemetry
 from base_station.station import Progress, Result, Station
-from base_station.telemetry import AxisTelemetry, StationTelemetry
-from protocol.commands import CommandRequest
-from protocol.configfile import AssetConfig
-from protocol.link import Link
 from protocol.messages import CommandProgress, CommandResultPayload, EventPayload, Severity
-from protocol.tasks import cancel_and_wait
-from protocol.telemetry import Actuator, Charger, Faults, LandingBaseTelemetry, Power, Rtk, Weather
+from protocol.telemetry_payloads import (
+    Actuator,
+    Charger,
+    Faults,
+    LandingBaseTelemetry,
+    Power,
+    Rtk,
+    Weather,
+)
 
 log = logging.getLogger(__name__)
 

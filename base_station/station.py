@@ -24,6 +24,7 @@ from enum import StrEnum
 from typing import Any
 
 from base_station.availability import availability
+from base_station.base_telemetry import StationTelemetry, build_telemetry
 from base_station.config import StationConfig
 from base_station.coordinator import Coordinator
 from base_station.devices.axis import AxisSpec, Decision, MotionTracker, Outcome
@@ -39,7 +40,6 @@ from base_station.plc import (
     PlcLinkError,
     fault_names,
 )
-from base_station.telemetry import StationTelemetry, build_telemetry
 
 log = logging.getLogger(__name__)
 

@@ -27,9 +27,9 @@ from pathlib import Path
 import httpx
 from websockets.asyncio.client import ClientConnection, connect
 
+from assetlink.configfile import decrypt_config
 from bench._load import Payloads, Recorder, drain, figures, mark, pace, process_cpu
 from protocol.codec import MAX_MESSAGE_BYTES, encode
-from protocol.configfile import decrypt_config
 from protocol.messages import HelloPayload, envelope
 
 ROOT = Path(__file__).resolve().parents[1]

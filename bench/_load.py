@@ -1,7 +1,7 @@
 """The load generator shared by both telemetry benchmark runs: payloads, pacing, recording, figures.
 
 Both runs (ours over WebSockets, Mosquitto over MQTT) send the very same envelope bytes, produced
-by `protocol.codec.encode` from `protocol.telemetry.UavTelemetry`, paced by the same schedule and
+by `protocol.codec.encode` from `protocol.telemetry_payloads.UavTelemetry`, paced by the same schedule and
 measured by the same `Recorder`.
 """
 
@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 from protocol.codec import decode, encode
 from protocol.messages import envelope
-from protocol.telemetry import (
+from protocol.telemetry_payloads import (
     Attitude,
     Battery,
     Gnss,

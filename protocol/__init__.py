@@ -1,7 +1,7 @@
-"""The wire protocol shared by the server and both daemons: message models, codec and link.
+"""The wire protocol shared by the server and both daemons: message models and codec.
 
-Import the models and codec from here; the link lives in `protocol.link` (it pulls in
-httpx and websockets, which the server does not need).
+Pydantic and the standard library only (an import-linter contract holds it to that). What a
+daemon runs on top of these models — link, outbox, dispatcher — is `assetlink`.
 """
 
 from protocol.base import MAX_MESSAGE_BYTES, PROTOCOL_VERSION
@@ -39,7 +39,7 @@ from protocol.messages import (
     envelope,
     now_ms,
 )
-from protocol.telemetry import LandingBaseTelemetry, TelemetryPayload, UavTelemetry
+from protocol.telemetry_payloads import LandingBaseTelemetry, TelemetryPayload, UavTelemetry
 
 __all__ = [
     "MAX_MESSAGE_BYTES",

@@ -21,7 +21,7 @@ from pydantic import Field, TypeAdapter, field_validator, model_serializer
 
 from protocol import rtcm
 from protocol.base import Frozen
-from protocol.telemetry import LandingBaseTelemetry, TelemetryPayload, UavTelemetry
+from protocol.telemetry_payloads import LandingBaseTelemetry, TelemetryPayload, UavTelemetry
 
 AgentKind = Literal["base_station", "asset_agent", "operator"]
 Severity = Literal["info", "warning", "critical"]

@@ -25,7 +25,9 @@ from sim.world import World, WorldConfig, parse_args, run
 
 log = logging.getLogger(__name__)
 
-SEAT_HEIGHT = 0.25  # camera height above the pad when the vehicle sits on it (as sim.precland_eval)
+SEAT_HEIGHT = (
+    0.25  # camera height above the pad when the vehicle sits on it (as bench.precland_eval)
+)
 
 
 def vehicle_pose(part: VehiclePart) -> tuple[float, float, float, float, float, float]:

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from protocol.tasks import cancel_and_wait
+from asynckit.tasks import cancel_and_wait
 from sim.camera.render import CAM_FROM_BODY, Pose, rotation_world_from_body
 
 log = logging.getLogger(__name__)

@@ -27,7 +27,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from protocol.tasks import cancel_and_wait
+from asynckit.tasks import cancel_and_wait
 from sim.clock import SimClock
 from sim.plc import BaseParams, LandingBase, PlcServer
 from sim.power import PowerParams, PowerSystem

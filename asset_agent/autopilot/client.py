@@ -31,7 +31,7 @@ from asset_agent.autopilot.items import MissionItem
 from asset_agent.autopilot.link import MavlinkLink
 from asset_agent.autopilot.setpoints import SetpointsMixin
 from asset_agent.autopilot.state import MODE_NUMBERS, Notification, UavState
-from protocol.tasks import cancel_and_wait
+from asynckit.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 

@@ -18,7 +18,7 @@ from asset_agent.precland.config import FaultConfig, PrecisionLandingConfig
 from asset_agent.precland.detect import Detections, PadDetector
 from asset_agent.precland.pipeline import LandingPipeline, Tick, VehicleState
 from asset_agent.precland.transport import Frame, IrReading
-from protocol.tasks import cancel_and_wait
+from asynckit.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 

@@ -6,7 +6,7 @@ import asyncio
 import uuid
 from typing import Any
 
-from protocol.configfile import AssetConfig, encrypt_config
+from assetlink.configfile import AssetConfig, encrypt_config
 from server.assets.models import Asset, AssetKind
 from server.assets.repository import AssetRepository
 from server.kit.errors import Conflict, Unprocessable

@@ -6,7 +6,7 @@ import asyncio
 import logging
 from collections.abc import Awaitable, Callable
 
-from protocol.tasks import cancel_and_wait
+from asynckit.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 

@@ -15,7 +15,7 @@ from collections import defaultdict
 from collections.abc import AsyncIterator, Callable
 from typing import Any, Protocol
 
-from protocol.tasks import cancel_and_wait
+from asynckit.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 

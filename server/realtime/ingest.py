@@ -17,7 +17,7 @@ from typing import Any
 from sqlalchemy import select
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
-from protocol.tasks import cancel_and_wait
+from asynckit.tasks import cancel_and_wait
 from server.commands.service import apply_result
 from server.telemetry.models import AssetEvent, AssetStream
 from server.telemetry.store import Sample, TelemetryStore, flatten

@@ -28,7 +28,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 
-from protocol.tasks import cancel_and_wait
+from asynckit.tasks import cancel_and_wait
 from sim.camera.render import PadRenderer, Pose
 
 log = logging.getLogger(__name__)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from protocol.tasks import cancel_and_wait
+from asynckit.tasks import cancel_and_wait
 from sim.clock import SimClock
 from sim.gnss.station import BaseStationModel, GnssConfig
 

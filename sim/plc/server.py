@@ -23,7 +23,7 @@ from typing import Any
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
-from protocol.tasks import cancel_and_wait
+from asynckit.tasks import cancel_and_wait
 from sim.plc.model import N_COILS, N_DISCRETE, N_HOLDING, N_INPUT, LandingBase
 
 log = logging.getLogger(__name__)

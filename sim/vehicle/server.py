@@ -26,11 +26,11 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from protocol.tasks import cancel_and_wait
+from asynckit.tasks import cancel_and_wait
 from sim.clock import SimClock
 from sim.vehicle.copter import Base, Copter, CopterConfig
 from sim.vehicle.standalone import OpenPad
-from sim.vehicle.telemetry import StreamScheduler, build
+from sim.vehicle.streams import StreamScheduler, build
 
 log = logging.getLogger(__name__)
 

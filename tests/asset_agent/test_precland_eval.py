@@ -1,4 +1,4 @@
-"""`aerobase sim precland-eval`: closed-loop landings in process (seeded, deterministic)."""
+"""`bench/precland_eval.py`: closed-loop landings in process (seeded, deterministic)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 
-from sim.precland_eval import SCENARIOS, EkfVelocityError, main, run_trial
+from bench.precland_eval import SCENARIOS, EkfVelocityError, main, run_trial
 
 
 def test_a_fused_landing_from_6m_seats_on_the_contacts():

@@ -17,10 +17,10 @@ from asset_agent.precland.control import HOVER
 from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import VehicleState
 from asset_agent.precland.transport import IrReceiver, stream_frames
+from bench.precland_eval import KinematicVehicle
 from sim.camera.server import CameraServer
 from sim.clock import SimClock
 from sim.ir import IrBeaconSensor
-from sim.precland_eval import KinematicVehicle
 
 
 async def wait_for(predicate, within: float = 10.0) -> None:

@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 from pydantic import ValidationError
 
+from base_station.base_telemetry import build_telemetry
 from base_station.config import StationConfig, load_config
 from base_station.devices.axis import MotionState, MotionTracker, Outcome, motion_state
 from base_station.devices.charger import check_start_charging
@@ -18,7 +19,6 @@ from base_station.devices.weather import weather_conditions
 from base_station.events import EventKind, diff_events
 from base_station.plc import ChargerState, FaultBit, PlcState, PowerSource, RawImage, decode
 from base_station.snapshot import Snapshot
-from base_station.telemetry import build_telemetry
 
 
 def closed_base(**changes: object) -> PlcState:

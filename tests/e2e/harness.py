@@ -17,10 +17,10 @@ import httpx
 from asset_agent.config import AgentConfig
 from asset_agent.main import run as run_agent
 from asset_agent.main import setup as setup_agent
+from assetlink.configfile import decrypt_config
 from base_station.main import run as run_base
 from base_station.main import setup as setup_base
 from base_station.server_link import link_runner, make_link
-from protocol.configfile import decrypt_config
 from sim.assemble import full_world
 from sim.world import World, WorldConfig
 from tests.base_station.bs_helpers import station_config

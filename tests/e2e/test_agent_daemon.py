@@ -10,7 +10,7 @@ import httpx
 
 from asset_agent.config import AgentConfig
 from asset_agent.main import run, setup
-from protocol.configfile import decrypt_config
+from assetlink.configfile import decrypt_config
 from sim.vehicle.server import run_vehicle
 from sim.vehicle.standalone import OpenPad
 from tests.conftest import Tenant

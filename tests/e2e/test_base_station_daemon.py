@@ -12,9 +12,9 @@ import time
 
 import httpx
 
+from assetlink.configfile import decrypt_config
 from base_station.main import run, setup
 from base_station.server_link import link_runner, make_link
-from protocol.configfile import decrypt_config
 from sim.gnss.part import GnssPart
 from sim.world import World, WorldConfig
 from tests.base_station.bs_helpers import station_config

@@ -8,9 +8,9 @@ import queue
 
 from pygnssutils import GNSSNTRIPClient
 
+from assetlink.configfile import decrypt_config
+from assetlink.link import Link
 from base_station.rtk import RtkConfig, RtkReader
-from protocol.configfile import decrypt_config
-from protocol.link import Link
 from protocol.rtcm import frame_ok, message_type
 from sim.clock import SimClock
 from sim.gnss.receiver import running_receiver

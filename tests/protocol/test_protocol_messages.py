@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from protocol import messages as m
 from protocol import rtcm
-from protocol import telemetry as t
+from protocol import telemetry_payloads as t
 from protocol.base import MAX_MESSAGE_BYTES
 from protocol.codec import DecodeError, MessageTooLarge, decode, encode, json_schema
 

@@ -3,7 +3,7 @@
 import base64
 import uuid
 
-from protocol.configfile import BadFormat, WrongPassword, decrypt_config
+from assetlink.configfile import BadFormat, WrongPassword, decrypt_config
 from tests.conftest import Tenant, auth
 
 

@@ -13,10 +13,10 @@ import httpx
 import pytest
 import websockets
 
-from protocol.configfile import decrypt_config
-from protocol.link import Link
+from assetlink.configfile import decrypt_config
+from assetlink.link import Link
 from protocol.messages import EventPayload
-from protocol.telemetry import Battery, Position, UavTelemetry
+from protocol.telemetry_payloads import Battery, Position, UavTelemetry
 from tests.conftest import LiveServer, Tenant, test_settings
 
 
@@ -139,7 +139,7 @@ async def test_command_round_trip_and_status_history(live_server, tenant: Tenant
 
     async def check(request):  # type: ignore[no-untyped-def]
         calls.append(request.id)
-        from protocol.commands import result
+        from assetlink.dispatch import result
 
         return result("succeeded", "all conditions met", {"wind_mps": 3.0})
 

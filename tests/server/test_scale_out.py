@@ -15,10 +15,10 @@ import httpx
 import pytest
 import websockets
 
-from protocol.commands import result
-from protocol.configfile import decrypt_config
-from protocol.link import Link
-from protocol.telemetry import Position, UavTelemetry
+from assetlink.configfile import decrypt_config
+from assetlink.dispatch import result
+from assetlink.link import Link
+from protocol.telemetry_payloads import Position, UavTelemetry
 from tests.conftest import Tenant, free_port, need_service
 
 REDIS_URL = os.environ.get("REDIS_TEST_URL", "redis://127.0.0.1:6379/0")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from asset_agent.autopilot.state import UavState
 from asset_agent.events import Event
 from protocol.messages import EventPayload, Severity
-from protocol.telemetry import (
+from protocol.telemetry_payloads import (
     Attitude,
     Battery,
     Gnss,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import logging
 
-from protocol.tasks import cancel_and_wait
+from asynckit.tasks import cancel_and_wait
 
 
 async def _deaf_loop(swallow: int, ticks: list[int]) -> None:
@@ -25,7 +25,7 @@ async def test_a_task_that_swallows_cancellations_is_cancelled_again_until_it_en
     ticks: list[int] = []
     task = asyncio.ensure_future(_deaf_loop(2, ticks))
     await asyncio.sleep(0.03)
-    with caplog.at_level(logging.WARNING, logger="protocol.tasks"):
+    with caplog.at_level(logging.WARNING, logger="asynckit.tasks"):
         await asyncio.wait_for(cancel_and_wait([task], grace_s=0.05), 5)
     assert task.cancelled()
     assert sum("cancelling again" in r.message for r in caplog.records) == 2
@@ -48,7 +48,7 @@ async def test_an_error_raised_while_stopping_is_logged_not_raised(caplog):
 
     task = asyncio.ensure_future(fails_on_cancel())
     await asyncio.sleep(0)
-    with caplog.at_level(logging.ERROR, logger="protocol.tasks"):
+    with caplog.at_level(logging.ERROR, logger="asynckit.tasks"):
         await cancel_and_wait([task])
     assert any("ended with an error" in r.message for r in caplog.records)
 
@@ -65,7 +65,7 @@ async def test_a_task_that_never_stops_is_left_behind_after_its_rounds(caplog):
 
     task = asyncio.ensure_future(immortal())
     await asyncio.sleep(0)
-    with caplog.at_level(logging.ERROR, logger="protocol.tasks"):
+    with caplog.at_level(logging.ERROR, logger="asynckit.tasks"):
         await asyncio.wait_for(cancel_and_wait([task], grace_s=0.01, rounds=3), 5)
     assert not task.done()
     assert any("did not stop after 3 cancellations" in r.message for r in caplog.records)

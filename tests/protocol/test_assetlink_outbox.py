@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
+from assetlink.outbox import AsyncOutbox, Outbox, Token
 from protocol import messages as m
-from protocol import telemetry as t
+from protocol import telemetry_payloads as t
 from protocol.codec import decode
-from protocol.outbox import AsyncOutbox, Outbox, Token
 
 
 def event(i: int) -> str:

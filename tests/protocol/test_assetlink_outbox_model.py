@@ -14,9 +14,9 @@ from hypothesis import settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
+from assetlink.outbox import Outbox
 from protocol import messages as m
 from protocol.codec import decode
-from protocol.outbox import Outbox
 
 MAX_ENTRIES = 8
 

@@ -10,7 +10,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from protocol.configfile import ConfigFileError, decrypt_config
+from assetlink.configfile import ConfigFileError, decrypt_config
 
 PASSWORD_ENV = "AEROBASE_ASSET_PASSWORD"
 

@@ -10,10 +10,10 @@ from pathlib import Path
 
 import pytest
 
+from assetlink.dispatch import CommandDispatcher, CommandRequest, result
+from assetlink.outbox import AsyncOutbox
 from protocol import messages as m
 from protocol.codec import decode
-from protocol.commands import CommandDispatcher, CommandRequest, result
-from protocol.outbox import AsyncOutbox
 
 
 async def wait_for(predicate: Callable[[], bool], timeout: float = 5.0) -> None:  # noqa: ASYNC109

@@ -18,7 +18,7 @@ from datetime import UTC, datetime
 
 import httpx
 
-from protocol.outbox import Token
+from assetlink.outbox import Token
 
 log = logging.getLogger(__name__)
 

@@ -1,11 +1,11 @@
 """Telemetry throughput and asset-to-operator latency of one `aerobase server` process, beside
 Mosquitto relaying the same messages in the same run.
 
-    python bench/telemetry.py [--assets 1000] [--rate 10] [--seconds 20] [--operators 2]
+    python bench/telemetry_load.py [--assets 1000] [--rate 10] [--seconds 20] [--operators 2]
                               [--warmup 3] [--mqtt-qos 1] [--mqtt-port 1883] [--mqtt-pid PID]
                               [--skip-mqtt] [--json]
 
-N simulated UAVs each send telemetry envelopes (protocol.telemetry.UavTelemetry, encoded by
+N simulated UAVs each send telemetry envelopes (protocol.telemetry_payloads.UavTelemetry, encoded by
 protocol.codec) at R Hz over their own /ws/asset WebSocket, phases spread evenly; M operators
 subscribed to every asset over /ws/operator time each message from its send to its arrival (the
 generator and the receivers share one asyncio process, so the send time is kept in memory). The
@@ -54,7 +54,9 @@ def progress(text: str) -> None:
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
     """Command-line flags."""
-    p = argparse.ArgumentParser(prog="bench/telemetry.py", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(
+        prog="bench/telemetry_load.py", description=__doc__.split("\n\n")[0]
+    )
     p.add_argument("--assets", type=int, default=1000, help="simulated UAVs (default 1000)")
     p.add_argument(
         "--rate", type=float, default=10.0, help="messages a second per UAV (default 10)"
@@ -336,7 +338,9 @@ def main(argv: list[str] | None = None) -> int:
         with asyncio.Runner(loop_factory=_loop_factory()) as runner:
             res = runner.run(bench(args))
     except Exception as err:
-        print(f"bench/telemetry.py could not run: {type(err).__name__}: {err}", file=sys.stderr)
+        print(
+            f"bench/telemetry_load.py could not run: {type(err).__name__}: {err}", file=sys.stderr
+        )
         return 2
     print(report(res))
     if args.json:

@@ -24,21 +24,21 @@ import httpx
 from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidStatus
 
-from protocol import auth
-from protocol.base import MAX_MESSAGE_BYTES
-from protocol.codec import encode
-from protocol.commands import CommandDispatcher, Handler
-from protocol.conversation import (
+from assetlink import auth
+from assetlink.conversation import (
     Conversation,
     LinkClosed,
     LinkCore,
     RtcmCallback,
     SessionEnded,
 )
+from assetlink.dispatch import CommandDispatcher, Handler
+from assetlink.outbox import AsyncOutbox, Token
+from asynckit.tasks import cancel_and_wait
+from protocol.base import MAX_MESSAGE_BYTES
+from protocol.codec import encode
 from protocol.messages import AgentKind, EventPayload, HelloPayload, RtcmPayload, envelope, now_ms
-from protocol.outbox import AsyncOutbox, Token
-from protocol.tasks import cancel_and_wait
-from protocol.telemetry import LandingBaseTelemetry, UavTelemetry
+from protocol.telemetry_payloads import LandingBaseTelemetry, UavTelemetry
 
 __all__ = ["Link", "LinkClosed", "LinkStats", "SessionEnded", "backoff_delay", "renew_at", "ws_url"]
 
@@ -147,7 +147,7 @@ class Link:
     # --- public API ---
 
     def on_command(self, name: str, handler: Handler) -> None:
-        """Run `handler` for inbound commands called `name` (see protocol.commands)."""
+        """Run `handler` for inbound commands called `name` (see assetlink.dispatch)."""
         self._handlers[name] = handler
         if self._core is not None:
             self._core.dispatcher.register(name, handler)

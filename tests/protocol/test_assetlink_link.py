@@ -11,13 +11,13 @@ from pathlib import Path
 
 import pytest
 
+from assetlink.auth import parse_expiry
+from assetlink.conversation import TokenBucket
+from assetlink.link import Link, backoff_delay, renew_at, ws_url
+from assetlink.outbox import Outbox, Token
 from protocol import rtcm
-from protocol import telemetry as t
-from protocol.auth import parse_expiry
-from protocol.conversation import TokenBucket
-from protocol.link import Link, backoff_delay, renew_at, ws_url
+from protocol import telemetry_payloads as t
 from protocol.messages import EventPayload
-from protocol.outbox import Outbox, Token
 
 
 def closed_port_url() -> str:

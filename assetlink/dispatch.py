@@ -16,9 +16,9 @@ from collections.abc import AsyncIterator, Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from assetlink.outbox import AsyncOutbox
+from asynckit.tasks import cancel_and_wait
 from protocol.messages import Command, CommandProgress, CommandResultPayload, now_ms
-from protocol.outbox import AsyncOutbox
-from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 

@@ -19,11 +19,11 @@ from typing import Any
 from websockets.asyncio.client import ClientConnection
 from websockets.exceptions import ConnectionClosed
 
+from assetlink.dispatch import CommandDispatcher
+from assetlink.outbox import AsyncOutbox
+from asynckit.tasks import cancel_and_wait
 from protocol.codec import DecodeError, decode, encode
-from protocol.commands import CommandDispatcher
 from protocol.messages import Ack, Command, Error, HelloPayload, Rtcm, Welcome, envelope
-from protocol.outbox import AsyncOutbox
-from protocol.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 

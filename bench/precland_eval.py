@@ -1,4 +1,4 @@
-"""`aerobase sim precland-eval`: closed-loop precision landings, in process, per scenario.
+"""`python bench/precland_eval.py`: closed-loop precision landings, in process, per scenario.
 
 Each trial: render → detect → fault injection → fusion → Kalman → control → vehicle, stepped at
 100 Hz of simulated time (camera 33 Hz, IR 50 Hz, control 33 Hz), as fast as the CPU allows.
@@ -26,6 +26,9 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
+
+if __name__ == "__main__":  # run as a script from a checkout
+    sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
 
 from asset_agent.precland.config import (
     DetectorConfig,

@@ -1,0 +1,1 @@
+"""asyncio helpers every process uses (server, daemons, simulator): standard library only."""
