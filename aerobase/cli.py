@@ -20,6 +20,7 @@ commands:
   base-station --config F   run the landing-base daemon
   agent --config F          run the companion-computer daemon
   sim world                 serve the simulated world
+  sim precland-eval         evaluate precision landing in the simulated world (bench/precland_eval.py)
   demo                      everything on embedded defaults, one autonomous mission
 """
 
@@ -31,6 +32,7 @@ ROUTES: dict[tuple[str, ...], str] = {
     ("base-station",): "base_station.main:main",
     ("agent",): "asset_agent.main:main",
     ("sim", "world"): "sim.assemble:main",
+    ("sim", "precland-eval"): "bench.precland_eval:main",
     ("demo",): "aerobase.demo:main",
 }
 

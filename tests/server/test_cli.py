@@ -106,3 +106,28 @@ def test_asset_decrypt(tenant: Tenant):
         open(path, "wb").write(bytes(data))
         r = _run(["asset", "decrypt", path], {"AEROBASE_ASSET_PASSWORD": "decrypt-password-1"})
         assert r.returncode == 1 and "altered" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_precland_eval_route_works_outside_the_checkout(tmp_path):
+    """`aerobase sim precland-eval` (DESIGN.md's stable command) reaches bench/precland_eval.py
+    from any directory, one scenario, one trial."""
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "aerobase.cli",
+            "sim",
+            "precland-eval",
+            "--trials",
+            "1",
+            "--scenario",
+            "fused",
+            "--json",
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=170,
+    )
+    assert r.returncode == 0, r.stderr
+    assert '"fused"' in r.stdout.splitlines()[-1]
