@@ -6,6 +6,7 @@ import asyncio
 import os
 import tempfile
 
+import pytest
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
 from sqlalchemy.ext.asyncio import create_async_engine
@@ -38,11 +39,13 @@ def _cycle(url: str) -> None:
     assert _diff(url) == []
 
 
+@pytest.mark.slow
 def test_sqlite_upgrade_downgrade_upgrade_and_no_autogenerate_diff():
     with tempfile.TemporaryDirectory() as tmp:
         _cycle(f"sqlite+aiosqlite:///{tmp}/m.db")
 
 
+@pytest.mark.slow
 def test_postgresql_upgrade_downgrade_upgrade_and_no_autogenerate_diff():
     need_service("PostgreSQL", "127.0.0.1", 5432)
     url = os.environ.get(

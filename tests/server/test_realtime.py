@@ -268,6 +268,7 @@ async def test_bad_input_gets_errors_and_oversize_closes_1009(live_server, tenan
         assert info.value.rcvd.code == 1009
 
 
+@pytest.mark.slow
 async def test_link_cut_and_server_restart_lose_nothing_and_duplicate_nothing(
     database_url, tenant: Tenant, tmp_path
 ):
@@ -333,6 +334,7 @@ async def test_link_cut_and_server_restart_lose_nothing_and_duplicate_nothing(
     assert alts == sorted(float(i % 50) for i in range(30))
 
 
+@pytest.mark.slow
 async def test_a_30_second_link_cut_loses_nothing(live_server, tenant: Tenant, tmp_path):
     """10 Hz telemetry through a proxy cut for 30 s: every sample is stored exactly once."""
     from tests.netproxy import TcpProxy
