@@ -15,6 +15,7 @@ from typing import Any
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from starlette.websockets import WebSocketState
 
+from asynckit.ratelimit import TokenBucket
 from protocol.codec import DecodeError, decode, encode
 from protocol.messages import (
     AckPayload,
@@ -30,11 +31,12 @@ from protocol.messages import (
 from server.assets.models import Asset
 from server.assets.repository import AssetRepository
 from server.commands import service as commands
-from server.deps import principal_of
+from server.deps import principal_of, services_of
 from server.kit.errors import AppError, NotFound
 from server.kit.scope import Principal
-from server.realtime.hub import TokenBucket
+from server.realtime.channels import asset_channel, command_channel, presence_key, rtcm_channel
 from server.realtime.ingest import Item
+from server.services import Services
 
 log = logging.getLogger(__name__)
 router = APIRouter()
@@ -51,10 +53,10 @@ def _token(ws: WebSocket) -> str | None:
 
 
 async def _authenticate(ws: WebSocket) -> Principal | None:
-    app = ws.app
-    async with app.state.sessionmaker() as db:
+    services = services_of(ws.app)
+    async with services.sessionmaker() as db:
         try:
-            principal, _ = await principal_of(db, app.state.settings, _token(ws))
+            principal, _ = await principal_of(db, services.settings, _token(ws))
             await db.commit()
             return principal
         except AppError as err:
@@ -107,14 +109,14 @@ async def asset_socket(ws: WebSocket) -> None:
     if asset_id is None or org_id is None:  # every asset session carries both; never expected
         await ws.close(4401, "this asset session has no asset or organisation")
         return
-    app = ws.app
+    services = services_of(ws.app)
     hub, broker, ingest, settings = (
-        app.state.hub,
-        app.state.broker,
-        app.state.ingest,
-        app.state.settings,
+        services.hub,
+        services.broker,
+        services.ingest,
+        services.settings,
     )
-    key, owner = f"conn.asset.{asset_id}", f"{hub.node}:{uuid.uuid4().hex[:8]}"
+    key, owner = presence_key(asset_id), f"{hub.node}:{uuid.uuid4().hex[:8]}"
     holder = await broker.claim(key, owner, PRESENCE_TTL_S)
     if holder is not None:
         await ws.close(4409, "another connection of this asset is live")
@@ -124,18 +126,18 @@ async def asset_socket(ws: WebSocket) -> None:
     wake = asyncio.Event()
     tasks: list[asyncio.Task[Any]] = []
     nudge = lambda _m: wake.set()  # noqa: E731
-    broker.subscribe(f"cmd.{asset_id}", nudge)
+    broker.subscribe(command_channel(asset_id), nudge)
     # a UAV bound to a landing base receives that base's RTK corrections
-    async with app.state.sessionmaker() as db:
+    async with services.sessionmaker() as db:
         asset = await db.get(Asset, asset_id)
-    rtcm_channel = f"rtcm.{asset.base_id}" if asset is not None and asset.base_id else None
+    corrections = rtcm_channel(asset.base_id) if asset is not None and asset.base_id else None
 
     def forward_rtcm(message: dict[str, Any]) -> None:
         if sender.send_text(encode(envelope(RtcmPayload(data=message["data"])))):
             hub.counters.rtcm_forwarded += 1
 
-    if rtcm_channel:
-        broker.subscribe(rtcm_channel, forward_rtcm)
+    if corrections:
+        broker.subscribe(corrections, forward_rtcm)
     try:
         raw = await asyncio.wait_for(ws.receive_text(), 15)
         hello = decode(raw, "asset_to_server")
@@ -166,10 +168,10 @@ async def asset_socket(ws: WebSocket) -> None:
         tasks = [
             asyncio.create_task(sender.run()),
             asyncio.create_task(conn.acker()),
-            asyncio.create_task(_heartbeat(app, principal, key, owner, sender)),
-            asyncio.create_task(_deliver_commands(app, asset_id, sender, wake)),
+            asyncio.create_task(_heartbeat(services, principal, key, owner, sender)),
+            asyncio.create_task(_deliver_commands(services, asset_id, sender, wake)),
         ]
-        reader = asyncio.create_task(conn.read(ws, app))
+        reader = asyncio.create_task(conn.read(ws, services))
         done, _ = await asyncio.wait([reader, tasks[0]], return_when=asyncio.FIRST_COMPLETED)
         for t in done:
             if t.exception() and not isinstance(t.exception(), WebSocketDisconnect):
@@ -180,9 +182,9 @@ async def asset_socket(ws: WebSocket) -> None:
     finally:
         for t in tasks:
             t.cancel()
-        broker.unsubscribe(f"cmd.{asset_id}", nudge)
-        if rtcm_channel:
-            broker.unsubscribe(rtcm_channel, forward_rtcm)
+        broker.unsubscribe(command_channel(asset_id), nudge)
+        if corrections:
+            broker.unsubscribe(corrections, forward_rtcm)
         hub.unregister_closer(principal.session_id, sender.close)
         with contextlib.suppress(Exception):
             await broker.release(key, owner)
@@ -221,8 +223,8 @@ class _AssetConn:
             encode(envelope(ErrorPayload(code=code, message=message, re_seq=seq)))
         )
 
-    async def read(self, ws: WebSocket, app: Any) -> None:
-        hub, broker, ingest = app.state.hub, app.state.broker, app.state.ingest
+    async def read(self, ws: WebSocket, services: Services) -> None:
+        hub, broker, ingest = services.hub, services.broker, services.ingest
         asset_id, org_id = self.asset_id, self.organization_id
         while True:
             raw = await ws.receive_text()
@@ -255,7 +257,7 @@ class _AssetConn:
                 data["payload"]["asset_id"] = str(asset_id)
                 # encoded once here, not once per operator socket
                 await broker.publish(
-                    f"asset.{asset_id}",
+                    asset_channel(asset_id),
                     {"id": data["id"], "text": json.dumps(data, separators=(",", ":"))},
                 )
                 fut = ingest.submit(
@@ -273,7 +275,7 @@ class _AssetConn:
                 self.pending.append((msg.seq, fut))
                 self.have_pending.set()
             elif msg.type == "rtcm":
-                await broker.publish(f"rtcm.{asset_id}", {"data": msg.payload.data})
+                await broker.publish(rtcm_channel(asset_id), {"data": msg.payload.data})
             elif msg.type == "hello":
                 self._error("unexpected_hello", "hello is only valid as the first message", msg.seq)
 
@@ -296,7 +298,9 @@ class _AssetConn:
             self.sender.send_text(encode(envelope(AckPayload(seq=highest))))
 
 
-async def _heartbeat(app: Any, principal: Principal, key: str, owner: str, sender: _Sender) -> None:
+async def _heartbeat(
+    services: Services, principal: Principal, key: str, owner: str, sender: _Sender
+) -> None:
     """Keep the session alive and the presence claim ours while the socket lives."""
     from server.auth.service import SessionService
 
@@ -304,25 +308,25 @@ async def _heartbeat(app: Any, principal: Principal, key: str, owner: str, sende
     while True:
         # jittered so that a thousand sockets opened together do not all write at once
         await asyncio.sleep(HEARTBEAT_S * rng.uniform(0.8, 1.2))
-        async with app.state.sessionmaker() as db:
-            alive = await SessionService(db, app.state.settings).touch(principal.session_id)
+        async with services.sessionmaker() as db:
+            alive = await SessionService(db, services.settings).touch(principal.session_id)
             await db.commit()
         if not alive:
             sender.close(4001, "session ended")
             return
-        if not await app.state.broker.refresh(key, owner, PRESENCE_TTL_S):
+        if not await services.broker.refresh(key, owner, PRESENCE_TTL_S):
             sender.close(4409, "another connection of this asset took over")
             return
 
 
 async def _deliver_commands(
-    app: Any, asset_id: uuid.UUID, sender: _Sender, wake: asyncio.Event
+    services: Services, asset_id: uuid.UUID, sender: _Sender, wake: asyncio.Event
 ) -> None:
     """Send queued commands (from the database) now and whenever nudged through the broker; a slow,
     jittered sweep covers a nudge lost in a broker hiccup."""
     rng = random.Random()
     while True:
-        async with app.state.sessionmaker() as db:
+        async with services.sessionmaker() as db:
             for cmd in await commands.due_for_delivery(db, asset_id):
                 text = encode(
                     envelope(
@@ -340,7 +344,7 @@ async def _deliver_commands(
         wake.clear()
         with contextlib.suppress(TimeoutError):
             await asyncio.wait_for(
-                wake.wait(), app.state.settings.command_sweep_s * rng.uniform(0.5, 1.5)
+                wake.wait(), services.settings.command_sweep_s * rng.uniform(0.5, 1.5)
             )
 
 
@@ -354,8 +358,8 @@ async def operator_socket(ws: WebSocket) -> None:
     if principal.kind != "user" or principal.organization_id is None:
         await ws.close(4401, "this socket is for users of an organisation")
         return
-    app = ws.app
-    hub, broker = app.state.hub, app.state.broker
+    services = services_of(ws.app)
+    hub, broker = services.hub, services.broker
     sender = _Sender(ws, max_queue=5000)
     hub.register_closer(principal.session_id, sender.close)
     handlers: dict[uuid.UUID, Any] = {}
@@ -388,7 +392,7 @@ async def operator_socket(ws: WebSocket) -> None:
                 sender.send_text(encode(envelope(ErrorPayload(code=msg.code, message=msg.message))))
                 continue
             if isinstance(msg, Subscribe):
-                async with app.state.sessionmaker() as db:
+                async with services.sessionmaker() as db:
                     repo = AssetRepository(db, principal)
                     for asset_id in msg.payload.asset_ids:
                         try:
@@ -406,15 +410,15 @@ async def operator_socket(ws: WebSocket) -> None:
                             continue
                         if asset_id not in handlers:
                             handlers[asset_id] = forward
-                            broker.subscribe(f"asset.{asset_id}", forward)
+                            broker.subscribe(asset_channel(asset_id), forward)
             elif isinstance(msg, Unsubscribe):
                 for asset_id in msg.payload.asset_ids:
                     if handlers.pop(asset_id, None):
-                        broker.unsubscribe(f"asset.{asset_id}", forward)
+                        broker.unsubscribe(asset_channel(asset_id), forward)
     except WebSocketDisconnect:
         pass
     finally:
         send_task.cancel()
         for asset_id in handlers:
-            broker.unsubscribe(f"asset.{asset_id}", forward)
+            broker.unsubscribe(asset_channel(asset_id), forward)
         hub.unregister_closer(principal.session_id, sender.close)
