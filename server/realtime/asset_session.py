@@ -39,6 +39,7 @@ from server.realtime.channels import asset_channel, command_channel, presence_ke
 from server.realtime.ingest import Item
 from server.realtime.sender import Sender
 from server.services import Services
+from server.telemetry.service import StreamOfAnotherAsset
 
 log = logging.getLogger(__name__)
 HEARTBEAT_S = 15.0  # the asset session idles out after 60 s without one
@@ -140,7 +141,7 @@ class AssetSession:
         self.stream = hello.payload.stream
         try:
             self.last_seq = await self.services.ingest.last_seq(self.stream, self.asset_id)
-        except ValueError:
+        except StreamOfAnotherAsset:
             await self.ws.close(1008, "that stream belongs to another asset")
             return False
         welcome = WelcomePayload(
