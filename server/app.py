@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
-from typing import Any
 
 from fastapi import FastAPI
 from fastapi.middleware.gzip import GZipMiddleware
@@ -42,8 +41,6 @@ from server.telemetry.store import TelemetryStore, retention_loop
 
 log = logging.getLogger(__name__)
 VERSION = "0.1.0"
-
-SessionEndListener = Callable[[list[Any]], Awaitable[None]]
 
 
 def make_telemetry_store(
@@ -90,9 +87,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             telemetry=telemetry,
             ingest=ingest,
             hub=hub,
+            session_end_listeners=(hub.sessions_ended,),
         )
         set_services(app, services)
-        app.state.session_end_listeners.append(hub.sessions_ended)
         runs = RunEngine(services, hub.node)
         scheduler = Scheduler(services, grace_s=settings.schedule_grace_s)
         if settings.run_engine:
@@ -125,7 +122,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         redoc_url=None,
         description="REST API of the Aerobase drone-in-a-box platform. See frontend_api.md.",
     )
-    app.state.session_end_listeners = []  # async callables given the ids of ended sessions
     app.add_middleware(GZipMiddleware, minimum_size=2048)
     app.add_middleware(RejectNulBytes)
     install_error_handlers(app)

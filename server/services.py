@@ -7,7 +7,9 @@ in its imports instead of hiding in an untyped `app.state`.
 
 from __future__ import annotations
 
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
+from typing import Any
 
 from sqlalchemy.ext.asyncio import AsyncEngine, AsyncSession, async_sessionmaker
 
@@ -17,6 +19,9 @@ from server.realtime.broker import Broker
 from server.realtime.hub import Hub
 from server.realtime.ingest import Ingest
 from server.telemetry.store import TelemetryStore
+
+# called with the ids of sessions that ended (logout, takeover, a disabled account or asset)
+SessionEndListener = Callable[[list[Any]], Awaitable[None]]
 
 
 @dataclass(frozen=True)
@@ -31,3 +36,4 @@ class Services:
     telemetry: TelemetryStore
     ingest: Ingest
     hub: Hub
+    session_end_listeners: tuple[SessionEndListener, ...] = ()
