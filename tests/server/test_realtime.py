@@ -17,6 +17,7 @@ from assetlink.configfile import decrypt_config
 from assetlink.link import Link
 from protocol.messages import EventPayload
 from protocol.telemetry_payloads import Battery, Position, UavTelemetry
+from server.deps import services_of
 from tests.conftest import LiveServer, Tenant, test_settings
 
 
@@ -392,7 +393,7 @@ async def test_a_flooding_asset_is_limited_and_others_keep_their_service(
         token = (
             await c.post("/api/v1/assets/login", json={"name": fcfg.name, "secret": fcfg.secret})
         ).json()["access_token"]
-    before = live_server.app.state.hub.counters.rate_limited
+    before = services_of(live_server.app).hub.counters.rate_limited
     link = Link(live_server.url, qcfg.name, qcfg.secret, tmp_path / "quiet.db", seed=6)
     await link.start()
     ws_url = live_server.url.replace("http", "ws")
@@ -478,7 +479,7 @@ async def test_a_flooding_asset_is_limited_and_others_keep_their_service(
     assert code == 1008
     errors = [m for m in replies if m["type"] == "error"]
     assert errors and errors[0]["payload"]["code"] == "rate_limited"
-    assert live_server.app.state.hub.counters.rate_limited - before >= 1
+    assert services_of(live_server.app).hub.counters.rate_limited - before >= 1
     acked = max((m["payload"]["seq"] for m in replies if m["type"] == "ack"), default=0)
     assert acked < sent  # nothing past the refusal is acknowledged: the client still holds it
     async with httpx.AsyncClient(base_url=live_server.url) as c:
