@@ -19,8 +19,9 @@ Without the keys (older files, flattened survey items) QGroundControl reads the 
 We take 1 and 2 as they are (an AMSL item is checked against `plannedHomePosition`), 3 as the AMSL
 altitude QGroundControl computed from its terrain data when the plan was saved (the autopilot flies
 that altitude; nothing follows the terrain between items), and refuse 4 and frame 10: the autopilot
-would need terrain data that Aerobase neither supplies nor checks. A null altitude is refused,
-never read as 0.
+would need terrain data that Aerobase neither supplies nor checks (ArduPilot's terrain database is
+fed by the ground station; QGroundControl offers no terrain frame for PX4 at all,
+`Vehicle::supportsTerrainFrame`). A null altitude is refused, never read as 0.
 """
 
 from __future__ import annotations
