@@ -21,7 +21,13 @@ from server.missions.items import (
     frame_problem,
     normalize_frame,
 )
-from server.missions.qgc_altitude import Source, export_keys, needs_home, read_altitude
+from server.missions.qgc_altitude import (
+    MODE_LABELS,
+    Source,
+    export_keys,
+    needs_home,
+    read_altitude,
+)
 from server.missions.validate import Home, Problem
 
 FIRMWARE_ARDUPILOT = 3
@@ -248,7 +254,7 @@ def _amsl_without_home(found: list[_Found]) -> list[Problem]:
     return [
         Problem(
             f"{f.src.where}.frame",
-            f"{f.src.label}: an AMSL altitude needs the plan's plannedHomePosition "
+            f"{f.src.label}: {_amsl_mode(f)} needs the plan's plannedHomePosition "
             "to be checked against home, and the plan has none",
             f.item.alt,
             index=f.src.index,
@@ -257,6 +263,15 @@ def _amsl_without_home(found: list[_Found]) -> list[Problem]:
         for f in found
         if f.item.spec is not None and f.item.spec.positional and needs_home(f.item.frame)
     ]
+
+
+def _amsl_mode(found: _Found) -> str:
+    """ "AltitudeMode 3 (terrain-calculated, AMSL)" or, without the key, the frame."""
+    mode = found.kept.get("AltitudeMode")
+    if mode in MODE_LABELS:
+        label = MODE_LABELS[mode]
+        return f"AltitudeMode {mode} ({label if mode == 2 else f'{label}, AMSL'})"
+    return "frame 0 GLOBAL (AMSL)"
 
 
 def _complex(raw: dict[str, Any], i: int, where: str, problems: list[Problem]) -> list[_Found]:

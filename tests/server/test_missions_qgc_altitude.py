@@ -123,8 +123,15 @@ def test_an_amsl_item_needs_the_planned_home_and_its_altitude():
     without = plan([takeoff(), waypoint(2, 2, 0, 530)])
     del without["mission"]["plannedHomePosition"]
     (problem,) = refusals(without)
-    assert problem["index"] == 1 and "plannedHomePosition" in problem["what"]
-    assert problem["what"].startswith("item 1: ")
+    assert problem["index"] == 1 and problem["what"] == (
+        "item 1: AltitudeMode 2 (AMSL) needs the plan's plannedHomePosition to be checked "
+        "against home, and the plan has none"
+    )
+    terrain = plan([waypoint(2, 3, 0, 531.5, altitude=40, amsl_above_terrain=531.5)])
+    del terrain["mission"]["plannedHomePosition"]
+    assert "AltitudeMode 3 (terrain-calculated, AMSL)" in refusals(terrain)[0]["what"]
+    # a relative plan does without (as before)
+    assert parse_plan(plan([takeoff()], plannedHomePosition=None)).home is None
     # a null home altitude is never taken as 0 m
     null_alt = plan([takeoff(), waypoint(2, 1, 3, 30)], plannedHomePosition=[*HOME[:2], None])
     (problem,) = refusals(null_alt)
