@@ -24,7 +24,7 @@ from asset_agent.availability import AvailabilityLimits
 from asset_agent.config import AgentConfig
 from asset_agent.events import EventLimits, EventTracker
 from asset_agent.handlers import Handlers
-from asset_agent.landing import PrecisionLander, stream_rates
+from asset_agent.precland.supervisor import PrecisionLander, stream_rates
 from asset_agent.uav_telemetry import to_event, to_telemetry
 from assetlink.configfile import AssetConfig, ConfigFileError
 from assetlink.configfile_cli import PasswordSourceError, load_config
