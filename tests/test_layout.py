@@ -10,13 +10,6 @@ PACKAGES = ("server", "base_station", "asset_agent", "assetlink", "protocol", "s
 MAX_LINES = 400
 REASON = "Long because:"
 
-# Being split by the realtime and telemetry work of issue 12; the lead removes these two lines
-# when those splits land (after which the entries are stale: nothing else is excused).
-PENDING_SPLIT = {
-    "server/realtime/endpoints.py",
-    "server/telemetry/influx.py",
-}
-
 
 def too_long(path: Path) -> bool:
     """True when the file is over MAX_LINES lines and its module docstring gives no reason
@@ -34,7 +27,7 @@ def offenders(root: Path = ROOT) -> list[str]:
     for package in PACKAGES:
         for path in sorted((root / package).rglob("*.py")):
             name = path.relative_to(root).as_posix()
-            if too_long(path) and name not in PENDING_SPLIT:
+            if too_long(path):
                 out.append(f"{name} ({len(path.read_text().splitlines())} lines)")
     return out
 
