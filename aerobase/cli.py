@@ -33,7 +33,7 @@ ROUTES: dict[tuple[str, ...], str] = {
     ("agent",): "asset_agent.main:main",
     ("sim", "world"): "sim.assemble:main",
     ("sim", "precland-eval"): "bench.precland_eval:main",
-    ("demo",): "aerobase.demo:main",
+    ("demo",): "aerobase.demo.run:main",
 }
 
 

@@ -24,11 +24,12 @@ from asset_agent.availability import AvailabilityLimits
 from asset_agent.config import AgentConfig
 from asset_agent.events import EventLimits, EventTracker
 from asset_agent.handlers import Handlers
-from asset_agent.landing import PrecisionLander, stream_rates
+from asset_agent.precland.supervisor import PrecisionLander, stream_rates
 from asset_agent.uav_telemetry import to_event, to_telemetry
 from assetlink.configfile import AssetConfig, ConfigFileError
 from assetlink.configfile_cli import PasswordSourceError, load_config
 from assetlink.link import Link
+from assetlink.settings import LinkSettings
 from asynckit.tasks import cancel_and_wait
 
 log = logging.getLogger("asset_agent")
@@ -64,8 +65,8 @@ def setup(config: AgentConfig, asset: AssetConfig) -> Agent:
         asset.name,
         asset.secret,
         config.server.state_file.expanduser(),
+        LinkSettings(max_outbox=config.server.max_outbox),
         agent="asset_agent",
-        max_outbox=config.server.max_outbox,
     )
     limits = AvailabilityLimits(
         config.availability.min_battery_pct, config.availability.min_fix_type

@@ -34,6 +34,7 @@ from assetlink.conversation import (
 )
 from assetlink.dispatch import CommandDispatcher, Handler
 from assetlink.outbox import AsyncOutbox, Token
+from assetlink.settings import LinkSettings, backoff_delay
 from asynckit.tasks import cancel_and_wait
 from protocol.base import MAX_MESSAGE_BYTES
 from protocol.codec import encode
@@ -67,12 +68,6 @@ class LinkStats:
     commands_redelivered: int
 
 
-def backoff_delay(attempt: int, low: float, high: float, rng: random.Random) -> float:
-    """Exponential backoff with full jitter: uniform in [0, min(high, low * 2**attempt)]."""
-    cap = min(high, low * (2 ** min(attempt, 62)))
-    return rng.uniform(0, cap)
-
-
 def ws_url(server_url: str, path: str = "/ws/asset") -> str:
     """The WebSocket URL of `path` on an http(s) server URL."""
     parts = urlsplit(server_url)
@@ -94,47 +89,19 @@ class Link:
         name: str,
         secret: str,
         state_path: str | Path,
+        settings: LinkSettings | None = None,
         *,
         agent: AgentKind = "asset_agent",
-        version: str = "0.1.0",
-        max_outbox: int = 100_000,
-        backoff_min: float = 0.5,
-        backoff_max: float = 30.0,
-        heartbeat_s: float | None = None,
-        connect_timeout: float = 10.0,
-        batch: int = 256,
-        window: int = 4096,
-        max_rate: float = 150.0,
-        burst: float = 300.0,
-        force_login: bool = False,
-        command_memory_s: float = 7 * 86400,
         seed: int | None = None,
     ):
-        """Configure the link; nothing happens before `start()`.
-
-        `heartbeat_s` overrides the server's ping interval (a pong missing for that long
-        closes the connection); `window` bounds messages sent and not yet acked;
-        `max_rate`/`burst` pace every send and must stay under the server's per-socket
-        limit (ws_rate_per_s 200 / ws_burst 400 by default), since it drops the excess;
-        `command_memory_s` is how long finished command ids are remembered.
-        """
+        """Configure the link of asset `name` (a daemon of kind `agent`); nothing happens
+        before `start()`. `seed` fixes the backoff's jitter (tests)."""
         self.server_url = server_url
         self.name = name
         self._secret = secret
         self.state_path = Path(state_path)
         self.agent: AgentKind = agent
-        self.version = version
-        self.max_outbox = max_outbox
-        self.backoff_min = backoff_min
-        self.backoff_max = backoff_max
-        self.heartbeat_s = heartbeat_s
-        self.connect_timeout = connect_timeout
-        self.batch = batch
-        self.window = window
-        self.max_rate = max_rate
-        self.burst = burst
-        self.force_login = force_login
-        self.command_memory_s = command_memory_s
+        self.settings = settings or LinkSettings()
         self._rng = random.Random(seed)
         self._core: LinkCore | None = None
         self._http: httpx.AsyncClient | None = None
@@ -193,7 +160,7 @@ class Link:
         if self._task is not None:
             raise RuntimeError("link already started")
         self.state_path.parent.mkdir(parents=True, exist_ok=True)
-        outbox = await AsyncOutbox.open(self.state_path, self.max_outbox)
+        outbox = await AsyncOutbox.open(self.state_path, self.settings.max_outbox)
         dispatcher = CommandDispatcher(outbox)
         core = LinkCore(outbox, dispatcher, rtcm_callback=self._rtcm_callback)
         dispatcher.queued = core.wake.set
@@ -201,9 +168,9 @@ class Link:
             dispatcher.register(name, handler)
         self._core = core
         self._token = await self._restore_token()
-        await outbox.prune_commands(now_ms() - int(self.command_memory_s * 1000))
+        await outbox.prune_commands(now_ms() - int(self.settings.command_memory_s * 1000))
         await dispatcher.recover()
-        self._http = httpx.AsyncClient(timeout=self.connect_timeout)
+        self._http = httpx.AsyncClient(timeout=self.settings.connect_timeout)
         self._session = auth.SessionClient(self.server_url, self.name, self._secret, self._http)
         self._task = asyncio.create_task(self._run(), name=f"link-{self.name}")
 
@@ -289,7 +256,9 @@ class Link:
             raise ValueError(f"{kind} payload of {len(payload)} bytes exceeds the message limit")
         dropped = await core.outbox.append(kind, payload)
         if dropped:
-            log.warning("outbox full (%d): dropped the %d oldest", self.max_outbox, dropped)
+            log.warning(
+                "outbox full (%d): dropped the %d oldest", self.settings.max_outbox, dropped
+            )
         core.wake.set()
 
     async def _restore_token(self) -> Token | None:
@@ -339,7 +308,9 @@ class Link:
                 log.exception("link session failed")
             if self._require_core().sessions > sessions_before:
                 attempt = 0
-            delay = backoff_delay(attempt, self.backoff_min, self.backoff_max, self._rng)
+            delay = backoff_delay(
+                attempt, self.settings.backoff_min, self.settings.backoff_max, self._rng
+            )
             attempt += 1
             await asyncio.sleep(max(floor, delay))
 
@@ -356,7 +327,7 @@ class Link:
             else:
                 await self._set_token(fresh)
                 return fresh
-        fresh = await self._session.login(force=self.force_login)
+        fresh = await self._session.login(force=self.settings.force_login)
         await self._set_token(fresh)
         return fresh
 
@@ -368,7 +339,7 @@ class Link:
                 additional_headers={"Authorization": f"Bearer {token.access_token}"},
                 max_size=MAX_MESSAGE_BYTES,
                 ping_interval=None,
-                open_timeout=self.connect_timeout,
+                open_timeout=self.settings.connect_timeout,
                 close_timeout=2,
             )
         except InvalidStatus as err:
@@ -377,18 +348,19 @@ class Link:
                 raise SessionEnded(f"WebSocket refused the token ({status})") from err
             raise LinkClosed(4409 if status == 409 else 1006, f"handshake {status}") from err
         hello = HelloPayload(
-            stream=core.outbox.sync.stream_id, agent=self.agent, version=self.version
+            stream=core.outbox.sync.stream_id, agent=self.agent, version=self.settings.version
         )
+        traffic = self.settings.traffic
         conversation = Conversation(
             core,
             ws,
             hello,
-            heartbeat_s=self.heartbeat_s,
-            welcome_timeout=self.connect_timeout,
-            batch=self.batch,
-            window=self.window,
-            max_rate=self.max_rate,
-            burst=self.burst,
+            heartbeat_s=traffic.heartbeat_s,
+            welcome_timeout=self.settings.connect_timeout,
+            batch=traffic.batch,
+            window=traffic.window,
+            max_rate=traffic.max_rate,
+            burst=traffic.burst,
         )
         try:
             await conversation.run(self._renewer())

@@ -1,5 +1,5 @@
 """The link's on-disk state: a bounded outbox of durable messages, seq numbering,
-the session token and the command ledger, in one SQLite file.
+the session token and the command ledger, in one SQLite file (`statefile.StateFile`).
 
 `Outbox` is synchronous and owned by one thread; `AsyncOutbox` runs it on a dedicated
 worker thread so the event loop never waits on the disk.
@@ -15,8 +15,6 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
-import os
-import sqlite3
 import uuid
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -24,31 +22,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
+from assetlink.statefile import StateFile
 from protocol.messages import EventPayload, now_ms
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
-
-_SCHEMA = """
-CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
-CREATE TABLE IF NOT EXISTS outbox (
-    pos INTEGER PRIMARY KEY AUTOINCREMENT,
-    seq INTEGER UNIQUE,
-    id TEXT NOT NULL,
-    type TEXT NOT NULL,
-    ts INTEGER NOT NULL,
-    re TEXT,
-    payload TEXT NOT NULL
-);
-CREATE TABLE IF NOT EXISTS commands (
-    id TEXT PRIMARY KEY,
-    name TEXT NOT NULL,
-    received_ms INTEGER NOT NULL,
-    state TEXT NOT NULL,
-    progress TEXT,
-    result TEXT
-);
-"""
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,62 +66,21 @@ def _envelope_text(id: str, seq: int, ts: int, re: str | None, type: str, payloa
     )
 
 
-class Outbox:
+class Outbox(StateFile):
     """Synchronous SQLite state of one link; use from a single thread."""
 
     def __init__(self, path: str | Path, max_entries: int = 100_000, synchronous: str = "NORMAL"):
         """Open (or create) the state file at `path`, keeping at most `max_entries` queued."""
         if max_entries < 1:
             raise ValueError("max_entries must be at least 1")
-        if synchronous.upper() not in ("OFF", "NORMAL", "FULL", "EXTRA"):
-            raise ValueError(f"bad synchronous mode {synchronous!r}")
+        super().__init__(path, synchronous)
         self.max_entries = max_entries
-        # It holds the session token: readable by its owner only (SQLite gives the
-        # -wal and -shm files the database file's permissions).
-        os.close(os.open(path, os.O_CREAT | os.O_RDWR, 0o600))
-        os.chmod(path, 0o600)
-        self._db = sqlite3.connect(str(path), isolation_level=None, check_same_thread=False)
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute(f"PRAGMA synchronous={synchronous.upper()}")
-        self._db.executescript(_SCHEMA)
         with self._tx():
             if self._meta("stream_id") is None:
                 self._set("stream_id", str(uuid.uuid4()))
             if self._meta("next_seq") is None:
                 self._set("next_seq", "1")
         self._count = self._db.execute("SELECT COUNT(*) FROM outbox").fetchone()[0]
-
-    # --- plumbing ---
-
-    def _tx(self) -> _Tx:
-        return _Tx(self._db)
-
-    def _meta(self, key: str) -> str | None:
-        row = self._db.execute("SELECT value FROM meta WHERE key = ?", (key,)).fetchone()
-        return None if row is None else row[0]
-
-    def _set(self, key: str, value: str) -> None:
-        self._db.execute(
-            "INSERT INTO meta (key, value) VALUES (?, ?) "
-            "ON CONFLICT(key) DO UPDATE SET value = excluded.value",
-            (key, value),
-        )
-
-    def _bump(self, key: str, by: int) -> None:
-        self._set(key, str(int(self._meta(key) or 0) + by))
-
-    def meta(self, key: str) -> str | None:
-        """A free-form value kept in the state file."""
-        return self._meta(key)
-
-    def set_meta(self, key: str, value: str) -> None:
-        """Keep a free-form value in the state file."""
-        with self._tx():
-            self._set(key, value)
-
-    def close(self) -> None:
-        """Close the database."""
-        self._db.close()
 
     # --- identity and counters ---
 
@@ -348,24 +285,6 @@ class Outbox:
             return self._db.execute(
                 "DELETE FROM commands WHERE state = 'done' AND received_ms < ?", (older_than_ms,)
             ).rowcount
-
-
-class _Tx:
-    """BEGIN IMMEDIATE ... COMMIT, rolled back on error; re-entrant."""
-
-    def __init__(self, db: sqlite3.Connection):
-        self._db = db
-        self._outer = False
-
-    def __enter__(self) -> None:
-        self._outer = not self._db.in_transaction
-        if self._outer:
-            self._db.execute("BEGIN IMMEDIATE")
-
-    def __exit__(self, exc_type: Any, *_: Any) -> None:
-        if not self._outer:
-            return
-        self._db.execute("ROLLBACK" if exc_type else "COMMIT")
 
 
 class AsyncOutbox:

@@ -1,153 +1,111 @@
-"""The per-snapshot telemetry value of the landing base (what the server shows operators).
+"""The base's telemetry message, built straight from one coordinator snapshot.
 
-Axis states use one vocabulary: closed / opening / open / closing / moving / stopped / fault;
-for the lift, `open` means fully up and `closed` fully down. Fields are None while unknown
-(never read the PLC yet).
+What the server shows operators: `protocol`'s `LandingBaseTelemetry`, with the PLC's last known
+values when the link is down and None fields before the first read. Axis states use one
+vocabulary (closed / opening / open / closing / moving / stopped / fault); for the lift `open`
+means fully up and `closed` fully down. Readings are clamped into the ranges the wire model
+allows (a scale reading below zero, a humidity above 100 %) rather than refused.
 """
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
+from typing import cast
 
+from base_station.devices.axis import MotionState
+from base_station.plc.codec import PlcState
+from base_station.plc.registers import ChargerState, PowerSource
 from base_station.snapshot import Snapshot
+from protocol.telemetry_payloads import (
+    Actuator,
+    Charger,
+    Faults,
+    LandingBaseTelemetry,
+    LinkState,
+    Power,
+    Rtk,
+    Weather,
+)
+from protocol.telemetry_payloads import ChargerState as WireChargerState
+from protocol.telemetry_payloads import MotionState as WireMotionState
+from protocol.telemetry_payloads import PowerSource as WirePowerSource
+
+CHARGER_STATES: dict[ChargerState, WireChargerState] = {
+    ChargerState.IDLE: "idle",
+    ChargerState.CHARGING: "charging",
+    ChargerState.COMPLETE: "complete",
+    ChargerState.FAULT: "fault",
+}
+POWER_SOURCES: dict[PowerSource, WirePowerSource] = {
+    PowerSource.GRID: "grid",
+    PowerSource.SOLAR: "solar",
+    PowerSource.BATTERY: "battery",
+}
 
 
-class _Frozen(BaseModel):
-    model_config = ConfigDict(frozen=True)
+def _clamp(value: float, low: float = 0.0, high: float = 100.0) -> float:
+    return min(high, max(low, value))
 
 
-class AxisTelemetry(_Frozen):
-    """Panels or lift."""
-
-    state: str | None
-    position_pct: float | None
-    moving: bool | None
-
-
-class WeatherTelemetry(_Frozen):
-    """The base's weather sensors."""
-
-    wind_mps: float
-    gust_mps: float
-    direction_deg: int
-    rain_mm_h: float
-    rain_detected: bool
-    temperature_c: float
-    humidity_pct: float
-    sensor_ok: bool
+def _actuator(state: MotionState | None, position_pct: float) -> Actuator | None:
+    if state is None:
+        return None
+    # the daemon's MotionState values are the wire's, one for one
+    return Actuator(state=cast(WireMotionState, state.value), position_pct=_clamp(position_pct))
 
 
-class ChargerTelemetry(_Frozen):
-    """The UAV charger."""
-
-    enabled: bool
-    state: str | None
-    current_ma: int
-    voltage_v: float
-    current_limit_ma: int
-    uav_battery_pct: float | None
-    contacts_seated: bool
-
-
-class PowerTelemetry(_Frozen):
-    """The base's own power."""
-
-    source: str | None
-    base_battery_pct: float
-    base_battery_voltage_v: float
-    solar_w: int
-    grid_present: bool
+def _weather(s: PlcState) -> Weather:
+    return Weather(
+        wind_m_s=max(0.0, s.wind_speed_mps),
+        gust_m_s=max(0.0, s.wind_gust_mps),
+        direction_deg=s.wind_direction_deg % 360,
+        rain_mm_h=max(0.0, s.rain_rate_mm_h),
+        rain_detected=s.rain_detected,
+        temperature_c=s.temperature_c,
+        humidity_pct=_clamp(s.humidity_pct),
+    )
 
 
-class StationTelemetry(_Frozen):
-    """One telemetry sample of the landing base."""
-
-    ts: float
-    plc_link: str  # "up" | "down"
-    plc_link_error: str
-    panels: AxisTelemetry
-    lift: AxisTelemetry
-    uav_present: bool | None
-    landing_confirmed: bool | None
-    scale_mass_g: float | None
-    weather: WeatherTelemetry | None
-    charger: ChargerTelemetry | None
-    power: PowerTelemetry | None
-    estop: bool | None
-    fault_bits: int | None
-    faults: list[str]
-    plc_heartbeat: int | None
+def _charger(s: PlcState) -> Charger:
+    soc = s.uav_battery_soc_pct
+    return Charger(
+        state="idle" if s.charger_state is None else CHARGER_STATES[s.charger_state],
+        enabled=s.charger_enable,
+        contact=s.charger_contact,
+        current_a=s.charge_current_ma / 1000,
+        voltage_v=s.charge_voltage_v,
+        uav_battery_pct=None if soc is None else _clamp(soc),
+    )
 
 
-def build_telemetry(snap: Snapshot) -> StationTelemetry:
-    """Telemetry from one snapshot (last known PLC values when the link is down)."""
+def _power(s: PlcState) -> Power:
+    return Power(
+        source=None if s.power_source is None else POWER_SOURCES[s.power_source],
+        battery_pct=_clamp(s.base_battery_soc_pct),
+        battery_v=s.base_battery_voltage_v,
+        solar_w=max(0, s.solar_power_w),
+        grid_present=s.grid_present,
+    )
+
+
+def build_telemetry(snap: Snapshot, rtk: Rtk | None = None) -> LandingBaseTelemetry:
+    """The telemetry message of one snapshot, with the RTK receiver's state when there is one."""
     s = snap.plc
-    link = "up" if snap.link_up else "down"
-    if s is None:
-        empty = AxisTelemetry(state=None, position_pct=None, moving=None)
-        return StationTelemetry(
-            ts=snap.ts,
-            plc_link=link,
-            plc_link_error=snap.link_error,
-            panels=empty,
-            lift=empty,
-            uav_present=None,
-            landing_confirmed=None,
-            scale_mass_g=None,
-            weather=None,
-            charger=None,
-            power=None,
-            estop=None,
-            fault_bits=None,
-            faults=[],
-            plc_heartbeat=None,
-        )
+    link: LinkState = "up" if snap.link_up else "down"
+    if s is None:  # never read the PLC yet: only the link is known
+        return LandingBaseTelemetry(plc_link=link, rtk=rtk)
     landing = snap.landing
-    return StationTelemetry(
-        ts=snap.ts,
+    mass = landing.mass_g if landing else float(s.scale_mass_g)
+    return LandingBaseTelemetry(
         plc_link=link,
-        plc_link_error=snap.link_error,
-        panels=AxisTelemetry(
-            state=snap.panels.value if snap.panels else None,
-            position_pct=s.panel_position_pct,
-            moving=s.panels_moving,
-        ),
-        lift=AxisTelemetry(
-            state=snap.lift.value if snap.lift else None,
-            position_pct=s.lift_position_pct,
-            moving=s.lift_moving,
-        ),
+        panels=_actuator(snap.panels, s.panel_position_pct),
+        lift=_actuator(snap.lift, s.lift_position_pct),
         uav_present=landing.present if landing else None,
         landing_confirmed=landing.confirmed if landing else None,
-        scale_mass_g=landing.mass_g if landing else float(s.scale_mass_g),
-        weather=WeatherTelemetry(
-            wind_mps=s.wind_speed_mps,
-            gust_mps=s.wind_gust_mps,
-            direction_deg=s.wind_direction_deg,
-            rain_mm_h=s.rain_rate_mm_h,
-            rain_detected=s.rain_detected,
-            temperature_c=s.temperature_c,
-            humidity_pct=s.humidity_pct,
-            sensor_ok="WEATHER_SENSOR" not in s.fault_names,
-        ),
-        charger=ChargerTelemetry(
-            enabled=s.charger_enable,
-            state=s.charger_state.name.lower() if s.charger_state is not None else None,
-            current_ma=s.charge_current_ma,
-            voltage_v=s.charge_voltage_v,
-            current_limit_ma=s.charge_current_limit_ma,
-            uav_battery_pct=s.uav_battery_soc_pct,
-            contacts_seated=s.charger_contact,
-        ),
-        power=PowerTelemetry(
-            source=s.power_source.name.lower() if s.power_source is not None else None,
-            base_battery_pct=s.base_battery_soc_pct,
-            base_battery_voltage_v=s.base_battery_voltage_v,
-            solar_w=s.solar_power_w,
-            grid_present=s.grid_present,
-        ),
+        scale_mass_g=max(0.0, mass),
+        weather=_weather(s),
+        charger=_charger(s),
+        power=_power(s),
+        rtk=rtk,
         estop=s.estop_active,
-        fault_bits=int(s.fault_bits),
-        faults=list(s.fault_names),
-        plc_heartbeat=s.heartbeat,
+        faults=Faults.from_bits(int(s.fault_bits)),
     )

@@ -24,7 +24,7 @@ from enum import StrEnum
 from typing import Any
 
 from base_station.availability import availability
-from base_station.base_telemetry import StationTelemetry, build_telemetry
+from base_station.base_telemetry import build_telemetry
 from base_station.config import StationConfig
 from base_station.coordinator import Coordinator
 from base_station.devices.axis import AxisSpec, Decision, MotionTracker, Outcome
@@ -40,6 +40,7 @@ from base_station.plc import (
     PlcLinkError,
     fault_names,
 )
+from protocol.telemetry_payloads import LandingBaseTelemetry, Rtk
 
 log = logging.getLogger(__name__)
 
@@ -107,11 +108,13 @@ class Station:
         """A stream of every event (refusals, faults, link, E-stop, landing, charge, power)."""
         return self.coord.events.subscribe()
 
-    def telemetry(self) -> StationTelemetry:
-        """Telemetry of the latest snapshot."""
-        return build_telemetry(self.coord.snapshot)
+    def telemetry(self, rtk: Rtk | None = None) -> LandingBaseTelemetry:
+        """The telemetry message of the latest snapshot (with the RTK receiver's state, if given)."""
+        return build_telemetry(self.coord.snapshot, rtk)
 
-    async def telemetry_stream(self, hz: float | None = None) -> AsyncIterator[StationTelemetry]:
+    async def telemetry_stream(
+        self, hz: float | None = None
+    ) -> AsyncIterator[LandingBaseTelemetry]:
         """Telemetry at `hz` (default `telemetry_hz` of the configuration), forever."""
         period = 1.0 / (hz or self.config.telemetry_hz)
         while True:

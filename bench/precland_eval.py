@@ -483,3 +483,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         print(json.dumps(results))
     return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -23,7 +23,7 @@ from asset_agent.precland.faults import FaultInjector
 from asset_agent.precland.fusion import FusedTarget, Fusion
 from asset_agent.precland.kalman import Estimate, TargetKalman
 from asset_agent.precland.measure import Attitude, Measurement, from_element, from_ir
-from asset_agent.precland.retry import Command, LandingSequence
+from asset_agent.precland.sequence import Command, LandingSequence
 
 log = logging.getLogger(__name__)
 

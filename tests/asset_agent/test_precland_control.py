@@ -16,7 +16,7 @@ from asset_agent.precland.control import (
     landing_target,
 )
 from asset_agent.precland.geometry import rotation_world_from_body
-from asset_agent.precland.retry import LandingSequence, blind_profile
+from asset_agent.precland.sequence import LandingSequence, blind_profile
 
 C = ControlConfig()
 

@@ -19,6 +19,7 @@ from base_station.devices.weather import weather_conditions
 from base_station.events import EventKind, diff_events
 from base_station.plc import ChargerState, FaultBit, PlcState, PowerSource, RawImage, decode
 from base_station.snapshot import Snapshot
+from protocol.telemetry_payloads import Actuator, LandingBaseTelemetry, Rtk
 
 
 def closed_base(**changes: object) -> PlcState:
@@ -223,12 +224,35 @@ def test_telemetry_from_a_snapshot_and_before_any_read() -> None:
         power_source=PowerSource.BATTERY,
     )
     t = build_telemetry(snap(s, panels=MotionState.CLOSED, lift=MotionState.CLOSED))
-    assert t.plc_link == "up" and t.panels.state == "closed" and t.faults == ["WEATHER_SENSOR"]
-    assert t.weather.sensor_ok is False and t.power.source == "battery"
-    assert t.charger.uav_battery_pct is None
+    assert isinstance(t, LandingBaseTelemetry) and t.kind == "landing_base"
+    assert t.plc_link == "up" and t.panels is not None and t.panels.state == "closed"
+    assert t.faults.names == ("weather_sensor_fault",) and t.faults.bits == FaultBit.WEATHER_SENSOR
+    assert t.power is not None and t.power.source == "battery"
+    assert t.charger is not None and t.charger.state == "idle"
+    assert t.charger.uav_battery_pct is None and t.rtk is None
     empty = build_telemetry(snap(None, link_up=False))
-    assert empty.plc_link == "down" and empty.panels.state is None and empty.weather is None
-    assert empty.model_dump_json()
+    assert empty.plc_link == "down" and empty.panels is None and empty.weather is None
+    assert empty.faults.bits == 0 and empty.estop is None
+    assert LandingBaseTelemetry.model_validate_json(empty.model_dump_json()) == empty
+
+
+def test_telemetry_clamps_readings_into_the_wire_ranges_and_carries_rtk() -> None:
+    s = closed_base(
+        panel_position_pct=100.4,
+        lift_position_pct=-0.2,
+        humidity_pct=100.7,
+        wind_direction_deg=370,
+        uav_battery_soc_pct=101.0,
+        charge_current_ma=1500,
+    )
+    rtk = Rtk(state="streaming", corrections_rate=1.0)
+    t = build_telemetry(snap(s, panels=MotionState.OPEN, lift=MotionState.STOPPED), rtk)
+    assert t.panels == Actuator(state="open", position_pct=100.0)
+    assert t.lift == Actuator(state="stopped", position_pct=0.0)
+    assert t.weather is not None and t.weather.humidity_pct == 100.0
+    assert t.weather.direction_deg == 10
+    assert t.charger is not None and t.charger.uav_battery_pct == 100.0
+    assert t.charger.current_a == 1.5 and t.rtk == rtk
 
 
 # --- configuration ------------------------------------------------------------------------

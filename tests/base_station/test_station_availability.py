@@ -8,6 +8,7 @@ import pytest
 from bs_helpers import SPEED, Rig, rig_at, run, start_daemon, station_config, stop_daemon, wait_for
 
 from base_station.events import EventKind
+from base_station.plc import FaultBit
 from base_station.station import Status
 from sim.world import World, WorldConfig
 
@@ -89,7 +90,7 @@ async def test_weather_sensor_fault_fails_availability(rig: Rig) -> None:
     await rig.inject("/faults/weather_sensor", {"on": True})
     await wait_for(
         lambda: (
-            "WEATHER_SENSOR" in rig.station.telemetry().faults
+            "weather_sensor_fault" in rig.station.telemetry().faults.names
             and rig.station.telemetry().uav_present is True
         ),
         what="sensor fault and UAV seen",
@@ -97,7 +98,7 @@ async def test_weather_sensor_fault_fails_availability(rig: Rig) -> None:
     result = await run(rig.station, "check_availability")
     names = {c["name"] for c in result.data["failed"]}
     assert names == {"weather_sensor", "faults"}
-    assert rig.station.telemetry().weather.sensor_ok is False
+    assert rig.station.telemetry().faults.bits & FaultBit.WEATHER_SENSOR
     # a dead anemometer does not stop the base from closing
     assert (await run(rig.station, "open_panels")).status is Status.SUCCEEDED
 
@@ -148,7 +149,7 @@ async def test_charging_cc_cv_to_completion_with_limit_and_power_source() -> Non
     async with rig_at(speed=400.0) as rig:
         await rig.inject("/weather/force", {"rain_mm_h": 2.0})  # clouds: solar cannot cover it
         await rig.inject("/pad", {"mass_g": 1500, "contacts_seated": True, "uav_soc": 0.88})
-        await wait_for(lambda: rig.station.telemetry().charger.contacts_seated, what="contacts")
+        await wait_for(lambda: rig.station.telemetry().charger.contact, what="contacts")
         samples: list[tuple[str | None, int, float | None]] = []
         async with rig.station.subscribe() as events:
             result = await run(rig.station, "start_charging", {"current_limit_ma": 4000})
@@ -156,7 +157,7 @@ async def test_charging_cc_cv_to_completion_with_limit_and_power_source() -> Non
             done = asyncio.ensure_future(_first(events, EventKind.CHARGE_COMPLETE))
             while not done.done():
                 c = rig.station.telemetry().charger
-                samples.append((c.state, c.current_ma, c.uav_battery_pct))
+                samples.append((c.state, round((c.current_a or 0) * 1000), c.uav_battery_pct))
                 await asyncio.wait([done], timeout=0.05)
             event = done.result()
         assert event.data["uav_battery_pct"] >= 99.0
@@ -179,8 +180,10 @@ async def test_charger_fault_refuses_charging_and_is_reported(rig: Rig) -> None:
     await rig.inject("/pad", {"mass_g": 1500, "contacts_seated": True, "uav_soc": 0.5})
     await rig.inject("/faults/charger", {"on": True})
     await rig.inject("/faults/grid", {"present": False})
-    await wait_for(lambda: "CHARGER" in rig.station.telemetry().faults, what="charger fault")
-    await wait_for(lambda: rig.station.telemetry().charger.contacts_seated, what="contacts")
+    await wait_for(
+        lambda: "charger_fault" in rig.station.telemetry().faults.names, what="charger fault"
+    )
+    await wait_for(lambda: rig.station.telemetry().charger.contact, what="contacts")
     result = await run(rig.station, "start_charging")
     assert result.status is Status.REJECTED and "charger fault" in result.reason
     assert any(
@@ -206,7 +209,7 @@ async def test_a_charger_that_never_starts_fails_with_why_while_the_daemon_keeps
             await wait_for(lambda: app.coordinator.snapshot.link_up, 5.0, "link up")
             await wait_for(lambda: world.base.watchdog_armed, 5.0, "watchdog armed")
             world.base.set_pad_load(1500, contacts_seated=True)  # a pack the charger cannot talk to
-            await wait_for(lambda: app.station.telemetry().charger.contacts_seated, what="contacts")
+            await wait_for(lambda: app.station.telemetry().charger.contact, what="contacts")
             polls = app.coordinator.polls
             result = await run(app.station, "start_charging")
             assert result.status is Status.FAILED

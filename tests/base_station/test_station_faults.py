@@ -157,7 +157,7 @@ async def test_plc_cpu_halt_is_seen_through_the_frozen_heartbeat(rig: Rig) -> No
     result = await motion  # outputs drop: the motion fails whichever is seen first
     assert result.status is Status.FAILED
     await rig.link_up(False)
-    assert "heartbeat frozen" in rig.station.telemetry().plc_link_error
+    assert "heartbeat frozen" in rig.app.coordinator.snapshot.link_error
     assert (await run(rig.station, "open_panels")).status is Status.REJECTED
     await rig.inject("/faults/cpu_halt", {"on": False})
     await rig.link_up(True)

@@ -102,7 +102,7 @@ async def _command(p, name: str, params: dict, limit_s: float = 20) -> dict:  # 
 
 def test_the_sensor_clock_follows_the_capture_stamps_rate_and_offset():
     """Stamps from a clock running 4x with 100 s offset and jittery delivery: followed, never backwards."""
-    from asset_agent.landing import SensorClock
+    from asset_agent.precland.clock import SensorClock
 
     wall = [0.0]
     clock = SensorClock(wall=lambda: wall[0])

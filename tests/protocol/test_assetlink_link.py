@@ -14,6 +14,7 @@ import pytest
 from assetlink.auth import parse_expiry
 from assetlink.link import Link, backoff_delay, renew_at, ws_url
 from assetlink.outbox import Outbox, Token
+from assetlink.settings import LinkSettings
 from asynckit.ratelimit import TokenBucket
 from protocol import rtcm
 from protocol import telemetry_payloads as t
@@ -58,7 +59,13 @@ def test_parse_expiry_accepts_offsets_z_and_naive_utc() -> None:
 async def test_offline_link_queues_durably_and_keeps_its_stream(tmp_path: Path) -> None:
     state = tmp_path / "state" / "link.sqlite"
     url = closed_port_url()
-    link = Link(url, "uav-1", "secret", state, max_outbox=5, backoff_min=0.01, backoff_max=0.05)
+    link = Link(
+        url,
+        "uav-1",
+        "secret",
+        state,
+        LinkSettings(max_outbox=5, backoff_min=0.01, backoff_max=0.05),
+    )
     with pytest.raises(RuntimeError):
         await link.send_event(EventPayload(name="too_early"))
     await link.start()
@@ -78,7 +85,7 @@ async def test_offline_link_queues_durably_and_keeps_its_stream(tmp_path: Path) 
         await link.send_event(EventPayload(name="big", data={"blob": "x" * 2_000_000}))
     await link.stop()
 
-    again = Link(url, "uav-1", "secret", state, max_outbox=5)
+    again = Link(url, "uav-1", "secret", state, LinkSettings(max_outbox=5))
     await again.start()
     assert again.stream_id == stream and again.stats.queued == 5
     await again.stop()
@@ -90,6 +97,6 @@ async def test_offline_link_queues_durably_and_keeps_its_stream(tmp_path: Path) 
 def test_link_pacing_stays_under_the_servers_default_limit() -> None:
     """Over any span t, the link sends at most burst + rate*t, the server accepts 400 + 200*t."""
     link = Link("http://127.0.0.1:1", "uav-1", "secret", "unused.sqlite")
-    assert link.burst <= 400 and link.max_rate <= 200
+    assert link.settings.traffic.burst <= 400 and link.settings.traffic.max_rate <= 200
     with pytest.raises(ValueError):
         TokenBucket(rate=0, burst=10)

@@ -15,6 +15,7 @@ import websockets
 
 from assetlink.configfile import decrypt_config
 from assetlink.link import Link
+from assetlink.settings import LinkSettings, Traffic
 from protocol.messages import EventPayload
 from protocol.telemetry_payloads import Battery, Position, UavTelemetry
 from server.deps import services_of
@@ -283,8 +284,7 @@ async def test_link_cut_and_server_restart_lose_nothing_and_duplicate_nothing(
         cfg.name,
         cfg.secret,
         tmp_path / "link.db",
-        backoff_min=0.05,
-        backoff_max=0.3,
+        LinkSettings(backoff_min=0.05, backoff_max=0.3),
         seed=4,
     )
     await link.start()
@@ -348,9 +348,7 @@ async def test_a_30_second_link_cut_loses_nothing(live_server, tenant: Tenant, t
         cfg.name,
         cfg.secret,
         tmp_path / "link.db",
-        backoff_min=0.1,
-        backoff_max=1.0,
-        heartbeat_s=2.0,
+        LinkSettings(backoff_min=0.1, backoff_max=1.0, traffic=Traffic(heartbeat_s=2.0)),
         seed=5,
     )
     await link.start()

@@ -1,17 +1,15 @@
-"""Precision landing in the daemon: while the autopilot lands, the camera's frames, the IR beacon's
-readings and the autopilot's state feed a `PrecisionLandingLoop`, whose LANDING_TARGET fields go
-to the autopilot (ArduPilot PLND_TYPE=1 style, MAV_FRAME_BODY_FRD) at the configured rate.
+"""Precision landing in the daemon: the supervisor that starts and stops the landing loop.
+
+While the autopilot lands, the camera's frames, the IR beacon's readings and the autopilot's state
+feed a `PrecisionLandingLoop` (loop.py), whose LANDING_TARGET fields go to the autopilot
+(ArduPilot PLND_TYPE=1 style, MAV_FRAME_BODY_FRD) at the configured rate.
 
 Active while the autopilot reports it is landing (EXTENDED_SYS_STATE landed_state LANDING — LAND
 mode, RTL's or a mission's final descent — or mode LAND) below `activation_height_m`. The camera is
 streamed only then (a frame server renders only for subscribers); the IR sensor is subscribed all
 along. Every source is optional and may be unreachable: then nothing is sent and the autopilot
-lands on GNSS alone.
-
-One clock: frames and IR readings carry capture timestamps on the sensors' clock (in the
-simulator, the world clock). `SensorClock` follows that clock from the timestamps it receives
-(offset and rate against the agent's monotonic clock), and stamps the autopilot's states with it,
-so fusion, the Kalman filter and the control step all run in sensor-clock seconds.
+lands on GNSS alone. The autopilot's states are stamped with the `SensorClock` (clock.py), so the
+loop runs in the sensors' seconds.
 """
 
 from __future__ import annotations
@@ -21,14 +19,13 @@ import contextlib
 import logging
 import math
 import time
-from collections import deque
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from pydantic import ValidationError
 
 from asset_agent.config import PreclandSection
+from asset_agent.precland.clock import SensorClock
 from asset_agent.precland.config import SOURCES, FaultConfig
 from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import Tick, VehicleState
@@ -41,71 +38,6 @@ log = logging.getLogger(__name__)
 
 EARTH_RADIUS_M = 6_378_137.0
 ATTITUDE, LOCAL_POSITION_NED, EXTENDED_SYS_STATE = 30, 32, 245
-
-
-class SensorClock:
-    """The sensors' clock as seen from here: rate and offset against `wall` from received stamps.
-
-    now() = rate * wall + offset, with the rate fitted over the last `window_s` wall seconds (or
-    fixed) and the offset the largest seen (the least-delayed sample); never goes backwards.
-    """
-
-    def __init__(
-        self,
-        rate: float | None = None,
-        window_s: float = 2.0,
-        wall: Callable[[], float] = time.monotonic,
-    ) -> None:
-        self.fixed_rate = rate
-        self.window_s = window_s
-        self.wall = wall
-        self._samples: deque[tuple[float, float]] = deque()
-        self._last = -math.inf
-
-    @property
-    def ready(self) -> bool:
-        """True once a timestamp has been seen."""
-        return bool(self._samples)
-
-    @property
-    def rate(self) -> float:
-        """Sensor seconds per wall second."""
-        if self.fixed_rate is not None:
-            return self.fixed_rate
-        s = self._samples
-        if len(s) < 3 or s[-1][0] - s[0][0] < 0.3:
-            return 1.0 if len(s) < 2 or s[-1][0] == s[0][0] else self._slope()
-        return self._slope()
-
-    def _slope(self) -> float:
-        n = len(self._samples)
-        mw = sum(w for w, _ in self._samples) / n
-        mt = sum(t for _, t in self._samples) / n
-        var = sum((w - mw) ** 2 for w, _ in self._samples)
-        if var <= 0:
-            return 1.0
-        slope = sum((w - mw) * (t - mt) for w, t in self._samples) / var
-        return slope if slope > 0 else 1.0
-
-    def observe(self, ts: float) -> None:
-        """A capture timestamp just received."""
-        w = self.wall()
-        self._samples.append((w, ts))
-        while self._samples and w - self._samples[0][0] > self.window_s:
-            self._samples.popleft()
-
-    def now(self) -> float:
-        """Current sensor-clock time (0.0 before any timestamp)."""
-        if not self._samples:
-            return 0.0
-        r = self.rate
-        offset = max(t - r * w for w, t in self._samples)
-        self._last = max(self._last, r * self.wall() + offset)
-        return self._last
-
-    async def sleep(self, seconds: float) -> None:
-        """Sleep this many sensor-clock seconds."""
-        await asyncio.sleep(max(0.0, seconds) / self.rate)
 
 
 @dataclass
@@ -135,15 +67,16 @@ def pad_offset_ned(lat: float, lon: float, pad_lat: float, pad_lon: float) -> tu
     return dn, de
 
 
+def descending(state: Any) -> bool:
+    """True when the armed autopilot is landing (LAND, or any final descent), at any height."""
+    return bool(
+        state.armed and (state.landed_state == "LANDING" or (state.mode == "LAND" and state.in_air))
+    )
+
+
 def landing_now(state: Any, activation_height_m: float) -> bool:
     """True when the autopilot is landing (LAND, or any final descent) below the activation height."""
-    landing = state.landed_state == "LANDING" or (state.mode == "LAND" and state.in_air)
-    return bool(
-        state.armed
-        and landing
-        and state.alt_rel is not None
-        and state.alt_rel <= activation_height_m
-    )
+    return descending(state) and state.alt_rel is not None and state.alt_rel <= activation_height_m
 
 
 class PrecisionLander:
@@ -238,12 +171,10 @@ class PrecisionLander:
 
     def _supervise(self) -> None:
         state = self.autopilot.state
-        descending = state.armed and (
-            state.landed_state == "LANDING" or (state.mode == "LAND" and state.in_air)
-        )
-        if descending and self.section.camera_port is not None and self._camera_task is None:
+        lands = descending(state)
+        if lands and self.section.camera_port is not None and self._camera_task is None:
             self._camera_task = asyncio.create_task(self._camera(), name="precland-camera")
-        elif not descending and self._camera_task is not None:
+        elif not lands and self._camera_task is not None:
             self._camera_task.cancel()
             self._camera_task = None
         active = landing_now(state, self.section.activation_height_m)

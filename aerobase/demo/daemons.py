@@ -1,0 +1,86 @@
+"""The daemons' configuration files the demo writes: TOML, the encrypted asset files, the password."""
+
+from __future__ import annotations
+
+import base64
+from pathlib import Path
+from typing import Any
+
+
+def write_secret(path: Path, data: bytes | str) -> None:
+    """Write a file only its owner may read."""
+    path.write_bytes(data if isinstance(data, bytes) else data.encode())
+    path.chmod(0o600)
+
+
+def write_daemon_files(
+    folder: Path,
+    ports: dict[str, int],
+    speed: float,
+    asset_password: str,
+    base: dict[str, Any],
+    uav: dict[str, Any],
+) -> None:
+    """Everything the two daemons read at start: their assets' files (as the API returned them
+    on registration), the password that opens them, and base.toml / agent.toml."""
+    write_secret(folder / "asset-password", asset_password)
+    write_secret(folder / "base.abcf", base64.b64decode(base["config_file"]))
+    write_secret(folder / "uav.abcf", base64.b64decode(uav["config_file"]))
+    (folder / "base.toml").write_text(base_toml(folder, ports, speed))
+    (folder / "agent.toml").write_text(agent_toml(folder, ports))
+
+
+def base_toml(folder: Path, ports: dict[str, int], speed: float) -> str:
+    """The landing-base daemon's configuration: the simulated PLC and GNSS, motion at `speed`."""
+    return f"""# written by aerobase demo
+telemetry_hz = 2.0
+
+[plc]
+host = "127.0.0.1"
+port = {ports["plc"]}
+poll_hz = 10.0
+
+[motion]
+panels_travel_s = {12.0 / speed:.3f}
+lift_travel_s = {8.0 / speed:.3f}
+
+[uav]
+min_mass_g = 1200.0
+max_mass_g = 1800.0
+scale_tare_g = 15.0
+stable_s = {max(0.5, 3.0 / speed):.2f}
+
+[server]
+config_file = "{folder / "base.abcf"}"
+password_file = "{folder / "asset-password"}"
+state_file = "{folder / "base-link.db"}"
+
+[rtk]
+tcp_host = "127.0.0.1"
+tcp_port = {ports["gnss"]}
+"""
+
+
+def agent_toml(folder: Path, ports: dict[str, int]) -> str:
+    """The UAV agent's configuration: the simulated autopilot, precision landing when the world
+    serves a camera and an IR sensor."""
+    return f"""# written by aerobase demo
+[server]
+config_file = "{folder / "uav.abcf"}"
+password_file = "{folder / "asset-password"}"
+state_file = "{folder / "agent-link.db"}"
+
+[autopilot]
+url = "tcp:127.0.0.1:{ports["mavlink"]}"
+
+[telemetry]
+rate_hz = 5
+""" + (
+        f"""
+[precland]
+camera_port = {ports["camera"]}
+ir_port = {ports["ir"]}
+"""
+        if "camera" in ports and "ir" in ports
+        else ""
+    )

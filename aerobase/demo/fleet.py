@@ -1,0 +1,216 @@
+"""The demo's walk through the public API: an organisation, its users and assets, a scheduled
+survey, and the run's progress from the operator WebSocket."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+from typing import Any
+
+import httpx
+import websockets
+
+from aerobase.demo.processes import Processes, say
+
+ROOT_EMAIL, OPS_EMAIL = "root@demo.aerobase", "ops@demo.aerobase"
+
+
+@dataclass(frozen=True)
+class Fleet:
+    """What registration made: the operator's token and the two assets as the API returned them."""
+
+    ops_token: str
+    base: dict[str, Any]
+    uav: dict[str, Any]
+
+
+async def api(
+    c: httpx.AsyncClient, method: str, path: str, token: str | None = None, **kw: Any
+) -> Any:
+    """One API call: its JSON body (or the response when there is none); RuntimeError on >= 400."""
+    headers = {"Authorization": f"Bearer {token}"} if token else {}
+    r = await c.request(method, path, headers=headers, **kw)
+    if r.status_code >= 400:
+        raise RuntimeError(f"{method} {path} -> {r.status_code}: {r.text}")
+    return (
+        r.json()
+        if r.content and r.headers.get("content-type", "").startswith("application/json")
+        else r
+    )
+
+
+async def _login(c: httpx.AsyncClient, email: str, password: str, **extra: Any) -> str:
+    body = {"email": email, "password": password, **extra}
+    return str((await api(c, "POST", "/api/v1/auth/login", json=body))["access_token"])
+
+
+async def register(c: httpx.AsyncClient, passwords: dict[str, str]) -> Fleet:
+    """As the superuser: the organisation and its operator; as the operator: the base and the UAV."""
+    token = await _login(c, ROOT_EMAIL, passwords["root"])
+    org = await api(c, "POST", "/api/v1/organizations", token, json={"name": "Demo Fleet"})
+    token = await _login(c, ROOT_EMAIL, passwords["root"], force=True, organization_id=org["id"])
+    await api(
+        c,
+        "POST",
+        "/api/v1/users",
+        token,
+        json={"email": OPS_EMAIL, "password": passwords["ops"], "role": "admin"},
+    )
+    await api(c, "POST", "/api/v1/auth/logout", token)
+    ops = await _login(c, OPS_EMAIL, passwords["ops"])
+    base = await api(
+        c,
+        "POST",
+        "/api/v1/assets",
+        ops,
+        json={"name": "base-porto-1", "kind": "landing_base", "password": passwords["asset"]},
+    )
+    uav = await api(
+        c,
+        "POST",
+        "/api/v1/assets",
+        ops,
+        json={
+            "name": "uav-porto-1",
+            "kind": "uav",
+            "password": passwords["asset"],
+            "base_id": base["id"],
+            "attributes": {"mass_g": 1450, "endurance_s": 1500, "cruise_speed_mps": 8},
+        },
+    )
+    say(
+        "registered organisation 'Demo Fleet', user ops@demo.aerobase, base-porto-1 and uav-porto-1"
+    )
+    return Fleet(ops, base, uav)
+
+
+async def wait_ready(c: httpx.AsyncClient, fleet: Fleet, procs: Processes) -> tuple[float, float]:
+    """Wait until both daemons report: the base's PLC up with the UAV on its scale, the UAV with a fix.
+
+    Returns the UAV's position: it stands on the pad."""
+    deadline = time.monotonic() + 90
+    h = {"Authorization": f"Bearer {fleet.ops_token}"}
+    while time.monotonic() < deadline:
+        procs.check()
+        b = await c.get(f"/api/v1/assets/{fleet.base['id']}/telemetry/latest", headers=h)
+        u = await c.get(f"/api/v1/assets/{fleet.uav['id']}/telemetry/latest", headers=h)
+        if (
+            b.status_code == u.status_code == 200
+            and b.json().get("plc_link") == "up"
+            and b.json().get("uav_present")
+            and u.json().get("gnss.fix") in ("3d", "dgps", "rtk_float", "rtk_fixed")
+        ):
+            say(
+                f"both daemons are reporting: base PLC up, UAV on the scale, UAV GNSS {u.json()['gnss.fix']}"
+            )
+            return float(u.json()["position.lat"]), float(u.json()["position.lon"])
+        await asyncio.sleep(0.2)
+    raise RuntimeError(
+        "the daemons did not report within 90 s (see base-station.log and agent.log)"
+    )
+
+
+def survey_polygon(lat: float, lon: float) -> dict[str, Any]:
+    """A 60 m x 40 m field starting 20 m north of the base."""
+    dlat, dlon = 1 / 111_320, 1 / (111_320 * 0.7527)  # metres to degrees near 41° N
+    n0, n1, e0, e1 = 20 * dlat, 80 * dlat, -20 * dlon, 20 * dlon
+    ring = [
+        [lon + e0, lat + n0],
+        [lon + e1, lat + n0],
+        [lon + e1, lat + n1],
+        [lon + e0, lat + n1],
+        [lon + e0, lat + n0],
+    ]
+    return {"type": "Polygon", "coordinates": [ring]}
+
+
+async def schedule_survey(c: httpx.AsyncClient, fleet: Fleet, lat: float, lon: float) -> None:
+    """Survey the base where the UAV stands, plan the north field and schedule it 5 s ahead."""
+    ops, base_id = fleet.ops_token, fleet.base["id"]
+    await api(
+        c,
+        "PATCH",
+        f"/api/v1/assets/{base_id}",
+        ops,
+        json={"attributes": {"latitude": lat, "longitude": lon}},
+    )  # surveyed: the UAV sits on it
+    survey = {
+        "polygon": survey_polygon(lat, lon),
+        "footprint": {"width_m": 20, "height_m": 15},
+        "side_overlap_pct": 30,
+        "front_overlap_pct": 60,
+        "altitude_m": 25,
+        "speed_mps": 8,
+        "camera_trigger": False,
+    }
+    mission = await api(
+        c,
+        "POST",
+        "/api/v1/missions",
+        ops,
+        json={
+            "name": "north field survey",
+            "kind": "survey",
+            "home": {"lat": lat, "lon": lon},
+            "survey": survey,
+        },
+    )
+    due = datetime.now(UTC) + timedelta(seconds=5)
+    schedule = {
+        "name": "demo survey",
+        "mission_id": mission["id"],
+        "uav_id": fleet.uav["id"],
+        "base_id": base_id,
+        "kind": "once",
+        "at": due.isoformat(),
+    }
+    await api(c, "POST", "/api/v1/schedules", ops, json=schedule)
+    say(f"scheduled '{mission['name']}' ({len(mission['items'])} items) for {due:%H:%M:%S} UTC")
+
+
+async def watch(server_url: str, fleet: Fleet, procs: Processes) -> str:
+    """Print run progress from the operator WebSocket until the run ends; returns its outcome."""
+    url = server_url.replace("http", "ws", 1) + f"/ws/operator?token={fleet.ops_token}"
+    async with websockets.connect(url) as ws:
+        await ws.send(
+            json.dumps(
+                {
+                    "v": 1,
+                    "type": "subscribe",
+                    "id": "00000000-0000-4000-8000-000000000001",
+                    "seq": 0,
+                    "ts": 0,
+                    "payload": {"asset_ids": [fleet.base["id"], fleet.uav["id"]]},
+                }
+            )
+        )
+        deadline = time.monotonic() + 600
+        while time.monotonic() < deadline:
+            procs.check()
+            try:
+                msg = json.loads(await asyncio.wait_for(ws.recv(), 1.0))
+            except TimeoutError:
+                continue
+            if msg.get("type") != "run_progress":
+                continue
+            p = msg["payload"]
+            if p.get("final"):
+                say(f"{'!!' if p.get('alert') else '=='} {p['label']}: {p['reason']}")
+                return str(p["state"])
+            say(
+                f"{'!!' if p.get('alert') else '->'} [{p['step']}/{p['total_steps']}] {p['label']}: {p['reason']}"
+            )
+    raise RuntimeError("the run did not end within 10 minutes")
+
+
+async def report_run(c: httpx.AsyncClient, fleet: Fleet, outcome: str) -> None:
+    """Print the outcome of the latest run with its flight time."""
+    runs = await api(c, "GET", "/api/v1/runs", fleet.ops_token)
+    if not runs:
+        return
+    report = await api(c, "GET", f"/api/v1/runs/{runs[0]['id']}/report", fleet.ops_token)
+    ft = report.get("flight_time_s")
+    say(f"run {runs[0]['id']}: {outcome}" + (f"; {ft:.0f} s in the air (wall clock)" if ft else ""))

@@ -1,0 +1,156 @@
+"""`aerobase demo`: the whole platform on one machine, one real autonomous mission, then keeps serving.
+
+Starts the server (SQLite), the simulated world, a landing-base daemon and a UAV agent as separate
+processes; registers an organisation, a user and both assets through the public API (writing their
+encrypted configuration files); schedules a survey mission a few seconds ahead and prints the run's
+progress live from the operator WebSocket. `--once` exits after the run (0 if it completed);
+otherwise it keeps serving, with the URL and credentials printed, until Ctrl-C stops every process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import os
+import secrets
+import shutil
+import subprocess
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import httpx
+
+from aerobase.demo.daemons import write_daemon_files
+from aerobase.demo.fleet import (
+    OPS_EMAIL,
+    ROOT_EMAIL,
+    register,
+    report_run,
+    schedule_survey,
+    wait_ready,
+    watch,
+)
+from aerobase.demo.processes import Processes, free_port, say, serve_until_stopped, wait_http
+
+PASSWORD_LEN = 18
+
+
+def prepare(args: argparse.Namespace) -> tuple[Path, dict[str, str], dict[str, str]]:
+    """A fresh folder, the environment of every process, the generated passwords, the superuser."""
+    folder = Path(args.dir).resolve()
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir(parents=True)
+    secrets_ = {name: secrets.token_urlsafe(PASSWORD_LEN) for name in ("root", "ops", "asset")}
+    env = {
+        "DATABASE_URL": f"sqlite+aiosqlite:///{folder / 'aerobase.db'}",
+        "AEROBASE_PUBLIC_URL": f"http://127.0.0.1:{args.port}",
+        "AEROBASE_LOG_FORMAT": "json",
+    }
+    say(f"files, logs and the database go to {folder}")
+    admin = ["admin", "create-superuser", "--email", ROOT_EMAIL, "--password", secrets_["root"]]
+    r = subprocess.run(
+        [sys.executable, "-m", "aerobase.cli", *admin],
+        env={**os.environ, **env},
+        capture_output=True,
+        text=True,
+    )
+    if r.returncode:
+        raise RuntimeError(f"create-superuser failed: {r.stderr.strip()}")
+    return folder, env, secrets_
+
+
+async def start_world_and_server(
+    args: argparse.Namespace, procs: Processes, env: dict[str, str], server_url: str
+) -> dict[str, int]:
+    """Start the simulated world and the server; returns the world's ports once both answer."""
+    ports = {k: free_port() for k in ("plc", "gnss", "mavlink", "control")}
+    say(f"starting the simulated world at {args.speed:g}x real time (ports {ports})")
+    world = ["sim", "world", "--speed", str(args.speed), "--seed", str(args.seed)]
+    for name in ("plc", "gnss", "mavlink", "control"):
+        world += [f"--{name}-port", str(ports[name])]
+    procs.start("world", world, env)
+    say(f"starting the server on {server_url}")
+    procs.start("server", ["server", "--port", str(args.port)], env)
+    await wait_http(f"http://127.0.0.1:{ports['control']}/health", procs)
+    async with httpx.AsyncClient() as sim:  # the camera and IR sensor pick their own ports
+        served = (await sim.get(f"http://127.0.0.1:{ports['control']}/health")).json()["ports"]
+    ports.update({k: served[k] for k in ("camera", "ir") if k in served})
+    await wait_http(f"{server_url}/api/health", procs)
+    return ports
+
+
+async def run_mission(
+    args: argparse.Namespace,
+    procs: Processes,
+    folder: Path,
+    env: dict[str, str],
+    passwords: dict[str, str],
+) -> tuple[str, dict[str, int]]:
+    """Everything up to the end of the one run; returns its outcome and the world's ports."""
+    server_url = f"http://127.0.0.1:{args.port}"
+    ports = await start_world_and_server(args, procs, env, server_url)
+    async with httpx.AsyncClient(base_url=server_url, timeout=30) as c:
+        fleet = await register(c, passwords)
+        write_daemon_files(folder, ports, args.speed, passwords["asset"], fleet.base, fleet.uav)
+        say("starting the landing-base daemon and the UAV agent")
+        procs.start("base-station", ["base-station", "--config", str(folder / "base.toml")], env)
+        procs.start("agent", ["agent", "--config", str(folder / "agent.toml")], env)
+        lat, lon = await wait_ready(c, fleet, procs)
+        await schedule_survey(c, fleet, lat, lon)
+        outcome = await watch(server_url, fleet, procs)
+        await report_run(c, fleet, outcome)
+    return outcome, ports
+
+
+def banner(
+    args: argparse.Namespace, folder: Path, ports: dict[str, int], pw: dict[str, str]
+) -> str:
+    """Where everything is, for the one who keeps the demo serving."""
+    server_url = f"http://127.0.0.1:{args.port}"
+    return f"""
+Aerobase is running on {server_url}  (API docs: {server_url}/api/docs)
+  operator login : {OPS_EMAIL} / {pw["ops"]}
+  superuser      : {ROOT_EMAIL} / {pw["root"]}
+  asset password : in {folder / "asset-password"}
+  simulator      : control API http://127.0.0.1:{ports["control"]} (faults, weather, ground truth)
+Press Ctrl-C to stop everything."""
+
+
+async def demo(
+    args: argparse.Namespace, folder: Path, env: dict[str, str], pw: dict[str, str]
+) -> int:
+    """Run the demo; returns the exit status."""
+    procs = Processes(folder)
+    try:
+        outcome, ports = await run_mission(args, procs, folder, env, pw)
+        if args.once:
+            return 0 if outcome == "completed" else 1
+        print(banner(args, folder, ports, pw), flush=True)
+        await serve_until_stopped(procs)
+        return 0
+    except RuntimeError as err:
+        say(f"failed: {err}")
+        return 1
+    finally:
+        say("stopping every process")
+        procs.stop()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of `aerobase demo`."""
+    parser = argparse.ArgumentParser(prog="aerobase demo", description=__doc__.splitlines()[0])
+    parser.add_argument("--once", action="store_true", help="exit after the run: 0 if it completed")
+    parser.add_argument("--port", type=int, default=8000)
+    parser.add_argument(
+        "--speed", type=float, default=5.0, help="simulated seconds per wall second"
+    )
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--dir", default="var/demo", help="where files, logs and the database go")
+    args = parser.parse_args(argv)
+    try:
+        folder, env, passwords = prepare(args)
+    except (OSError, RuntimeError) as err:
+        say(f"failed: {err}")
+        return 1
+    return asyncio.run(demo(args, folder, env, passwords))
