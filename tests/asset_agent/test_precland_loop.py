@@ -6,7 +6,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
-import time
 
 import numpy as np
 import pytest
@@ -21,14 +20,7 @@ from bench.precland_eval import KinematicVehicle
 from sim.camera.server import CameraServer
 from sim.clock import SimClock
 from sim.ir import IrBeaconSensor
-
-
-async def wait_for(predicate, within: float = 10.0) -> None:
-    """Wait until predicate() holds, failing after `within` wall seconds."""
-    deadline = time.monotonic() + within
-    while not predicate():
-        assert time.monotonic() < deadline, "condition not met in time"
-        await asyncio.sleep(0.01)
+from tests.polling import eventually
 
 
 async def fly(clock, vehicle, setpoint, loop):
@@ -82,7 +74,7 @@ async def test_closed_loop_companion_landing_over_real_sockets():
         for c in (frames(), irs(), fly(clock, vehicle, setpoint, loop), loop.run())
     ]
     try:
-        await wait_for(lambda: vehicle.landed, within=80.0)
+        await eventually(lambda: vehicle.landed, within=80.0)
     finally:
         for t in tasks:
             t.cancel()
@@ -125,7 +117,7 @@ async def test_run_time_fault_injection_and_landing_target_mode():
 
     tasks = [asyncio.create_task(c) for c in (frames(), states(), loop.run())]
     try:
-        await wait_for(lambda: any(t.landing_target is not None for t in ticks), within=20.0)
+        await eventually(lambda: any(t.landing_target is not None for t in ticks), within=20.0)
         lt = next(t.landing_target for t in ticks if t.landing_target is not None)
         # pad is 0.3 m south and 0.2 m west of the vehicle: behind-left
         assert lt.frame == 12 and lt.angle_x < 0 and lt.angle_y > 0
@@ -134,7 +126,7 @@ async def test_run_time_fault_injection_and_landing_target_mode():
         loop.set_fault("pattern", FaultConfig(r_drop=1.0))
         loop.set_fault("aruco", FaultConfig(r_drop=1.0))
         n = len(ticks)
-        await wait_for(lambda: len(ticks) > n and ticks[-1].target is None, within=20.0)
+        await eventually(lambda: len(ticks) > n and ticks[-1].target is None, within=20.0)
         assert ticks[-1].landing_target is None
     finally:
         for t in tasks:

@@ -6,7 +6,6 @@ import asyncio
 import contextlib
 import os
 import tty
-from collections.abc import Callable
 from dataclasses import replace
 
 import pytest
@@ -28,18 +27,9 @@ from base_station.rtk import (
 )
 from sim.clock import SimClock
 from sim.gnss import GnssConfig, GnssReceiver, running_receiver
+from tests.polling import eventually
 
 SPEED = 25.0
-
-
-async def wait_for(predicate: Callable[[], bool], deadline_s: float = 10.0) -> None:
-    """Poll `predicate` until it holds, failing after `deadline_s` seconds."""
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + deadline_s
-    while not predicate():
-        if loop.time() > deadline:
-            raise AssertionError("condition not met before the deadline")
-        await asyncio.sleep(0.01)
 
 
 @contextlib.asynccontextmanager
@@ -124,10 +114,10 @@ async def test_frames_pass_through_intact_and_in_order_over_tcp() -> None:
                     iterated.append(frame)
 
             consumer = asyncio.create_task(consume())
-            await wait_for(lambda: len(iterated) >= 12)
-            await wait_for(lambda: len(got) >= 40)
+            await eventually(lambda: len(iterated) >= 12)
+            await eventually(lambda: len(got) >= 40)
             rx.set_faults(streaming=False)
-            await wait_for(lambda: reader.stats().bytes_received == rx.clients[0].bytes_sent)
+            await eventually(lambda: reader.stats().bytes_received == rx.clients[0].bytes_sent)
             consumer.cancel()
             stats = reader.stats()
         epochs = assert_consecutive_epochs(got, rx)
@@ -153,16 +143,16 @@ async def test_garbage_and_corrupted_frames_are_counted_dropped_and_resynced() -
     got: list[bytes] = []
     async with running_receiver(GnssConfig(seed=9), SimClock(SPEED)) as rx:
         async with reading(RtkConfig(source=f"tcp://127.0.0.1:{rx.port}"), got) as reader:
-            await wait_for(lambda: len(rx.clients) == 1)
+            await eventually(lambda: len(rx.clients) == 1)
             rx.set_faults(garbage_bytes=200, corrupt_fraction=0.25)
             client = rx.clients[0]
-            await wait_for(lambda: client.frames_corrupted >= 12 and client.garbage_bytes >= 2000)
+            await eventually(lambda: client.frames_corrupted >= 12 and client.garbage_bytes >= 2000)
             rx.set_faults(garbage_bytes=0, corrupt_fraction=0.0)
             clean_from = client.epochs
-            await wait_for(lambda: client.epochs >= clean_from + 4)
+            await eventually(lambda: client.epochs >= clean_from + 4)
             rx.set_faults(streaming=False)
-            await wait_for(lambda: reader.stats().bytes_received == client.bytes_sent)
-            await wait_for(lambda: reader.stats().good_frames == len(got))
+            await eventually(lambda: reader.stats().bytes_received == client.bytes_sent)
+            await eventually(lambda: reader.stats().good_frames == len(got))
             stats = reader.stats()
         assert stats.good_frames == client.frames_sent - client.frames_corrupted
         assert stats.bad_frames >= client.frames_corrupted
@@ -185,14 +175,14 @@ async def test_reconnects_after_a_receiver_restart() -> None:
     cfg = RtkConfig(source=f"tcp://127.0.0.1:{port}", reconnect_min_s=0.05, reconnect_max_s=0.2)
     try:
         async with reading(cfg, got) as reader:
-            await wait_for(lambda: len(got) >= 8)
+            await eventually(lambda: len(got) >= 8)
             await rx.stop()
-            await wait_for(lambda: not reader.stats().connected)
+            await eventually(lambda: not reader.stats().connected)
             before = len(got)
             rx = GnssReceiver(GnssConfig(), SimClock(SPEED))
             await rx.start("127.0.0.1", port)
-            await wait_for(lambda: reader.stats().connects == 2)
-            await wait_for(lambda: len(got) >= before + 8)
+            await eventually(lambda: reader.stats().connects == 2)
+            await eventually(lambda: len(got) >= before + 8)
             stats = reader.stats()
         assert stats.bad_frames == 0
         for frame in got:
@@ -211,12 +201,12 @@ async def test_a_silent_source_is_reconnected() -> None:
             reconnect_max_s=0.05,
         )
         async with reading(cfg, got) as reader:
-            await wait_for(lambda: len(got) >= 4)
+            await eventually(lambda: len(got) >= 4)
             rx.set_faults(streaming=False)  # the connection stays up, but nothing comes
-            await wait_for(lambda: reader.stats().connects >= 2)
+            await eventually(lambda: reader.stats().connects >= 2)
             rx.set_faults(streaming=True)
             before = len(got)
-            await wait_for(lambda: len(got) >= before + 8)
+            await eventually(lambda: len(got) >= before + 8)
         assert reader.stats().bad_frames == 0
 
 
@@ -229,7 +219,7 @@ async def test_unreachable_source_is_retried_without_crashing() -> None:
         rx = GnssReceiver(GnssConfig(), SimClock(SPEED))
         await rx.start("127.0.0.1", port)
         try:
-            await wait_for(lambda: len(got) >= 4)
+            await eventually(lambda: len(got) >= 4)
             assert reader.stats().connects == 1
         finally:
             await rx.stop()
@@ -243,7 +233,7 @@ async def test_serial_source_through_a_pty() -> None:
         async with running_receiver(GnssConfig(seed=4), SimClock(SPEED)) as rx:
             cfg = RtkConfig(source=f"serial://{os.ttyname(slave)}?baud=115200")
             async with reading(cfg, got) as reader:
-                await wait_for(lambda: reader.stats().connected)
+                await eventually(lambda: reader.stats().connected)
                 tcp_reader, tcp_writer = await asyncio.open_connection("127.0.0.1", rx.port)
 
                 async def bridge() -> (
@@ -256,9 +246,9 @@ async def test_serial_source_through_a_pty() -> None:
 
                 task = asyncio.create_task(bridge())
                 try:
-                    await wait_for(lambda: len(got) >= 24)
+                    await eventually(lambda: len(got) >= 24)
                     rx.set_faults(streaming=False)
-                    await wait_for(
+                    await eventually(
                         lambda: reader.stats().bytes_received == rx.clients[0].bytes_sent
                     )
                 finally:
@@ -269,7 +259,7 @@ async def test_serial_source_through_a_pty() -> None:
                 assert_consecutive_epochs(got, rx)
                 os.close(master)  # unplug the device
                 master = -1
-                await wait_for(lambda: not reader.stats().connected)
+                await eventually(lambda: not reader.stats().connected)
     finally:
         if master >= 0:
             os.close(master)

@@ -51,15 +51,6 @@ def mission_items(lat: float, lon: float) -> list[dict[str, Any]]:
     return items
 
 
-async def until(predicate: Any, limit_s: float = 20.0, what: str = "condition") -> None:
-    """Poll `predicate` until it holds; fail after `limit_s` wall seconds."""
-    deadline = time.monotonic() + limit_s
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        await asyncio.sleep(0.05)
-
-
 @dataclass
 class Platform:
     """A running platform and handles to act on it."""

@@ -5,7 +5,8 @@ from __future__ import annotations
 import pytest
 
 from tests.conftest import Tenant
-from tests.e2e.harness import FINAL, platform, until
+from tests.e2e.harness import FINAL, platform
+from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
@@ -84,7 +85,9 @@ async def test_uav_landing_off_the_pad_fails_keeps_the_panels_open_and_alerts(
     async with platform(live_server.url, tenant, tmp_path) as p:
         run_id = await p.start_run()
         await p.wait_state(run_id, ("flying",), 60)
-        await until(lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out")
+        await eventually(
+            lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
+        )
         p.copter.gnss.bias_ne_m = (2.0, 0.0)
         body = await p.wait_state(run_id, FINAL, 150)
         assert body["state"] == "failed" and body["cause"] == "landing_not_confirmed", body[
@@ -118,13 +121,13 @@ async def test_uav_link_lost_in_flight_the_run_waits_then_completes(
         ) as p:
             run_id = await p.start_run()
             await p.wait_state(run_id, ("flying",), 60)
-            await until(
+            await eventually(
                 lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
             )
             proxy.cut()
             cut_seq = p.agent.link.stats.sent
             # the UAV flies on by itself: it reaches the next legs of its mission with no server
-            await until(
+            await eventually(
                 lambda: (p.agent.autopilot.state.mission_current or 0) >= 2,
                 60,
                 "the UAV to fly on to its next leg while the server link is down",
@@ -152,7 +155,9 @@ async def test_operator_abort_in_flight_returns_the_uav_lands_and_closes_over_it
     async with platform(live_server.url, tenant, tmp_path) as p:
         run_id = await p.start_run()
         await p.wait_state(run_id, ("flying",), 60)
-        await until(lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out")
+        await eventually(
+            lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
+        )
         r = await p.api.post(
             f"/api/v1/runs/{run_id}/abort",
             json={"reason": "airspace closed"},
@@ -190,7 +195,7 @@ async def test_server_killed_while_flying_resumes_and_completes(
             async with platform(server.url, tenant, tmp_path) as p:
                 run_id = await p.start_run()
                 await p.wait_state(run_id, ("flying",), 60)
-                await until(lambda: p.world.base.pad_mass_g == 0, 60, "the UAV to take off")
+                await eventually(lambda: p.world.base.pad_mass_g == 0, 60, "the UAV to take off")
                 await asyncio.to_thread(server.stop)
                 restarted = await asyncio.to_thread(server.restarted)
                 body = await p.wait_state(run_id, FINAL, 150)

@@ -11,7 +11,8 @@ import time
 import pytest
 
 from tests.conftest import Tenant
-from tests.e2e.harness import FINAL, platform, until
+from tests.e2e.harness import FINAL, platform
+from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
@@ -38,7 +39,9 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         assert lander.faults["ir"].r_drop == 0.3
         run_id = await p.start_run()
         await p.wait_state(run_id, ("flying",), 60)
-        await until(lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out")
+        await eventually(
+            lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
+        )
         # multipath: a 40 cm GNSS error that RTK does not remove; on GNSS alone the UAV would land
         # on the scale but beside the contacts
         copter.gnss.bias_ne_m = (0.3, -0.27)

@@ -16,7 +16,7 @@ from protocol.rtcm import frame_ok, message_type
 from sim.clock import SimClock
 from sim.gnss.receiver import running_receiver
 from tests.conftest import Tenant
-from tests.e2e.harness import until
+from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
@@ -50,7 +50,7 @@ async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(
             )
             reader.start()
             try:
-                await until(lambda: len(at_uav) >= 8, what="corrections at the UAV")
+                await eventually(lambda: len(at_uav) >= 8, what="corrections at the UAV")
                 client = GNSSNTRIPClient(retries=0, timeout=5, verbosity=0)
                 client.run(
                     server="127.0.0.1",
@@ -61,7 +61,9 @@ async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(
                     version="2.0",
                     output=ntrip_out,
                 )
-                await until(lambda: ntrip_out.qsize() >= 8, what="corrections at the NTRIP client")
+                await eventually(
+                    lambda: ntrip_out.qsize() >= 8, what="corrections at the NTRIP client"
+                )
             finally:
                 await reader.stop()
     finally:

@@ -8,7 +8,7 @@ import base64
 import contextlib
 import queue
 import socket
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -37,19 +37,10 @@ from server.stations.ntrip import (
 )
 from sim.clock import SimClock
 from sim.gnss import BaseStationModel, GnssConfig, GnssReceiver, running_receiver
+from tests.polling import eventually
 
 SPEED = 20.0
 USERS = {"alice": ("s3cret", "org-a"), "bob": ("hunter2", "org-b")}
-
-
-async def wait_for(predicate: Callable[[], bool], deadline_s: float = 15.0) -> None:
-    """Poll `predicate` until it holds, failing after `deadline_s` seconds."""
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + deadline_s
-    while not predicate():
-        if loop.time() > deadline:
-            raise AssertionError("condition not met before the deadline")
-        await asyncio.sleep(0.01)
 
 
 async def authenticate(username: str, password: str) -> str | None:
@@ -105,7 +96,7 @@ async def serve(app: FastAPI) -> AsyncIterator[int]:
     server = uvicorn.Server(config)
     task = asyncio.create_task(server.serve(sockets=[sock]))
     try:
-        await wait_for(lambda: server.started)
+        await eventually(lambda: server.started)
         yield port
     finally:
         server.should_exit = True
@@ -205,7 +196,7 @@ async def test_third_party_client_receives_crc_valid_corrections(caster: Caster)
                 received.append(raw)
             return len(received) >= 24
 
-        await wait_for(drain)
+        await eventually(drain)
     finally:
         client.stop()
     assert client.status["code"] == 200
@@ -217,7 +208,7 @@ async def test_third_party_client_receives_crc_valid_corrections(caster: Caster)
         [f for e in range(caster.receiver.last_epoch + 1) for f in caster.receiver.model.frames(e)]
     )
     assert all(any(f == g for g in model_stream) for f in received)  # intact, in order
-    await wait_for(lambda: caster.source.open_subscriptions == 0)  # the subscription was released
+    await eventually(lambda: caster.source.open_subscriptions == 0)  # the subscription was released
 
 
 async def test_two_clients_at_once_each_get_the_live_stream(caster: Caster) -> None:
@@ -233,8 +224,8 @@ async def test_two_clients_at_once_each_get_the_live_stream(caster: Caster) -> N
                     got.append(out.get_nowait()[0])
             return all(len(got) >= 12 for got in received)
 
-        await wait_for(lambda: caster.source.open_subscriptions == 2)
-        await wait_for(drain)
+        await eventually(lambda: caster.source.open_subscriptions == 2)
+        await eventually(drain)
     finally:
         for client, _ in clients:
             client.stop()
@@ -242,13 +233,13 @@ async def test_two_clients_at_once_each_get_the_live_stream(caster: Caster) -> N
         assert all(frame_ok(f) for f in got)
     common = set(received[0]) & set(received[1])
     assert any(message_type(f) == 1077 for f in common)  # the same epochs reached both
-    await wait_for(lambda: caster.source.open_subscriptions == 0)
+    await eventually(lambda: caster.source.open_subscriptions == 0)
 
 
 async def test_third_party_client_reads_the_sourcetable(caster: Caster) -> None:
     client, out = pull_with_pygnssutils(caster.port, "ntrip/", "alice", "s3cret")
     try:
-        await wait_for(lambda: not out.empty())
+        await eventually(lambda: not out.empty())
         table, _closest = out.get_nowait()
     finally:
         client.stop()
@@ -260,7 +251,7 @@ async def test_third_party_client_reads_the_sourcetable(caster: Caster) -> None:
 async def test_third_party_client_with_bad_credentials_gets_401(caster: Caster) -> None:
     client, out = pull_with_pygnssutils(caster.port, "ntrip/BASE1", "alice", "wrong")
     try:
-        await wait_for(lambda: bool(client.status) and not client.connected)
+        await eventually(lambda: bool(client.status) and not client.connected)
     finally:
         client.stop()
     assert client.status["code"] == 401
@@ -291,7 +282,7 @@ async def test_stream_is_chunked_gnss_data_and_uncompressed(caster: Caster) -> N
                     break
         assert reframer.bad_frames == 0 and reframer.skipped_bytes == 0
         assert all(frame_ok(f) for f in frames)
-        await wait_for(lambda: caster.source.open_subscriptions == 0)
+        await eventually(lambda: caster.source.open_subscriptions == 0)
 
 
 async def test_errors_401_404_400_and_anonymous_sourcetable(caster: Caster) -> None:
@@ -328,7 +319,7 @@ async def test_live_corrections_fan_out_and_drop_oldest() -> None:
     hub = LiveCorrections(queue_size=2)
     a, b = hub.subscribe("M"), hub.subscribe("M")
     first_a, first_b = asyncio.ensure_future(anext(a)), asyncio.ensure_future(anext(b))
-    await wait_for(lambda: hub.subscribers("M") == 2)
+    await eventually(lambda: hub.subscribers("M") == 2)
     hub.publish("M", b"1")
     assert await first_a == b"1" and await first_b == b"1"
     for frame in (b"2", b"3", b"4"):
@@ -358,7 +349,7 @@ async def test_broker_frames_skip_malformed_and_bad_crc_messages() -> None:
     watched = Watched()
     frames = broker_frames(watched, "rtcm.x", queue_size=8)
     first = asyncio.ensure_future(anext(frames))
-    await wait_for(lambda: watched.handlers == 1)
+    await eventually(lambda: watched.handlers == 1)
     good = BaseStationModel(GnssConfig()).frames(0)[0]
     bad = good[:-1] + bytes([good[-1] ^ 1])
     for message in ({}, {"data": "%%%"}, {"data": base64.b64encode(bad).decode()}):

@@ -5,7 +5,6 @@ from __future__ import annotations
 import asyncio
 import itertools
 import math
-import time
 
 import numpy as np
 
@@ -19,14 +18,7 @@ from asset_agent.precland.transport import (
 from sim.camera.render import PadRenderer
 from sim.camera.server import HEADER, CameraServer, encode_frame
 from sim.clock import SimClock
-
-
-async def wait_for(predicate, within: float = 10.0) -> None:
-    """Wait until predicate() holds, failing after `within` wall seconds."""
-    deadline = time.monotonic() + within
-    while not predicate():
-        assert time.monotonic() < deadline, "condition not met in time"
-        await asyncio.sleep(0.005)
+from tests.polling import eventually
 
 
 def scripted_pose(clock: SimClock):
@@ -96,7 +88,7 @@ async def test_jpeg_encoding_and_a_late_subscriber():
         async for frame in stream_frames("127.0.0.1", port):
             assert frame.seq > got[-1].seq
             break
-        await wait_for(lambda: server.frames_sent >= 4)
+        await eventually(lambda: server.frames_sent >= 4)
     finally:
         await server.stop()
 

@@ -6,7 +6,7 @@ import asyncio
 import contextlib
 import itertools
 import socket
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 
 import httpx
 import uvicorn
@@ -16,18 +16,9 @@ from pyrtcm import RTCMReader
 from protocol.rtcm import Reframer, message_type
 from sim.clock import SimClock
 from sim.gnss import GnssConfig, GnssReceiver, gnss_router, running_receiver
+from tests.polling import eventually
 
 SPEED = 25.0  # 25 epochs per wall second
-
-
-async def wait_for(predicate: Callable[[], bool], deadline_s: float = 10.0) -> None:
-    """Poll `predicate` until it holds, failing after `deadline_s` seconds."""
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + deadline_s
-    while not predicate():
-        if loop.time() > deadline:
-            raise AssertionError("condition not met before the deadline")
-        await asyncio.sleep(0.01)
 
 
 class FrameSink:
@@ -80,8 +71,8 @@ def epochs_of(frames: list[bytes], receiver: GnssReceiver) -> list[int]:
 async def test_two_clients_receive_identical_consecutive_epochs() -> None:
     async with running_receiver(GnssConfig(seed=11), SimClock(SPEED)) as rx:
         async with sink(rx.port) as a, sink(rx.port) as b:
-            await wait_for(lambda: len(rx.clients) == 2)
-            await wait_for(lambda: len(a.frames) >= 20 and len(b.frames) >= 20)
+            await eventually(lambda: len(rx.clients) == 2)
+            await eventually(lambda: len(a.frames) >= 20 and len(b.frames) >= 20)
             # both joined before the same epoch boundary? compare the overlap
             ea, eb = epochs_of(a.frames[:20], rx), epochs_of(b.frames[:20], rx)
             assert ea == list(range(ea[0], ea[0] + 5)) and eb == list(range(eb[0], eb[0] + 5))
@@ -95,20 +86,20 @@ async def test_two_clients_receive_identical_consecutive_epochs() -> None:
 async def test_stop_streaming_then_resume() -> None:
     clock = SimClock(SPEED)
     async with running_receiver(GnssConfig(), clock) as rx, sink(rx.port) as s:
-        await wait_for(lambda: len(s.frames) >= 8)
+        await eventually(lambda: len(s.frames) >= 8)
         rx.set_faults(streaming=False)
         sent = rx.epochs_sent
         stopped_at = clock.now()
-        await wait_for(lambda: clock.now() > stopped_at + 4)
+        await eventually(lambda: clock.now() > stopped_at + 4)
         assert rx.epochs_sent <= sent + 1  # an epoch already being sent may complete
         quiet = rx.epochs_sent
         bytes_then = rx.clients[0].bytes_sent
-        await wait_for(lambda: s.bytes == bytes_then)
-        await wait_for(lambda: clock.now() > stopped_at + 8)
+        await eventually(lambda: s.bytes == bytes_then)
+        await eventually(lambda: clock.now() > stopped_at + 8)
         assert rx.epochs_sent == quiet and rx.clients[0].bytes_sent == bytes_then
         rx.set_faults(streaming=True)
-        await wait_for(lambda: rx.epochs_sent >= quiet + 3)
-        await wait_for(lambda: s.bytes == rx.clients[0].bytes_sent)
+        await eventually(lambda: rx.epochs_sent >= quiet + 3)
+        await eventually(lambda: s.bytes == rx.clients[0].bytes_sent)
         assert s.reframer.bad_frames == 0
         per_epoch = len(rx.model.message_types)
         groups = [s.frames[i : i + per_epoch] for i in range(0, len(s.frames), per_epoch)]
@@ -122,15 +113,17 @@ async def test_stop_streaming_then_resume() -> None:
 
 async def test_garbage_and_corruption_are_injected_and_accounted_for() -> None:
     async with running_receiver(GnssConfig(seed=5), SimClock(SPEED)) as rx, sink(rx.port) as s:
-        await wait_for(lambda: len(rx.clients) == 1)
+        await eventually(lambda: len(rx.clients) == 1)
         rx.set_faults(garbage_bytes=300, corrupt_fraction=0.3)
         client = rx.clients[0]
-        await wait_for(lambda: client.frames_corrupted >= 10 and client.garbage_bytes >= 3000)
+        await eventually(lambda: client.frames_corrupted >= 10 and client.garbage_bytes >= 3000)
         rx.set_faults(garbage_bytes=0, corrupt_fraction=0.0)
         marker = client.epochs
-        await wait_for(lambda: client.epochs >= marker + 4)  # clean tail resolves any false header
+        await eventually(
+            lambda: client.epochs >= marker + 4
+        )  # clean tail resolves any false header
         rx.set_faults(streaming=False)
-        await wait_for(lambda: s.bytes == client.bytes_sent)
+        await eventually(lambda: s.bytes == client.bytes_sent)
         good = s.frames
         assert len(good) == client.frames_sent - client.frames_corrupted
         assert s.reframer.bad_frames >= client.frames_corrupted
@@ -150,14 +143,14 @@ async def test_disconnect_and_restart_on_a_fixed_port() -> None:
     port = rx.port
     try:
         async with sink(port) as s:
-            await wait_for(lambda: len(s.frames) >= 4)
+            await eventually(lambda: len(s.frames) >= 4)
             assert await rx.disconnect_clients() == 1
-            await wait_for(lambda: s.eof)
+            await eventually(lambda: s.eof)
         await rx.stop()
         rx = GnssReceiver(GnssConfig(), SimClock(SPEED))
         await rx.start("127.0.0.1", port)
         async with sink(port) as s:
-            await wait_for(lambda: len(s.frames) >= 4)
+            await eventually(lambda: len(s.frames) >= 4)
     finally:
         await rx.stop()
 
@@ -171,7 +164,7 @@ async def serve(app: FastAPI) -> AsyncIterator[str]:
     server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="off"))
     task = asyncio.create_task(server.serve(sockets=[sock]))
     try:
-        await wait_for(lambda: server.started)
+        await eventually(lambda: server.started)
         yield f"http://127.0.0.1:{port}"
     finally:
         server.should_exit = True
@@ -184,7 +177,7 @@ async def test_control_router_switches_faults_and_reports_status() -> None:
         app = FastAPI()
         app.include_router(gnss_router(rx))
         async with serve(app) as url, httpx.AsyncClient(base_url=url) as http, sink(rx.port):
-            await wait_for(lambda: rx.epochs_sent >= 2)
+            await eventually(lambda: rx.epochs_sent >= 2)
             status = (await http.get("/gnss")).json()
             assert status["config"]["station_id"] == 77
             assert status["message_types"] == [1005, 1077, 1097, 1230]
@@ -203,4 +196,4 @@ async def test_control_router_switches_faults_and_reports_status() -> None:
             assert r.json() == {"streaming": True, "garbage_bytes": 0, "corrupt_fraction": 0.0}
             r = await http.post("/gnss/disconnect")
             assert r.json() == {"disconnected": 1}
-            await wait_for(lambda: not rx.clients)
+            await eventually(lambda: not rx.clients)

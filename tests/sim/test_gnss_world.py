@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable
 
 import httpx
 import pytest
@@ -13,16 +12,7 @@ from protocol.rtcm import Reframer
 from sim.gnss import GnssPart
 from sim.gnss.sky import geodetic_to_ecef
 from sim.world import World, WorldConfig
-
-
-async def wait_for(predicate: Callable[[], bool], deadline_s: float = 10.0) -> None:
-    """Poll `predicate` until it holds, failing after `deadline_s` seconds."""
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + deadline_s
-    while not predicate():
-        if loop.time() > deadline:
-            raise AssertionError("condition not met before the deadline")
-        await asyncio.sleep(0.01)
+from tests.polling import eventually
 
 
 async def test_world_serves_the_receiver_at_the_pad_with_its_control_routes() -> None:
@@ -39,7 +29,7 @@ async def test_world_serves_the_receiver_at_the_pad_with_its_control_routes() ->
                     frames.extend(reframer.feed(data))
 
             task = asyncio.create_task(pump())
-            await wait_for(lambda: len(frames) >= 8)
+            await eventually(lambda: len(frames) >= 8)
             task.cancel()
         finally:
             writer.close()

@@ -2,23 +2,13 @@
 
 from __future__ import annotations
 
-import asyncio
 import math
-import time
 
 import numpy as np
 
 from asset_agent.precland.transport import IrReceiver, parse_ir
 from sim.clock import SimClock
 from sim.ir import DATAGRAM, IrBeaconSensor, IrSensorConfig, encode_reading, ir_reading
-
-
-async def wait_for(predicate, within: float = 10.0) -> None:
-    """Wait until predicate() holds, failing after `within` wall seconds."""
-    deadline = time.monotonic() + within
-    while not predicate():
-        assert time.monotonic() < deadline, "condition not met in time"
-        await asyncio.sleep(0.005)
 
 
 def test_angles_range_and_field_of_view():

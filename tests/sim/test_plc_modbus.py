@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import asyncio
-import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 
 import httpx
 import pytest
@@ -12,17 +11,9 @@ from pymodbus.client import AsyncModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
 from sim.world import World, parse_args
+from tests.polling import eventually
 
 UNIT = 1
-
-
-async def wait_until(predicate: Callable[[], object], within: float, what: str) -> None:
-    """Poll `predicate` until truthy; fail after `within` wall seconds."""
-    deadline = time.monotonic() + within
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {within}s waiting for {what}")
-        await asyncio.sleep(0.01)
 
 
 @pytest.fixture
@@ -74,18 +65,18 @@ async def test_full_cycle_and_panels_close_refused_with_lift_up(
     world: World, plc: AsyncModbusTcpClient
 ) -> None:
     await coil(plc, 0)
-    await wait_until(lambda: world.base.panels.at_high, 5, "panels open")
+    await eventually(lambda: world.base.panels.at_high, 5, "panels open")
     await coil(plc, 2)
-    await wait_until(lambda: world.base.lift.at_high, 5, "lift up")
+    await eventually(lambda: world.base.lift.at_high, 5, "lift up")
     bits = await di(plc)
     assert bits[0] and bits[2] and not bits[4] and not bits[5]
     assert (await ir(plc))[16:18] == [1000, 1000]
     await coil(plc, 1)  # PANELS_CLOSE with the lift up
     assert (await di(plc))[10] and world.base.panels.at_high
     await coil(plc, 3)
-    await wait_until(lambda: world.base.lift.at_low, 5, "lift down")
+    await eventually(lambda: world.base.lift.at_low, 5, "lift down")
     await coil(plc, 1)
-    await wait_until(lambda: world.base.panels.at_low, 5, "panels closed")
+    await eventually(lambda: world.base.panels.at_low, 5, "panels closed")
 
 
 async def test_no_motion_under_estop_or_latched_fault_and_reset_rules(
@@ -116,14 +107,14 @@ async def test_stall_detected_after_travel_plus_50_percent(
     world.base.inject_stall("panels")
     await coil(plc, 0)
     assert (await di(plc))[4]
-    await wait_until(lambda: world.base.fault_bits() & 1, 5, "panel stall latched")
+    await eventually(lambda: world.base.fault_bits() & 1, 5, "panel stall latched")
     assert not (await di(plc))[4] and (await ir(plc))[18] & 1
     assert world.base.t_sim >= 18.0
 
 
 async def test_heartbeat_counts_in_wall_time(world: World, plc: AsyncModbusTcpClient) -> None:
     first = (await ir(plc))[19]
-    await wait_until(lambda: world.base.heartbeat >= first + 3, 2, "three heartbeats")
+    await eventually(lambda: world.base.heartbeat >= first + 3, 2, "three heartbeats")
     assert (await ir(plc))[19] >= first + 3
 
 
@@ -135,7 +126,7 @@ async def test_watchdog_armed_by_first_write_expires_after_2_s(
     await plc.write_register(0, 1, device_id=UNIT)
     world.base.panels.travel_s = 1000.0  # keep moving long enough to see the watchdog act
     await coil(plc, 0)
-    await wait_until(lambda: world.base.fault_bits() & 16, 4, "watchdog fault")
+    await eventually(lambda: world.base.fault_bits() & 16, 4, "watchdog fault")
     assert not (await di(plc))[4] and (await ir(plc))[18] & 16
 
 
@@ -151,7 +142,7 @@ async def test_watchdog_fed_by_a_changing_value_never_expires(
 
 async def test_mass_32_bit_high_word_first(world: World, plc: AsyncModbusTcpClient) -> None:
     world.base.set_pad_load(70_000.0, True)
-    await wait_until(lambda: world.base.scale_g > 70_000, 2, "scale updated")
+    await eventually(lambda: world.base.scale_g > 70_000, 2, "scale updated")
     regs = await ir(plc)
     assert regs[0] == 1 and abs(((regs[0] << 16) | regs[1]) - 70_015) < 15
 
