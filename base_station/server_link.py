@@ -13,7 +13,7 @@ from collections.abc import AsyncIterator
 from pathlib import Path
 
 from assetlink.configfile import AssetConfig
-from assetlink.dispatch import CommandRequest
+from assetlink.dispatch import CommandRequest, Handler
 from assetlink.link import Link
 from asynckit.tasks import cancel_and_wait
 from base_station.base_telemetry import AxisTelemetry, StationTelemetry
@@ -32,6 +32,7 @@ from protocol.telemetry_payloads import (
     Rtk,
     Weather,
 )
+from protocol.vocabulary import CommandParams
 
 log = logging.getLogger(__name__)
 
@@ -104,14 +105,14 @@ def to_event(e: Event) -> EventPayload:
     return EventPayload(name=e.kind.value, severity=severity, message=e.message, data=dict(e.data))
 
 
-def command_handler(station: Station, name: str):  # type: ignore[no-untyped-def]
-    """A link handler running one station command, its progress numbered as it comes."""
+def command_handler(station: Station) -> Handler:
+    """A link handler running the station's typed commands, progress numbered as it comes."""
 
     async def handler(
-        request: CommandRequest,
+        request: CommandRequest[CommandParams],
     ) -> AsyncIterator[CommandProgress | CommandResultPayload]:
         index = 0
-        async for item in station.execute(name, request.params):
+        async for item in station.execute(request.command):
             if isinstance(item, Progress):
                 index += 1
                 yield CommandProgress(
@@ -137,8 +138,9 @@ def link_runner(link: Link):  # type: ignore[no-untyped-def]
     """A `base_station.main.LinkRunner` serving `link`."""
 
     async def serve(station: Station, config: StationConfig) -> None:
-        for name in station.commands:
-            link.on_command(name, command_handler(station, name))
+        handler = command_handler(station)
+        for command in station.commands:
+            link.on_command(command.name, handler)
         await link.start()
         reader = None
         if config.rtk.tcp_port or config.rtk.serial_device:

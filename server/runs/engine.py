@@ -9,10 +9,20 @@ from __future__ import annotations
 
 import logging
 import uuid
-from dataclasses import asdict
 from datetime import datetime, timedelta
 from typing import Any
 
+from pydantic import ValidationError
+
+from protocol.messages import RunProgress
+from protocol.vocabulary import (
+    COMMANDS,
+    CheckAvailability,
+    CommandParams,
+    MissionItem,
+    RunProgressPayload,
+    UploadMission,
+)
 from server.assets.models import Asset
 from server.commands import service as commands
 from server.kit.periodic import Periodic
@@ -34,26 +44,26 @@ log = logging.getLogger(__name__)
 LEASE_S = 15.0
 
 
-def progress_payload(run: Run, label_override: str | None = None) -> dict[str, Any]:
+def progress_payload(run: Run, label_override: str | None = None) -> RunProgressPayload:
     """What operators see of a run: readable step, number, status, reason."""
     state = State(run.state)
     step = STEPS[state]
-    return {
-        "run_id": str(run.id),
-        "state": state.value,
-        "step": step.number,
-        "total_steps": TOTAL_STEPS,
-        "label": label_override or step.label,
-        "final": state in FINAL,
-        "outcome": run.outcome,
-        "cause": run.cause,
-        "reason": run.reason,
-        "alert": run.alert,
-        "mission_id": str(run.mission_id),
-        "uav_id": str(run.uav_id),
-        "base_id": str(run.base_id),
-        "at": utcnow().isoformat(),
-    }
+    return RunProgressPayload(
+        run_id=run.id,
+        state=state.value,
+        step=step.number,
+        total_steps=TOTAL_STEPS,
+        label=label_override or step.label,
+        final=state in FINAL,
+        outcome=run.outcome,  # type: ignore[arg-type]
+        cause=run.cause,
+        reason=run.reason,
+        alert=run.alert,
+        mission_id=run.mission_id,
+        uav_id=run.uav_id,
+        base_id=run.base_id,
+        at=utcnow(),
+    )
 
 
 class RunEngine:
@@ -130,7 +140,7 @@ class RunEngine:
             run.reason = transition.reason
             run.alert = run.alert or transition.alert
             pending = [*transition.extra_actions, *STEPS[transition.to].actions]
-            run.facts = {**run.facts, "pending_actions": [asdict(a) for a in pending]}
+            run.facts = {**run.facts, "pending_actions": [a.key for a in pending]}
             run.step_commands, run.actions_issued = {}, not pending
             if transition.to in FINAL:
                 run.outcome, run.cause, run.finished_at = (
@@ -145,8 +155,6 @@ class RunEngine:
         await self._publish(run)
 
     async def _publish(self, run: Run) -> None:
-        from protocol.messages import RunProgress
-
         message = RunProgress(payload=progress_payload(run)).model_dump(mode="json")
         for asset_id in {run.uav_id, run.base_id}:
             await self.state.broker.publish(f"asset.{asset_id}", message)
@@ -154,7 +162,7 @@ class RunEngine:
     async def _issue(self, db: Any, run: Run) -> set[uuid.UUID]:
         pending = run.facts.get("pending_actions")
         actions = (
-            [Action(**a) for a in pending]
+            [_action(key) for key in pending]
             if pending is not None
             else list(STEPS[State(run.state)].actions)
         )
@@ -162,17 +170,15 @@ class RunEngine:
         issued = dict(run.step_commands)
         nudges: set[uuid.UUID] = set()
         for action in actions:
-            key = f"{action.target}:{action.command}"
+            key = action.key
             if key in issued:
                 continue
             asset_id = run.uav_id if action.target == "uav" else run.base_id
-            params = dict(action.params) or await self._params(db, run, action)
             cmd = await commands.create(
                 db,
                 organization_id=run.organization_id,
                 asset_id=asset_id,
-                name=action.command,
-                params=params,
+                command=await self._command(db, run, action),
                 timeout_s=timeout,
                 created_by=f"run:{run.id}",
             )
@@ -182,20 +188,24 @@ class RunEngine:
         run.facts = {k: v for k, v in run.facts.items() if k != "pending_actions"}
         return nudges
 
-    async def _params(self, db: Any, run: Run, action: Action) -> dict[str, Any]:
-        if action.command == "upload_mission":
+    async def _command(self, db: Any, run: Run, action: Action) -> CommandParams:
+        """The typed command of an action, its params filled in from the run."""
+        if action.command is UploadMission:
             from server.missions.models import Mission
 
             mission = await db.get(Mission, run.mission_id)
-            return {
-                "mission_id": str(run.mission_id),
-                "items": list(mission.items) if mission else [],
-            }
-        if action.target == "base" and action.command == "check_availability":
+            items = [MissionItem.model_validate(i) for i in (mission.items if mission else [])]
+            return UploadMission(mission_id=run.mission_id, items=tuple(items))
+        if action.target == "base" and action.command is CheckAvailability:
             uav = await db.get(Asset, run.uav_id)
             attrs = (uav.attributes if uav else None) or {}
-            return {k: attrs[k] for k in ("mass_g", "mass_window_g") if k in attrs}
-        return {}
+            weight = {k: attrs[k] for k in ("mass_g", "mass_window_g") if k in attrs}
+            try:
+                return CheckAvailability.model_validate(weight)
+            except ValidationError:
+                log.warning("run %s: the UAV's mass attributes are not numbers: %s", run.id, weight)
+                return CheckAvailability()
+        return action.command()
 
     async def _observe(self, db: Any, run: Run) -> Observations:
         ids = [uuid.UUID(v) for v in run.step_commands.values()]
@@ -230,6 +240,11 @@ class RunEngine:
             abort_reason=run.abort_reason,
             took_off="took_off" in uav_events or "armed" in uav_events,
         )
+
+
+def _action(key: str) -> Action:
+    target, name = key.split(":", 1)
+    return Action(target, COMMANDS[name])
 
 
 def _after(ts: str | None, since: datetime) -> bool:

@@ -19,8 +19,23 @@ from __future__ import annotations
 
 import enum
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
+
+from protocol.vocabulary import (
+    FINAL_STATUSES,
+    AvailabilityReport,
+    CheckAvailability,
+    Close,
+    CommandParams,
+    CommandStatus,
+    Open,
+    ReturnToBase,
+    StartCharging,
+    StartMission,
+    Stop,
+    UploadMission,
+)
 
 
 class State(enum.StrEnum):
@@ -46,11 +61,24 @@ AIRBORNE = frozenset({State.flying, State.landing})
 
 @dataclass(frozen=True)
 class Action:
-    """A command to issue on entering a step: to the `base` or the `uav`."""
+    """A command to issue on entering a step: to the `base` or the `uav`.
+
+    `command` is the command's model; the engine fills in its params (the mission's items, the
+    UAV's mass) when it issues it.
+    """
 
     target: str  # "base" | "uav"
-    command: str
-    params: Mapping[str, Any] = field(default_factory=dict)
+    command: type[CommandParams]
+
+    @property
+    def name(self) -> str:
+        """The command's name on the wire."""
+        return self.command.name
+
+    @property
+    def key(self) -> str:
+        """``target:name``, how a run records the command it issued for this action."""
+        return f"{self.target}:{self.command.name}"
 
 
 @dataclass(frozen=True)
@@ -72,29 +100,29 @@ STEPS: dict[State, Step] = {
             State.checking,
             1,
             "Checking weather, base health and UAV readiness",
-            (Action("base", "check_availability"), Action("uav", "check_availability")),
+            (Action("base", CheckAvailability), Action("uav", CheckAvailability)),
             60,
         ),
         Step(
             State.opening,
             2,
             "Opening the base (side panels, then lift up)",
-            (Action("base", "open"),),
+            (Action("base", Open),),
             120,
         ),
         Step(
             State.uploading,
             3,
             "Uploading the mission to the UAV and reading it back",
-            (Action("uav", "upload_mission"),),
+            (Action("uav", UploadMission),),
             90,
         ),
-        Step(State.flying, 4, "Flying the mission", (Action("uav", "start_mission"),), 3600),
+        Step(State.flying, 4, "Flying the mission", (Action("uav", StartMission),), 3600),
         Step(
             State.landing,
             5,
             "Returning to the base and landing on the pad",
-            (Action("uav", "return_to_base"),),
+            (Action("uav", ReturnToBase),),
             900,
         ),
         Step(State.confirming, 6, "Confirming the landing on the base's scale", (), 90),
@@ -102,12 +130,10 @@ STEPS: dict[State, Step] = {
             State.closing,
             7,
             "Closing the base (lift down, then side panels)",
-            (Action("base", "close"),),
+            (Action("base", Close),),
             120,
         ),
-        Step(
-            State.charging, 8, "Starting to charge the UAV", (Action("base", "start_charging"),), 60
-        ),
+        Step(State.charging, 8, "Starting to charge the UAV", (Action("base", StartCharging),), 60),
         Step(State.completed, 9, "Completed", (), 0),
         Step(State.aborted, 9, "Aborted", (), 0),
         Step(State.failed, 9, "Failed", (), 0),
@@ -120,16 +146,14 @@ TOTAL_STEPS = 8
 class CommandOutcome:
     """What became of a command the step issued."""
 
-    status: (
-        str  # queued | sent | in_progress | succeeded | rejected | failed | canceled | timed_out
-    )
+    status: CommandStatus | str
     reason: str = ""
     data: Mapping[str, Any] | None = None
 
     @property
     def final(self) -> bool:
         """True once the command has ended."""
-        return self.status in ("succeeded", "rejected", "failed", "canceled", "timed_out")
+        return self.status in FINAL_STATUSES
 
 
 @dataclass(frozen=True)
@@ -166,20 +190,18 @@ class Transition:
 
 
 def _failed_conditions(outcome: CommandOutcome) -> str:
-    data = outcome.data or {}
-    failed = data.get("failed") or data.get("conditions") or []
-    parts = []
-    for c in failed if isinstance(failed, list) else []:
-        if isinstance(c, Mapping):
-            parts.append(str(c.get("message") or c.get("reason") or c.get("name")))
-    return "; ".join(p for p in parts if p) or outcome.reason or outcome.status
+    try:
+        summary = AvailabilityReport.model_validate(outcome.data or {}).summary
+    except ValueError:  # no report (e.g. the command failed before checking): its reason says why
+        summary = ""
+    return summary or outcome.reason or outcome.status
 
 
 def _command_failure(
     step: Step, outcomes: Mapping[tuple[str, str], CommandOutcome]
 ) -> tuple[Action, CommandOutcome] | None:
     for action in step.actions:
-        outcome = outcomes.get((action.target, action.command))
+        outcome = outcomes.get((action.target, action.name))
         if outcome and outcome.final and outcome.status != "succeeded":
             return action, outcome
     return None
@@ -187,7 +209,7 @@ def _command_failure(
 
 def _all_succeeded(step: Step, outcomes: Mapping[tuple[str, str], CommandOutcome]) -> bool:
     return all(
-        (o := outcomes.get((a.target, a.command))) is not None and o.status == "succeeded"
+        (o := outcomes.get((a.target, a.name))) is not None and o.status == "succeeded"
         for a in step.actions
     )
 
@@ -214,7 +236,7 @@ def advance(state: State, obs: Observations, *, aborting: bool = False) -> Trans
                 State.closing,
                 f"{why}; closing the base (the UAV is still on the lift)",
                 "operator_abort",
-                extra_actions=(Action("base", "stop"),),
+                extra_actions=(Action("base", Stop),),
             )
         if state is State.flying:
             return Transition(
@@ -238,7 +260,7 @@ def advance(state: State, obs: Observations, *, aborting: bool = False) -> Trans
             missing = [
                 WHO[a.target]
                 for a in step.actions
-                if not (o := obs.commands.get((a.target, a.command))) or not o.final
+                if not (o := obs.commands.get((a.target, a.name))) or not o.final
             ]
             return Transition(
                 State.aborted,
@@ -255,7 +277,7 @@ def advance(state: State, obs: Observations, *, aborting: bool = False) -> Trans
                 f"{what} failed at {WHO[action.target]}: {outcome.reason or outcome.status}; "
                 "the base is being closed (the UAV never left the lift)",
                 f"{state.value}_failed",
-                extra_actions=(Action("base", "close"),),
+                extra_actions=(Action("base", Close),),
             )
         if _all_succeeded(step, obs.commands):
             nxt = State.uploading if state is State.opening else State.flying
@@ -269,7 +291,7 @@ def advance(state: State, obs: Observations, *, aborting: bool = False) -> Trans
                 f"{step.label.lower()} did not finish within {obs.timeout_s:.0f} s; "
                 "the base is being closed",
                 f"{state.value}_timeout",
-                extra_actions=(Action("base", "stop"), Action("base", "close")),
+                extra_actions=(Action("base", Stop), Action("base", Close)),
             )
         return None
     if state is State.flying:
@@ -282,7 +304,7 @@ def advance(state: State, obs: Observations, *, aborting: bool = False) -> Trans
                     State.failed,
                     f"{why}; it is on the lift, disarmed: the base is being closed",
                     "takeoff_failed",
-                    extra_actions=(Action("base", "close"),),
+                    extra_actions=(Action("base", Close),),
                 )
             if not took_off:
                 return Transition(

@@ -77,7 +77,7 @@ def run_out(run: Run, timeline: list[Any] | None = None) -> RunOut:
     """The API view of a run."""
     p = progress_payload(run)
     out = RunOut.model_validate(run)
-    out.step, out.total_steps, out.label = p["step"], p["total_steps"], p["label"]
+    out.step, out.total_steps, out.label = p.step, p.total_steps, p.label
     out.timeline = [TransitionOut.model_validate(t) for t in timeline or []]
     return out
 

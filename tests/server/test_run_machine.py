@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from protocol.vocabulary import AvailabilityCondition, AvailabilityReport
 from server.runs.machine import FINAL, STEPS, CommandOutcome, Observations, State, advance
 
 
@@ -53,16 +54,20 @@ def test_the_happy_path_walks_the_whole_sequence():
 
 
 def test_failed_availability_aborts_listing_every_condition():
-    failed = CommandOutcome(
-        "failed",
-        "2 conditions failed",
-        {
-            "failed": [
-                {"name": "gust", "message": "gust 14.2 m/s over the 12.0 m/s limit"},
-                {"name": "rain", "message": "rain 3.1 mm/h over the 0.5 mm/h limit"},
-            ]
-        },
-    )
+    report = AvailabilityReport.of(
+        [
+            AvailabilityCondition(name="wind", ok=True, value=3.0, limit=8.0, message="wind 3"),
+            AvailabilityCondition(
+                name="gust", ok=False, value=14.2, limit=12.0,
+                message="gust 14.2 m/s over the 12.0 m/s limit",
+            ),
+            AvailabilityCondition(
+                name="rain", ok=False, value=3.1, limit=0.5,
+                message="rain 3.1 mm/h over the 0.5 mm/h limit",
+            ),
+        ]
+    )  # fmt: skip
+    failed = CommandOutcome("rejected", "not available", report.model_dump(mode="json"))
     t = advance(
         State.checking,
         obs(commands={("base", "check_availability"): failed, ("uav", "check_availability"): OK}),
@@ -70,6 +75,16 @@ def test_failed_availability_aborts_listing_every_condition():
     assert t is not None and t.to is State.aborted and t.cause == "not_available"
     assert "gust 14.2 m/s over the 12.0 m/s limit" in t.reason and "rain 3.1" in t.reason
     assert not t.extra_actions  # nothing moved, nothing to undo
+    assert "wind 3" not in t.reason  # only the failed conditions
+
+
+def test_an_availability_failure_without_a_report_gives_its_reason():
+    failed = CommandOutcome("failed", "PLC link error: timeout", {"unexpected": True})
+    t = advance(
+        State.checking,
+        obs(commands={("base", "check_availability"): failed, ("uav", "check_availability"): OK}),
+    )
+    assert t is not None and t.to is State.aborted and "PLC link error: timeout" in t.reason
 
 
 def test_waiting_steps_wait_and_then_time_out():
@@ -84,7 +99,7 @@ def test_panel_stall_while_opening_fails_and_closes_the_base():
         obs(commands={("base", "open"): CommandOutcome("failed", "panel motor stalled at 40 %")}),
     )
     assert t is not None and t.to is State.failed and "panel motor stalled" in t.reason
-    assert [(a.target, a.command) for a in t.extra_actions] == [("base", "close")]
+    assert [(a.target, a.name) for a in t.extra_actions] == [("base", "close")]
 
 
 def test_lost_uav_link_in_flight_is_waited_out():
@@ -112,7 +127,7 @@ def test_unconfirmed_landing_fails_and_leaves_the_panels_open():
     t = advance(State.confirming, obs(elapsed_s=91, timeout_s=90, base_mass_g=310.0))
     assert t is not None and t.to is State.failed and t.alert
     assert "310 g" in t.reason and "panels stay open" in t.reason
-    assert not any(a.command in ("close", "close_panels") for a in t.extra_actions)
+    assert not any(a.name in ("close", "close_panels") for a in t.extra_actions)
 
 
 @pytest.mark.parametrize("state", [State.flying, State.landing, State.confirming])
@@ -124,13 +139,13 @@ def test_no_failure_after_take_off_closes_the_panels(state):
             timeout_s=1,
             uav_events=["took_off"],
             commands={
-                (a.target, a.command): CommandOutcome("failed", "x") for a in STEPS[state].actions
+                (a.target, a.name): CommandOutcome("failed", "x") for a in STEPS[state].actions
             },
         ),
     ):
         t = advance(state, o)
         if t is not None:
-            assert not any(a.command in ("close", "close_panels") for a in t.extra_actions), (
+            assert not any(a.name in ("close", "close_panels") for a in t.extra_actions), (
                 state,
                 t,
             )
@@ -170,9 +185,7 @@ def test_takeoff_failure_closes_the_base_while_the_uav_is_still_on_the_lift():
             uav_landed=True,
         ),
     )
-    assert (
-        t is not None and t.to is State.failed and [a.command for a in t.extra_actions] == ["close"]
-    )
+    assert t is not None and t.to is State.failed and [a.name for a in t.extra_actions] == ["close"]
     # without telemetry showing the UAV disarmed on the lift, nothing closes
     t = advance(
         State.flying,
