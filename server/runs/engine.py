@@ -36,6 +36,7 @@ from server.runs.machine import (
     CommandOutcome,
     Observations,
     State,
+    Transition,
     advance,
 )
 from server.runs.models import Run, RunTransition
@@ -118,41 +119,45 @@ class RunEngine:
             if transition is None:
                 return
             previous = run.state
-            now = utcnow()
             # written first: a server that dies right after this resumes in the new step
-            db.add(
-                RunTransition(
-                    run_id=run.id,
-                    at=now,
-                    from_state=previous,
-                    to_state=transition.to.value,
-                    reason=transition.reason,
-                    cause=transition.cause,
-                )
-            )
-            if transition.cause == "operator_abort":
-                run.aborting = True
-            if previous == State.flying.value:
-                run.facts = {**run.facts, "flight_ended_at": now.isoformat()}
-            if transition.to == State.flying:
-                run.facts = {**run.facts, "flight_started_at": now.isoformat()}
-            run.state, run.step_started_at, run.updated_at = transition.to.value, now, now
-            run.reason = transition.reason
-            run.alert = run.alert or transition.alert
-            pending = [*transition.extra_actions, *STEPS[transition.to].actions]
-            run.facts = {**run.facts, "pending_actions": [a.key for a in pending]}
-            run.step_commands, run.actions_issued = {}, not pending
-            if transition.to in FINAL:
-                run.outcome, run.cause, run.finished_at = (
-                    transition.to.value,
-                    transition.cause or None,
-                    now,
-                )
+            await self._record(db, run, transition)
             await db.commit()
             log.info(
                 "run %s: %s -> %s: %s", run.id, previous, transition.to.value, transition.reason
             )
         await self._publish(run)
+
+    async def _record(self, db: Any, run: Run, transition: Transition) -> None:
+        """The transition in the timeline, the run in its new step, the step's commands pending."""
+        now = utcnow()
+        db.add(
+            RunTransition(
+                run_id=run.id,
+                at=now,
+                from_state=run.state,
+                to_state=transition.to.value,
+                reason=transition.reason,
+                cause=transition.cause,
+            )
+        )
+        if transition.cause == "operator_abort":
+            run.aborting = True
+        if run.state == State.flying.value:
+            run.flight_ended_at = now
+        if transition.to == State.flying:
+            run.flight_started_at = now
+        run.state, run.step_started_at, run.updated_at = transition.to.value, now, now
+        run.reason = transition.reason
+        run.alert = run.alert or transition.alert
+        pending = [*transition.extra_actions, *STEPS[transition.to].actions]
+        await repo.replace_step_commands(db, run.id, pending)
+        run.actions_issued = not pending
+        if transition.to in FINAL:
+            run.outcome, run.cause, run.finished_at = (
+                transition.to.value,
+                transition.cause or None,
+                now,
+            )
 
     async def _publish(self, run: Run) -> None:
         message = RunProgress(payload=progress_payload(run)).model_dump(mode="json")
@@ -160,19 +165,17 @@ class RunEngine:
             await self.state.broker.publish(f"asset.{asset_id}", message)
 
     async def _issue(self, db: Any, run: Run) -> set[uuid.UUID]:
-        pending = run.facts.get("pending_actions")
-        actions = (
-            [_action(key) for key in pending]
-            if pending is not None
-            else list(STEPS[State(run.state)].actions)
-        )
-        timeout = self.timeout_s(State(run.state)) if State(run.state) not in FINAL else 120.0
-        issued = dict(run.step_commands)
+        """Create the step's pending commands; the assets to nudge."""
+        state = State(run.state)
+        rows = await repo.step_commands(db, run.id)
+        if not rows:  # a step entered before its commands were recorded: the table's own
+            rows = await repo.replace_step_commands(db, run.id, STEPS[state].actions)
+        timeout = self.timeout_s(state) if state not in FINAL else 120.0
         nudges: set[uuid.UUID] = set()
-        for action in actions:
-            key = action.key
-            if key in issued:
+        for row in rows:
+            if row.command_id is not None:
                 continue
+            action = Action(row.target, COMMANDS[row.command])
             asset_id = run.uav_id if action.target == "uav" else run.base_id
             cmd = await commands.create(
                 db,
@@ -182,10 +185,9 @@ class RunEngine:
                 timeout_s=timeout,
                 created_by=f"run:{run.id}",
             )
-            issued[key] = str(cmd.id)
+            row.command_id = cmd.id
             nudges.add(asset_id)
-        run.step_commands, run.actions_issued = issued, True
-        run.facts = {k: v for k, v in run.facts.items() if k != "pending_actions"}
+        run.actions_issued = True
         return nudges
 
     async def _command(self, db: Any, run: Run, action: Action) -> CommandParams:
@@ -208,14 +210,13 @@ class RunEngine:
         return action.command()
 
     async def _observe(self, db: Any, run: Run) -> Observations:
-        ids = [uuid.UUID(v) for v in run.step_commands.values()]
-        found = await repo.commands_by_id(db, ids)
-        outcomes = {}
-        for key, value in run.step_commands.items():
-            cmd = found.get(uuid.UUID(value))
-            if cmd is not None:
-                target, name = key.split(":", 1)
-                outcomes[(target, name)] = CommandOutcome(cmd.status, cmd.reason, cmd.result)
+        rows = await repo.step_commands(db, run.id)
+        found = await repo.commands_by_id(db, [r.command_id for r in rows if r.command_id])
+        outcomes = {
+            (row.target, row.command): CommandOutcome(cmd.status, cmd.reason, cmd.result)
+            for row in rows
+            if row.command_id and (cmd := found.get(row.command_id)) is not None
+        }
         since = run.step_started_at
         uav_events = await repo.event_names_since(db, run.uav_id, since)
         base_events = await repo.event_names_since(db, run.base_id, since)
@@ -240,11 +241,6 @@ class RunEngine:
             abort_reason=run.abort_reason,
             took_off="took_off" in uav_events or "armed" in uav_events,
         )
-
-
-def _action(key: str) -> Action:
-    target, name = key.split(":", 1)
-    return Action(target, COMMANDS[name])
 
 
 def _after(ts: str | None, since: datetime) -> bool:

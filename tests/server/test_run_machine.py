@@ -4,8 +4,16 @@ from __future__ import annotations
 
 import pytest
 
-from protocol.vocabulary import AvailabilityCondition, AvailabilityReport
-from server.runs.machine import FINAL, STEPS, CommandOutcome, Observations, State, advance
+from protocol.vocabulary import AvailabilityCondition, AvailabilityReport, Close
+from server.runs.machine import (
+    FINAL,
+    STEPS,
+    CommandOutcome,
+    Observations,
+    State,
+    advance,
+    on_the_lift,
+)
 
 
 def obs(**kw):  # type: ignore[no-untyped-def]
@@ -198,3 +206,28 @@ def test_a_landing_confirmed_before_the_step_began_is_read_from_the_base_state()
     """The base may confirm while the UAV's own 'landed' is still on its way (e.g. after a reconnect)."""
     t = advance(State.confirming, obs(base_confirms=True))
     assert t is not None and t.to is State.closing
+
+
+def _closes(exit_) -> bool:  # type: ignore[no-untyped-def]
+    return exit_.to is State.closing or any(a.command is Close for a in exit_.safe)
+
+
+def test_the_table_reads_as_the_safety_policy():
+    """The module docstring's rules, read off the table itself rather than from examples."""
+    before_take_off = (State.opening, State.uploading)
+    for state in before_take_off:
+        step = STEPS[state]
+        # a failure, a timeout or an abort with the UAV on the lift closes the base
+        assert all(_closes(e) for e in (*step.failure, *step.timeout, *step.abort)), state
+    for state in (State.landing, State.confirming):
+        step = STEPS[state]
+        exits = (*step.done, *step.failure, *step.timeout, *step.abort)
+        # after take-off nothing closes until the scale confirms; an abort is finished safely
+        assert not any(any(a.command is Close for a in e.safe) for e in exits), state
+        assert not step.abort, state
+    # in flight, only a start that never left the lift closes the base
+    assert [e.when for e in STEPS[State.flying].failure if _closes(e)] == [on_the_lift]
+    assert [e.to for e in STEPS[State.flying].abort] == [State.landing]
+    assert STEPS[State.confirming].done[0].to is State.closing
+    # every step but the final ones has a way out on time
+    assert all(STEPS[s].timeout for s in State if s not in FINAL and s is not State.pending)
