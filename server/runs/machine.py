@@ -411,15 +411,18 @@ STEPS: dict[State, Step] = {
 def advance(state: State, obs: Observations, *, aborting: bool = False) -> Transition | None:
     """The next transition of a run in `state`, or None to keep waiting.
 
-    In order: an operator's abort (the step's abort exit; a step without one keeps waiting),
-    a failed command, completion, then the time budget. The first exit whose guard holds wins.
+    In order: an operator's abort (the step's abort exit; a step without one is already
+    heading home and carries on as an aborting run), a failed command, completion, then the
+    time budget. The first exit whose guard holds wins.
     """
     if state in FINAL:
         return None
     step = STEPS[state]
-    seen = Seen(step, obs, aborting, _command_failure(step, obs.commands))
     if obs.abort_requested and not aborting:
-        return _first(step.abort, seen)
+        if step.abort:
+            return _first(step.abort, Seen(step, obs, aborting, None))
+        aborting = True
+    seen = Seen(step, obs, aborting, _command_failure(step, obs.commands))
     exits = [*(step.failure if seen.failure else ()), *step.done]
     if obs.elapsed_s > obs.timeout_s:
         exits += step.timeout

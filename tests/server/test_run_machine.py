@@ -231,3 +231,21 @@ def test_the_table_reads_as_the_safety_policy():
     assert STEPS[State.confirming].done[0].to is State.closing
     # every step but the final ones has a way out on time
     assert all(STEPS[s].timeout for s in State if s not in FINAL and s is not State.pending)
+
+
+@pytest.mark.parametrize(
+    ("state", "feed", "to"),
+    [
+        (State.landing, {"uav_landed": True}, State.confirming),
+        (State.landing, {"elapsed_s": 901, "timeout_s": 900}, State.failed),
+        (State.confirming, {"base_confirms": True}, State.closing),
+        (State.closing, {"commands": {("base", "close"): OK}}, State.charging),
+        (State.charging, {"commands": {("base", "start_charging"): OK}}, State.aborted),
+    ],
+)
+def test_an_abort_after_take_off_lets_the_run_finish_safely_and_end_aborted(state, feed, to):
+    """Already heading home: the abort neither freezes the run nor closes anything early."""
+    t = advance(state, obs(abort_requested=True, abort_reason="fog", **feed))
+    assert t is not None and t.to is to
+    if to is State.aborted:
+        assert t.cause == "operator_abort"
