@@ -26,7 +26,7 @@ from assetlink.outbox import AsyncOutbox
 from asynckit.tasks import cancel_and_wait
 from protocol import vocabulary
 from protocol.messages import Command, CommandProgress, CommandResultPayload, now_ms
-from protocol.vocabulary import CommandParams
+from protocol.vocabulary import CommandParams, CommandStatus
 
 log = logging.getLogger(__name__)
 
@@ -60,10 +60,10 @@ Handler = Callable[[CommandRequest[Any]], HandlerOutput]
 
 
 def result(
-    status: str, reason: str = "", data: dict[str, Any] | None = None
+    status: CommandStatus, reason: str = "", data: dict[str, Any] | None = None
 ) -> CommandResultPayload:
     """Shorthand for a command result."""
-    return CommandResultPayload(status=status, reason=reason, data=data)  # type: ignore[arg-type]
+    return CommandResultPayload(status=status, reason=reason, data=data)
 
 
 @dataclass(slots=True)

@@ -175,7 +175,8 @@ class RunEngine:
         for row in rows:
             if row.command_id is not None:
                 continue
-            action = Action(row.target, COMMANDS[row.command])
+            # rows are written from Actions only, so a target is "uav" or "base"
+            action = Action("uav" if row.target == "uav" else "base", COMMANDS[row.command])
             asset_id = run.uav_id if action.target == "uav" else run.base_id
             cmd = await commands.create(
                 db,

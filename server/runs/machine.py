@@ -24,7 +24,7 @@ from __future__ import annotations
 import enum
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 from protocol.vocabulary import (
     FINAL_STATUSES,
@@ -62,7 +62,8 @@ class State(enum.StrEnum):
 FINAL = frozenset({State.completed, State.aborted, State.failed})
 AIRBORNE = frozenset({State.flying, State.landing})
 TOTAL_STEPS = 8
-WHO = {"base": "the base", "uav": "the UAV"}
+Target = Literal["base", "uav"]
+WHO: dict[str, str] = {"base": "the base", "uav": "the UAV"}
 
 
 @dataclass(frozen=True)
@@ -73,7 +74,7 @@ class Action:
     UAV's mass) when it issues it.
     """
 
-    target: str  # "base" | "uav"
+    target: Target
     command: type[CommandParams]
 
     @property
