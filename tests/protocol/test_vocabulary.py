@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import typing
+from pathlib import Path
 
 import pytest
 from pydantic import ValidationError
 
 from protocol import vocabulary as v
-from protocol.messages import CommandResultPayload
+from protocol.codec import decode
+from protocol.messages import Command, CommandResultPayload
 
 EXAMPLES: dict[str, dict[str, object]] = {
     "check_availability": {"mass_g": 1450.0, "mass_window_g": 300.0},
@@ -79,3 +81,10 @@ def test_availability_report_lists_failures_consistently() -> None:
 def test_final_statuses_are_the_ones_a_result_ends_on() -> None:
     finals = {s for s in typing.get_args(v.CommandStatus) if CommandResultPayload(status=s).final}
     assert finals == v.FINAL_STATUSES
+
+
+def test_the_golden_command_is_a_command_of_the_vocabulary() -> None:
+    text = (Path(__file__).parent / "golden" / "command.json").read_text()
+    msg = decode(text, "server_to_asset")
+    assert isinstance(msg, Command)
+    assert v.parse(msg.payload.name, msg.payload.params) == v.StartCharging(current_limit_ma=4000)
