@@ -10,7 +10,6 @@ from __future__ import annotations
 import asyncio
 import inspect
 import logging
-import time
 from collections import Counter
 from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass, field
@@ -21,6 +20,7 @@ from websockets.exceptions import ConnectionClosed
 
 from assetlink.dispatch import CommandDispatcher
 from assetlink.outbox import AsyncOutbox
+from asynckit.ratelimit import TokenBucket
 from asynckit.tasks import cancel_and_wait
 from protocol.codec import DecodeError, decode, encode
 from protocol.messages import Ack, Command, Error, HelloPayload, Rtcm, Welcome, envelope
@@ -42,42 +42,6 @@ class LinkClosed(Exception):
         super().__init__(f"closed with {code} {reason}".strip())
         self.code = code
         self.reason = reason
-
-
-class TokenBucket:
-    """Paces sends: `rate` per second on average, at most `burst` at once."""
-
-    def __init__(self, rate: float, burst: float, clock: Callable[[], float] = time.monotonic):
-        """Start full."""
-        if rate <= 0 or burst < 1:
-            raise ValueError("rate must be positive and burst at least 1")
-        self.rate = rate
-        self.burst = burst
-        self._clock = clock
-        self._tokens = burst
-        self._at = clock()
-
-    def delay(self) -> float:
-        """Take a token and return 0, or return how long to wait before one is available."""
-        now = self._clock()
-        self._tokens = min(self.burst, self._tokens + (now - self._at) * self.rate)
-        self._at = now
-        if self._tokens >= 1:
-            self._tokens -= 1
-            return 0.0
-        return (1 - self._tokens) / self.rate
-
-    def slow_down(self, factor: float = 0.5, min_rate: float = 1.0) -> None:
-        """Cut the rate and the burst by `factor` (the server said we were too fast)."""
-        self.rate = max(min_rate, self.rate * factor)
-        self.burst = max(1.0, self.burst * factor)
-        self._tokens = min(self._tokens, self.burst)
-
-    async def acquire(self) -> None:
-        """Wait until a token is available and take it."""
-        # Pacing by the clock, not waiting for another task: nothing to signal an Event.
-        while (wait := self.delay()) > 0:  # noqa: ASYNC110
-            await asyncio.sleep(wait)
 
 
 @dataclass

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
-from typing import Any
 
 from fastapi import FastAPI
 from fastapi.middleware.gzip import GZipMiddleware
+from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
 from server import migrate
 from server.assets.endpoints import router as assets_router
@@ -17,6 +17,7 @@ from server.audit.endpoints import router as audit_router
 from server.auth.endpoints import router as auth_router
 from server.commands.endpoints import router as commands_router
 from server.config import Settings
+from server.deps import services_of, set_services
 from server.health import router as health_router
 from server.kit.db import make_engine, make_sessionmaker
 from server.kit.errors import RejectNulBytes, install_error_handlers
@@ -31,19 +32,20 @@ from server.runs.endpoints import router as runs_router
 from server.runs.engine import RunEngine
 from server.schedules.endpoints import router as schedules_router
 from server.schedules.service import Scheduler
+from server.services import Services
 from server.stations.ntrip import ntrip_router
 from server.stations.service import BaseCorrections, caster_authenticator
 from server.telemetry.endpoints import router as telemetry_router
 from server.telemetry.sql import SqlTelemetryStore
-from server.telemetry.store import retention_loop
+from server.telemetry.store import TelemetryStore, retention_loop
 
 log = logging.getLogger(__name__)
 VERSION = "0.1.0"
 
-SessionEndListener = Callable[[list[Any]], Awaitable[None]]
 
-
-def make_telemetry_store(settings: Settings, sessionmaker, dialect: str):  # type: ignore[no-untyped-def]
+def make_telemetry_store(
+    settings: Settings, sessionmaker: async_sessionmaker[AsyncSession], dialect: str
+) -> TelemetryStore:
     """InfluxDB when INFLUXDB_URL is set, else the SQL table."""
     if settings.influxdb_url:
         from server.telemetry.influx import InfluxTelemetryStore
@@ -55,6 +57,9 @@ def make_telemetry_store(settings: Settings, sessionmaker, dialect: str):  # typ
 def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the application; nothing connects until its lifespan starts."""
     settings = settings or Settings()
+    passwords = Passwords(
+        settings.argon2_time_cost, settings.argon2_memory_kib, settings.argon2_parallelism
+    )
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -64,26 +69,34 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if settings.migrate_on_start:
             await asyncio.to_thread(migrate.upgrade, settings.database_url)
         engine = make_engine(settings.database_url)
-        app.state.engine = engine
-        app.state.sessionmaker = make_sessionmaker(engine)
-        app.state.broker = make_broker(settings.redis_url)
-        await app.state.broker.start()
-        app.state.telemetry = make_telemetry_store(
-            settings, app.state.sessionmaker, engine.dialect.name
+        sessionmaker = make_sessionmaker(engine)
+        broker = make_broker(settings.redis_url)
+        await broker.start()
+        telemetry = make_telemetry_store(settings, sessionmaker, engine.dialect.name)
+        await telemetry.start()
+        ingest = Ingest(sessionmaker, telemetry)
+        ingest.start()
+        hub = Hub(broker, sessionmaker)
+        await hub.start()
+        services = Services(
+            settings=settings,
+            passwords=passwords,
+            engine=engine,
+            sessionmaker=sessionmaker,
+            broker=broker,
+            telemetry=telemetry,
+            ingest=ingest,
+            hub=hub,
+            session_end_listeners=(hub.sessions_ended,),
         )
-        await app.state.telemetry.start()
-        app.state.ingest = Ingest(app.state.sessionmaker, app.state.telemetry)
-        app.state.ingest.start()
-        app.state.hub = Hub(app.state.broker, app.state.sessionmaker)
-        await app.state.hub.start()
-        app.state.session_end_listeners.append(app.state.hub.sessions_ended)
-        app.state.runs = RunEngine(app.state, settings, app.state.hub.node)
-        app.state.scheduler = Scheduler(app.state, grace_s=settings.schedule_grace_s)
+        set_services(app, services)
+        runs = RunEngine(services, hub.node)
+        scheduler = Scheduler(services, grace_s=settings.schedule_grace_s)
         if settings.run_engine:
-            app.state.runs.start()
-            app.state.scheduler.start()
+            runs.start()
+            scheduler.start()
         retention = asyncio.create_task(
-            retention_loop(app.state.telemetry, settings.telemetry_retention_days)
+            retention_loop(telemetry, settings.telemetry_retention_days)
         )
         log.info(
             "server started", extra={"database": engine.url.render_as_string(hide_password=True)}
@@ -92,12 +105,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             retention.cancel()
-            await app.state.scheduler.stop()
-            await app.state.runs.stop()
-            await app.state.hub.stop()
-            await app.state.ingest.stop()
-            await app.state.telemetry.close()
-            await app.state.broker.close()
+            await scheduler.stop()
+            await runs.stop()
+            await hub.stop()
+            await ingest.stop()
+            await telemetry.close()
+            await broker.close()
             await engine.dispose()
 
     app = FastAPI(
@@ -109,11 +122,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         redoc_url=None,
         description="REST API of the Aerobase drone-in-a-box platform. See frontend_api.md.",
     )
-    app.state.settings = settings
-    app.state.passwords = Passwords(
-        settings.argon2_time_cost, settings.argon2_memory_kib, settings.argon2_parallelism
-    )
-    app.state.session_end_listeners = []  # async callables given the ids of ended sessions
     app.add_middleware(GZipMiddleware, minimum_size=2048)
     app.add_middleware(RejectNulBytes)
     install_error_handlers(app)
@@ -131,9 +139,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         schedules_router,
     ):
         app.include_router(router)
+
+    # the caster's router exists before the lifespan builds the services: it reads them per request
+    def services() -> Services:
+        return services_of(app)
+
     # NTRIP is its own protocol (basic auth, gnss/* content types): served beside the REST API
     app.include_router(
-        ntrip_router(BaseCorrections(app.state), caster_authenticator(app.state, settings)),
+        ntrip_router(BaseCorrections(services), caster_authenticator(services)),
         include_in_schema=False,
     )
     return app

@@ -5,8 +5,9 @@ from __future__ import annotations
 from collections.abc import AsyncIterator, Callable, Coroutine
 from typing import Annotated, Any
 
-from fastapi import Depends, Request
+from fastapi import Depends, FastAPI, Request
 from sqlalchemy.ext.asyncio import AsyncSession
+from starlette.requests import HTTPConnection
 
 from server.auth.models import AuthSession
 from server.auth.service import SessionService
@@ -16,11 +17,33 @@ from server.kit.scope import Principal
 from server.kit.security import Passwords
 from server.organizations.models import Role, User
 from server.organizations.repository import MembershipRepository
+from server.services import Services
+
+
+def set_services(app: FastAPI, services: Services) -> None:
+    """Hand the lifespan's services to the app's routes."""
+    app.state.services = services
+
+
+def services_of(app: FastAPI) -> Services:
+    """The services of a running app (built by its lifespan)."""
+    services = app.state.services
+    if not isinstance(services, Services):  # never expected: the lifespan sets it before serving
+        raise RuntimeError("the app's lifespan has not built its services")
+    return services
+
+
+def get_services(conn: HTTPConnection) -> Services:
+    """The server's services, for an HTTP request or a WebSocket."""
+    return services_of(conn.app)
+
+
+ServicesDep = Annotated[Services, Depends(get_services)]
 
 
 async def get_db(request: Request) -> AsyncIterator[AsyncSession]:
     """One transaction per request: committed when the endpoint succeeds, rolled back otherwise."""
-    async with request.app.state.sessionmaker() as db:
+    async with get_services(request).sessionmaker() as db:
         try:
             yield db
             await db.commit()
@@ -31,12 +54,12 @@ async def get_db(request: Request) -> AsyncIterator[AsyncSession]:
 
 def get_settings(request: Request) -> Settings:
     """The server's settings."""
-    return request.app.state.settings  # type: ignore[no-any-return]
+    return get_services(request).settings
 
 
 def get_passwords(request: Request) -> Passwords:
     """The configured password hasher."""
-    return request.app.state.passwords  # type: ignore[no-any-return]
+    return get_services(request).passwords
 
 
 # scope="function": commit before the response is sent, so a client never reads before the write lands

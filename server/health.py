@@ -6,15 +6,17 @@ from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 from sqlalchemy import text
 
+from server.deps import ServicesDep
+
 router = APIRouter(tags=["health"])
 
 
 @router.get("/api/health")
-async def health(request: Request) -> JSONResponse:
+async def health(request: Request, services: ServicesDep) -> JSONResponse:
     """200 with the database reachable, 503 when it is not."""
     database = "ok"
     try:
-        async with request.app.state.engine.connect() as conn:
+        async with services.engine.connect() as conn:
             await conn.execute(text("SELECT 1"))
     except Exception as err:  # any driver error means unreachable
         database = f"unreachable: {type(err).__name__}"

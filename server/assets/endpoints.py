@@ -13,7 +13,7 @@ from server.assets.schemas import AssetCreate, AssetCreated, AssetOut, AssetUpda
 from server.assets.service import AssetService
 from server.audit.service import record
 from server.auth.service import SessionService
-from server.deps import DB, Admin, SettingsDep, Viewer, client_addr
+from server.deps import DB, Admin, SettingsDep, Viewer, client_addr, get_services
 
 router = APIRouter(tags=["assets"])
 
@@ -29,7 +29,7 @@ async def _end_sessions(
 ) -> None:
     ended = await SessionService(db, settings).end_all_for_asset(asset_id, reason)
     await db.commit()
-    for listener in request.app.state.session_end_listeners:
+    for listener in get_services(request).session_end_listeners:
         await listener(ended)
 
 

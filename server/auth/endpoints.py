@@ -23,6 +23,7 @@ from server.deps import (
     SettingsDep,
     client_addr,
     current_session,
+    get_services,
 )
 from server.kit.errors import Unauthorized, Unprocessable
 from server.kit.security import same_hash, token_hash
@@ -41,7 +42,7 @@ def _token(issued: IssuedToken) -> TokenResponse:
 
 
 async def _notify_ended(request: Request, issued: IssuedToken) -> None:
-    for listener in request.app.state.session_end_listeners:
+    for listener in get_services(request).session_end_listeners:
         await listener(list(issued.ended_sessions))
 
 
@@ -134,7 +135,7 @@ async def logout(request: Request, db: DB, settings: SettingsDep) -> Response:
     session = await current_session(request, db, settings)
     await SessionService(db, settings).end(session, "logout")
     await db.commit()
-    for listener in request.app.state.session_end_listeners:
+    for listener in get_services(request).session_end_listeners:
         await listener([session.id])
     return Response(status_code=204)
 

@@ -6,14 +6,15 @@ import uuid
 from datetime import datetime
 from typing import Any
 
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Query
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.assets.repository import AssetRepository
 from server.commands import service
 from server.commands.repository import CommandRepository
-from server.deps import DB, Operator, Viewer
+from server.deps import DB, Operator, ServicesDep, Viewer
 from server.kit.types import Name
+from server.realtime.channels import command_channel
 
 router = APIRouter(tags=["commands"])
 
@@ -56,7 +57,7 @@ class CommandOut(BaseModel):
 
 @router.post("/api/v1/assets/{asset_id}/commands", status_code=202, response_model=CommandOut)
 async def send_command(
-    asset_id: uuid.UUID, body: CommandCreate, principal: Operator, request: Request, db: DB
+    asset_id: uuid.UUID, body: CommandCreate, principal: Operator, services: ServicesDep, db: DB
 ) -> CommandOut:
     """Queue a command; it reaches the asset through whichever server process holds its socket."""
     asset = await AssetRepository(db, principal).get(asset_id)
@@ -69,7 +70,7 @@ async def send_command(
         created_by=principal.actor_id,
     )
     await db.commit()
-    await request.app.state.broker.publish(f"cmd.{asset.id}", {"command_id": str(cmd.id)})
+    await services.broker.publish(command_channel(asset.id), {"command_id": str(cmd.id)})
     return CommandOut.model_validate(cmd)
 
 

@@ -1,20 +1,15 @@
 """The per-process hub: live asset and operator connections, wired to the broker and the ingest.
 
-Channels on the broker:
-  `asset.<id>`        what an asset sent (telemetry, event, command_result), for operators
-  `cmd.<id>`          a nudge: commands are waiting for this asset (delivered from the database)
-  `sessions.ended`    {"ids": [...]}: close those sessions' sockets (code 4001)
-Presence key `conn.asset.<id>`: one live connection per asset across every process.
+The channels it uses are named in `server.realtime.channels`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
-import time
 import uuid
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
@@ -23,31 +18,9 @@ from protocol.messages import CommandResultPayload, envelope
 from server.commands import service as commands
 from server.kit.periodic import Periodic
 from server.realtime.broker import Broker
+from server.realtime.channels import asset_channel, sessions_ended_channel
 
 log = logging.getLogger(__name__)
-
-
-@dataclass
-class TokenBucket:
-    """Rate limit: `rate` messages a second with bursts of `burst`."""
-
-    rate: float
-    burst: float
-    tokens: float = 0.0
-    stamp: float = field(default_factory=time.monotonic)
-
-    def __post_init__(self) -> None:
-        self.tokens = self.burst
-
-    def take(self) -> bool:
-        """True when a message may pass."""
-        now = time.monotonic()
-        self.tokens = min(self.burst, self.tokens + (now - self.stamp) * self.rate)
-        self.stamp = now
-        if self.tokens >= 1:
-            self.tokens -= 1
-            return True
-        return False
 
 
 @dataclass
@@ -75,7 +48,7 @@ class Hub:
 
     async def start(self) -> None:
         """Listen for ended sessions and run the command-deadline sweeper."""
-        self.broker.subscribe("sessions.ended", self._on_sessions_ended)
+        self.broker.subscribe(sessions_ended_channel(), self._on_sessions_ended)
         self._sweeper.start()
 
     async def stop(self) -> None:
@@ -85,7 +58,7 @@ class Hub:
     async def sessions_ended(self, ids: list[Any]) -> None:
         """Tell every process to close these sessions' sockets (code 4001)."""
         if ids:
-            await self.broker.publish("sessions.ended", {"ids": [str(i) for i in ids]})
+            await self.broker.publish(sessions_ended_channel(), {"ids": [str(i) for i in ids]})
 
     def _on_sessions_ended(self, message: dict[str, Any]) -> None:
         for raw in message.get("ids", ()):
@@ -114,4 +87,4 @@ class Hub:
                 CommandResultPayload(asset_id=cmd.asset_id, status="timed_out", reason=cmd.reason),
                 re=cmd.id,
             )
-            await self.broker.publish(f"asset.{cmd.asset_id}", message.model_dump(mode="json"))
+            await self.broker.publish(asset_channel(cmd.asset_id), message.model_dump(mode="json"))

@@ -1,8 +1,9 @@
 """Durable storage of what assets send, in batches shared by every connection of this process.
 
 A connection hands over (stream, seq, message); the batcher stores telemetry through the telemetry
-store and events, command results and the stream's position in one transaction, then resolves the
-connection's future so it can ack. Writes are idempotent (a replay after a crash stores nothing twice).
+store, then events and stream positions (telemetry service) and command results (commands service)
+in one transaction per batch, then resolves the connection's future so it can ack. Writes are
+idempotent (a replay after a crash stores nothing twice).
 """
 
 from __future__ import annotations
@@ -14,12 +15,11 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import select
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
 from asynckit.tasks import cancel_and_wait
-from server.commands.service import apply_result
-from server.telemetry.models import AssetEvent, AssetStream
+from server.commands import service as commands
+from server.telemetry import service as telemetry
 from server.telemetry.store import Sample, TelemetryStore, flatten
 
 log = logging.getLogger(__name__)
@@ -73,16 +73,11 @@ class Ingest:
         await cancel_and_wait([self._task])
 
     async def last_seq(self, stream_id: uuid.UUID, asset_id: uuid.UUID) -> int:
-        """The highest stored seq of a stream (0 for a new stream)."""
+        """The highest stored seq of a stream (0 for a new stream); raises StreamOfAnotherAsset."""
         async with self.sessionmaker() as db:
-            row = await db.get(AssetStream, stream_id)
-            if row is None:
-                db.add(AssetStream(stream_id=stream_id, asset_id=asset_id, last_seq=0))
-                await db.commit()
-                return 0
-            if row.asset_id != asset_id:
-                raise ValueError("stream belongs to another asset")
-            return int(row.last_seq)
+            position = await telemetry.stream_position(db, stream_id, asset_id)
+            await db.commit()
+            return position
 
     def submit(self, item: Item) -> asyncio.Future[None]:
         """Queue an item; the future resolves once it is stored."""
@@ -127,27 +122,10 @@ class Ingest:
             for item in batch:
                 highest[item.stream_id] = max(highest.get(item.stream_id, 0), item.seq)
                 if item.kind == "event":
-                    p = item.payload
-                    db.add(
-                        AssetEvent(
-                            organization_id=item.organization_id,
-                            asset_id=item.asset_id,
-                            ts=_ts(item.ts_ms),
-                            name=str(p.get("name", ""))[:200],
-                            severity=str(p.get("severity", "info")),
-                            message=str(p.get("message", ""))[:2000],
-                            data=p.get("data") or {},
-                        )
+                    telemetry.record_event(
+                        db, item.organization_id, item.asset_id, _ts(item.ts_ms), item.payload
                     )
                 elif item.kind == "command_result" and item.re is not None:
-                    await apply_result(db, item.re, item.asset_id, item.payload)
-            rows = (
-                await db.execute(
-                    select(AssetStream).where(  # unscoped: streams of connected assets
-                        AssetStream.stream_id.in_(list(highest))
-                    )
-                )
-            ).scalars()
-            for row in rows:
-                row.last_seq = max(row.last_seq, highest[row.stream_id])
+                    await commands.apply_result(db, item.re, item.asset_id, item.payload)
+            await telemetry.advance_streams(db, highest)
             await db.commit()

@@ -5,10 +5,10 @@ from __future__ import annotations
 import uuid
 from datetime import datetime, timedelta
 
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Query
 
 from server.assets.repository import AssetRepository
-from server.deps import DB, Operator, Viewer
+from server.deps import DB, Operator, ServicesDep, Viewer
 from server.kit.errors import Conflict, Unprocessable
 from server.kit.time import utcnow
 from server.runs import service
@@ -71,11 +71,13 @@ async def abort_run(run_id: uuid.UUID, body: AbortRequest, principal: Operator, 
 
 
 @router.get("/api/v1/runs/{run_id}/report", response_model=RunReport)
-async def run_report(run_id: uuid.UUID, principal: Viewer, request: Request, db: DB) -> RunReport:
+async def run_report(
+    run_id: uuid.UUID, principal: Viewer, services: ServicesDep, db: DB
+) -> RunReport:
     """The flight history of a run: timeline, track, battery used, landing error, outcome and cause."""
     repo = RunRepository(db, principal)
     run = await repo.get(run_id)
-    return await service.report(repo, request.app.state.telemetry, run)
+    return await service.report(repo, services.telemetry, run)
 
 
 @router.get("/api/v1/reports/fleet", response_model=FleetReport)

@@ -27,6 +27,7 @@ from server.assets.models import Asset
 from server.commands import service as commands
 from server.kit.periodic import Periodic
 from server.kit.time import utcnow
+from server.realtime.channels import asset_channel, command_channel
 from server.runs import repository as repo
 from server.runs.machine import (
     FINAL,
@@ -40,6 +41,7 @@ from server.runs.machine import (
     advance,
 )
 from server.runs.models import Run, RunTransition
+from server.services import Services
 
 log = logging.getLogger(__name__)
 LEASE_S = 15.0
@@ -70,9 +72,10 @@ def progress_payload(run: Run, label_override: str | None = None) -> RunProgress
 class RunEngine:
     """The per-process loop that advances every run it holds the lease of."""
 
-    def __init__(self, state: Any, settings: Any, node: str, tick_s: float = 0.25) -> None:
-        self.state = state  # app.state: sessionmaker, broker, telemetry store
-        self.settings = settings
+    def __init__(self, services: Services, node: str, tick_s: float = 0.25) -> None:
+        """Drive runs with `services` (sessionmaker, broker, telemetry store, settings)."""
+        self.services = services
+        self.settings = services.settings
         self.node = f"runs-{node}"
         self._periodic = Periodic("run-engine", self.tick, tick_s)
 
@@ -91,7 +94,7 @@ class RunEngine:
     async def tick(self) -> None:
         """Lease runs, then drive each one step."""
         now = utcnow()
-        async with self.state.sessionmaker() as db:
+        async with self.services.sessionmaker() as db:
             ids = await repo.claim(db, self.node, now, now + timedelta(seconds=LEASE_S))
             await db.commit()
         for run_id in ids:
@@ -102,7 +105,7 @@ class RunEngine:
 
     async def drive(self, run_id: uuid.UUID) -> None:
         """Issue the current step's commands if not yet out, else look and maybe transition."""
-        async with self.state.sessionmaker() as db:
+        async with self.services.sessionmaker() as db:
             run = await repo.lock(db, run_id)
             if run is None or run.lease_owner != self.node:
                 return
@@ -110,7 +113,9 @@ class RunEngine:
                 nudges = await self._issue(db, run)
                 await db.commit()
                 for asset_id in nudges:
-                    await self.state.broker.publish(f"cmd.{asset_id}", {"run_id": str(run.id)})
+                    await self.services.broker.publish(
+                        command_channel(asset_id), {"run_id": str(run.id)}
+                    )
                 return
             if State(run.state) in FINAL:
                 return
@@ -162,7 +167,7 @@ class RunEngine:
     async def _publish(self, run: Run) -> None:
         message = RunProgress(payload=progress_payload(run)).model_dump(mode="json")
         for asset_id in {run.uav_id, run.base_id}:
-            await self.state.broker.publish(f"asset.{asset_id}", message)
+            await self.services.broker.publish(asset_channel(asset_id), message)
 
     async def _issue(self, db: Any, run: Run) -> set[uuid.UUID]:
         """Create the step's pending commands; the assets to nudge."""
@@ -221,7 +226,7 @@ class RunEngine:
         since = run.step_started_at
         uav_events = await repo.event_names_since(db, run.uav_id, since)
         base_events = await repo.event_names_since(db, run.base_id, since)
-        store = self.state.telemetry
+        store = self.services.telemetry
         uav = await store.latest(run.uav_id) or {}
         base = await store.latest(run.base_id) or {}
         landed = (

@@ -19,6 +19,7 @@ from server.runs.service import create_run
 from server.schedules.models import Schedule
 from server.schedules.repository import claim_due
 from server.schedules.timing import decide, next_after
+from server.services import Services
 
 log = logging.getLogger(__name__)
 
@@ -41,8 +42,9 @@ def advance_schedule(s: Schedule, after: Any) -> None:
 class Scheduler:
     """The per-process loop; every replica runs one, the row lock makes each due time fire once."""
 
-    def __init__(self, state: Any, grace_s: float = 60.0, tick_s: float = 1.0) -> None:
-        self.state = state
+    def __init__(self, services: Services, grace_s: float = 60.0, tick_s: float = 1.0) -> None:
+        """Fire schedules through `services` (its sessionmaker), every `tick_s` seconds."""
+        self.services = services
         self.grace_s = grace_s
         self._periodic = Periodic("scheduler", self.tick, tick_s)
 
@@ -57,7 +59,7 @@ class Scheduler:
     async def tick(self) -> None:
         """Fire every due schedule once."""
         now = utcnow()
-        async with self.state.sessionmaker() as db:
+        async with self.services.sessionmaker() as db:
             for s in await claim_due(db, now):
                 firing = decide(s.next_due_at, now, s.missed_policy, self.grace_s)  # type: ignore[arg-type]
                 s.last_result = firing.note

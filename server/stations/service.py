@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import asyncio
 import uuid
-from collections.abc import AsyncIterator
-from typing import Any
+from collections.abc import AsyncIterator, Awaitable, Callable
 
-from server.config import Settings
 from server.kit.errors import RateLimited
 from server.kit.time import utcnow
 from server.organizations.repository import UserRepository
+from server.realtime.channels import rtcm_channel
+from server.services import Services
 from server.stations.ntrip import Mountpoint, broker_frames, format_details, mountpoint_name
 from server.stations.repository import all_bases
 
@@ -18,14 +18,13 @@ from server.stations.repository import all_bases
 class BaseCorrections:
     """One NTRIP mountpoint per landing base, fed by the broker channel its daemon publishes to."""
 
-    def __init__(self, state: Any) -> None:
-        self.state = (
-            state  # the app's state: sessionmaker and broker exist once the app has started
-        )
+    def __init__(self, services: Callable[[], Services]) -> None:
+        """`services` returns the running app's services (they exist once its lifespan started)."""
+        self.services = services
 
     async def mountpoints(self) -> list[Mountpoint]:
         """A mountpoint for every landing base (position from its attributes when surveyed)."""
-        async with self.state.sessionmaker() as db:
+        async with self.services().sessionmaker() as db:
             bases = await all_bases(db)
         out = []
         for base in bases:
@@ -45,14 +44,20 @@ class BaseCorrections:
 
     def subscribe(self, mountpoint: Mountpoint) -> AsyncIterator[bytes]:
         """Live frames of the base behind `mountpoint`."""
-        return broker_frames(self.state.broker, f"rtcm.{mountpoint.asset_id}")
+        return broker_frames(
+            self.services().broker, rtcm_channel(uuid.UUID(str(mountpoint.asset_id)))
+        )
 
 
-def caster_authenticator(state: Any, settings: Settings):  # type: ignore[no-untyped-def]
+def caster_authenticator(
+    services: Callable[[], Services],
+) -> Callable[[str, str], Awaitable[uuid.UUID | None]]:
     """`authenticate(username, password)` for the caster: a user's e-mail and password -> organisation."""
     from server.auth.service import RateLimiter
 
     async def authenticate(username: str, password: str) -> uuid.UUID | None:
+        state = services()
+        settings = state.settings
         async with state.sessionmaker() as db:
             limiter = RateLimiter(db, settings)
             try:

@@ -6,11 +6,11 @@ import uuid
 from datetime import datetime, timedelta
 from typing import Any, Literal
 
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Query
 from pydantic import BaseModel, ConfigDict
 
 from server.assets.repository import AssetRepository
-from server.deps import DB, Viewer
+from server.deps import DB, ServicesDep, Viewer
 from server.kit.errors import NotFound, Unprocessable
 from server.kit.time import utcnow
 from server.telemetry.repository import EventRepository
@@ -49,7 +49,7 @@ def _range(start: datetime | None, end: datetime | None) -> tuple[datetime, date
 async def telemetry(
     asset_id: uuid.UUID,
     principal: Viewer,
-    request: Request,
+    services: ServicesDep,
     db: DB,
     start: datetime | None = None,
     end: datetime | None = None,
@@ -62,18 +62,18 @@ async def telemetry(
     await AssetRepository(db, principal).get(asset_id)
     start, end = _range(start, end)
     wanted = [f.strip() for f in fields.split(",") if f.strip()] if fields else None
-    return await request.app.state.telemetry.query(
+    return await services.telemetry.query(
         StoreQuery(asset_id, start, end, wanted, every, agg, limit)
     )  # type: ignore[no-any-return]
 
 
 @router.get("/api/v1/assets/{asset_id}/telemetry/latest")
 async def telemetry_latest(
-    asset_id: uuid.UUID, principal: Viewer, request: Request, db: DB
+    asset_id: uuid.UUID, principal: Viewer, services: ServicesDep, db: DB
 ) -> dict[str, Any]:
     """The newest sample of an asset."""
     await AssetRepository(db, principal).get(asset_id)
-    row = await request.app.state.telemetry.latest(asset_id)
+    row = await services.telemetry.latest(asset_id)
     if row is None:
         raise NotFound(f"asset {asset_id} has sent no telemetry yet")
     return row  # type: ignore[no-any-return]

@@ -1,8 +1,8 @@
 """Telemetry in InfluxDB: 1.x (HTTP /write + InfluxQL), 2.x (v2 write API + Flux), 3.x (v2 write + InfluxQL).
 
-Layout: measurement `telemetry`, tag `asset_id`, one field per flat sample field plus the integer
-field `seq`, timestamp in nanoseconds. Numbers other than `seq` are stored as floats so a field
-never changes type between samples (InfluxDB refuses a type change within a shard).
+This module holds the store and its transport (httpx for /ping, /write and /query; influxdb-client
+for the v2 APIs); the layout and line protocol are in `influx_lines`, the query text and answer
+parsing of each dialect in `influx_ql` and `influx_flux`.
 
 Exactly-once: a point is identified by (measurement, tag set, timestamp), so writing the same
 (asset_id, ts) again overwrites its field values instead of adding a row; replaying a batch after
@@ -16,237 +16,47 @@ import asyncio
 import logging
 import uuid
 from collections.abc import Sequence
-from datetime import UTC, datetime, timedelta
+from datetime import datetime
 from typing import Any
 
 import httpx
-from influxdb_client import InfluxDBClient, Point, WritePrecision
+from influxdb_client import InfluxDBClient, WritePrecision
 from influxdb_client.client.write_api import SYNCHRONOUS
 from influxdb_client.domain.bucket_retention_rules import BucketRetentionRules
 from influxdb_client.rest import ApiException
 
+from server.telemetry.influx_flux import (
+    PIVOT,
+    flux_base,
+    flux_downsampled,
+    flux_raw,
+    flux_string,
+    rows_of_flux,
+)
+from server.telemetry.influx_lines import (
+    MEASUREMENT,
+    NS_MAX,
+    NS_MIN,
+    InfluxStoreError,
+    clamp_ns,
+    major_version,
+    rfc3339,
+    to_line,
+    to_ns,
+)
+from server.telemetry.influx_ql import (
+    plain_rows,
+    ql_downsampled,
+    ql_ident,
+    ql_raw,
+    ql_string,
+    rows_of_influxql,
+)
 from server.telemetry.store import Query, Sample
 
 log = logging.getLogger(__name__)
 
-MEASUREMENT = "telemetry"
-EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
-NS_MIN, NS_MAX = -9_223_372_036_854_775_806, 9_223_372_036_854_775_806  # InfluxDB's time range
-RESERVED = frozenset({"time", "seq", "asset_id", "_time", "_field", "_value", "_measurement"})
 WRITE_CHUNK = 5000
-FLUX_META = frozenset({"result", "table", "asset_id", "seq"})
-
-
-class InfluxStoreError(RuntimeError):
-    """InfluxDB refused or failed a request that may succeed when retried."""
-
-
-# ---------------------------------------------------------------- pure helpers
-
-
-def to_ns(ts: datetime) -> int:
-    """An aware (or naive UTC) datetime -> integer nanoseconds since the epoch, exactly."""
-    if ts.tzinfo is None:
-        ts = ts.replace(tzinfo=UTC)
-    return (ts - EPOCH) // timedelta(microseconds=1) * 1000
-
-
-def clamp_ns(ts: datetime) -> int:
-    """Nanoseconds since the epoch clamped into the range InfluxDB accepts in a query."""
-    try:
-        return max(NS_MIN, min(NS_MAX, to_ns(ts)))
-    except OverflowError:
-        return NS_MIN if ts.year < 1970 else NS_MAX
-
-
-def iso_of_ns(ns: int) -> str:
-    """Integer nanoseconds -> ISO 8601 UTC (microsecond resolution, like our datetimes)."""
-    return (EPOCH + timedelta(microseconds=ns // 1000)).isoformat()
-
-
-def rfc3339(ns: int) -> str:
-    """Integer nanoseconds -> an RFC 3339 literal with nanoseconds (Flux and the delete API)."""
-    whole = EPOCH + timedelta(seconds=ns // 1_000_000_000)
-    return whole.strftime("%Y-%m-%dT%H:%M:%S") + f".{ns % 1_000_000_000:09d}Z"
-
-
-def to_line(sample: Sample) -> str | None:
-    """One sample as a line-protocol line, or None when it cannot be stored (logged)."""
-    ns = to_ns(sample.ts)
-    if not NS_MIN <= ns <= NS_MAX:
-        log.warning(
-            "telemetry sample of %s at %s is outside InfluxDB's time range; dropped",
-            sample.asset_id,
-            sample.ts,
-        )
-        return None
-    point = Point(MEASUREMENT).tag("asset_id", str(sample.asset_id)).time(ns, WritePrecision.NS)
-    for name, value in sample.fields.items():
-        if name in RESERVED or not name:
-            log.warning("telemetry field %r is reserved in InfluxDB; dropped", name)
-        elif isinstance(value, int) and not isinstance(value, bool):
-            point.field(name, float(value))
-        else:
-            point.field(name, value)
-    point.field("seq", int(sample.seq))
-    return str(point.to_line_protocol())
-
-
-def ql_ident(name: str) -> str:
-    """An InfluxQL double-quoted identifier."""
-    return '"' + name.replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-
-def ql_string(value: str) -> str:
-    """An InfluxQL single-quoted string literal."""
-    return "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
-
-
-def flux_string(value: str) -> str:
-    """A Flux double-quoted string literal."""
-    return '"' + value.replace("\\", "\\\\").replace('"', '\\"').replace("${", "\\${") + '"'
-
-
-def window_us(q: Query) -> tuple[int, int]:
-    """Bucket width and offset in microseconds: buckets start at `q.start` + k * `q.every_s`."""
-    every = max(1, round((q.every_s or 1) * 1_000_000))
-    return every, (clamp_ns(q.start) // 1000) % every
-
-
-def ql_raw(q: Query, source: str) -> str:
-    """InfluxQL for raw rows of one asset in [start, end), oldest first."""
-    cols = "*" if q.fields is None else ", ".join(ql_ident(f) for f in ["seq", *q.fields])
-    return (
-        f"SELECT {cols} FROM {source} WHERE {_ql_where(q)} "
-        f"ORDER BY time ASC LIMIT {max(1, q.limit)}"
-    )
-
-
-def ql_downsampled(q: Query, source: str, numeric: dict[str, bool]) -> str | None:
-    """InfluxQL for one row per bucket: MEAN/LAST of numbers, LAST of anything else."""
-    names = [f for f in (q.fields if q.fields is not None else sorted(numeric)) if f in numeric]
-    names = [f for f in names if f != "seq"]
-    if not names:
-        return None
-    every, offset = window_us(q)
-    aggs = ", ".join(
-        f"{'MEAN' if q.agg == 'mean' and numeric[f] else 'LAST'}({ql_ident(f)}) AS {ql_ident(f)}"
-        for f in names
-    )
-    return (
-        f"SELECT {aggs} FROM {source} WHERE {_ql_where(q)} "
-        f"GROUP BY time({every}u, {offset}u) fill(none) LIMIT {max(1, q.limit)}"
-    )
-
-
-def _ql_where(q: Query) -> str:
-    return (
-        f"asset_id = {ql_string(str(q.asset_id))} AND time >= {clamp_ns(q.start)} "
-        f"AND time < {clamp_ns(q.end)}"
-    )
-
-
-def rows_of_influxql(body: dict[str, Any], floor_ns: int | None = None) -> list[dict[str, Any]]:
-    """An InfluxQL JSON answer (epoch=ns) -> rows `{"ts": iso, field: value}` without nulls."""
-    rows: list[dict[str, Any]] = []
-    for result in body.get("results", []):
-        if "error" in result:
-            raise InfluxStoreError(result["error"])
-        for series in result.get("series", []):
-            columns = series["columns"]
-            for values in series.get("values", []):
-                record = dict(zip(columns, values, strict=True))
-                ns = int(record.pop("time"))
-                if floor_ns is not None:
-                    ns = max(ns, floor_ns)  # the first bucket may start before the range
-                record.pop("asset_id", None)
-                record.pop("seq", None)  # stored for the record, not part of a row (as in SQL)
-                rows.append(
-                    {"ts": iso_of_ns(ns), **{k: v for k, v in record.items() if v is not None}}
-                )
-    return rows
-
-
-def flux_base(bucket: str, asset_id: uuid.UUID, start_ns: int, stop_ns: int) -> str:
-    """The Flux source of one asset's points in [start, stop)."""
-    return (
-        f"from(bucket: {flux_string(bucket)})\n"
-        f"  |> range(start: {rfc3339(start_ns)}, stop: {rfc3339(stop_ns)})\n"
-        f"  |> filter(fn: (r) => r._measurement == {flux_string(MEASUREMENT)} "
-        f"and r.asset_id == {flux_string(str(asset_id))})\n"
-    )
-
-
-def flux_fields(fields: Sequence[str] | None, *, with_seq: bool) -> str:
-    """A Flux filter keeping only the wanted fields (and `seq` when asked)."""
-    if fields is None:
-        return "" if with_seq else '  |> filter(fn: (r) => r._field != "seq")\n'
-    wanted = (["seq"] if with_seq else []) + [f for f in fields if f != "seq"]
-    return f"  |> filter(fn: (r) => contains(value: r._field, set: [{', '.join(map(flux_string, wanted))}]))\n"
-
-
-PIVOT = (
-    '  |> pivot(rowKey: ["_time"], columnKey: ["_field"], valueColumn: "_value")\n'
-    '  |> group()\n  |> sort(columns: ["_time"])\n'
-)
-
-
-def flux_raw(q: Query, bucket: str) -> str:
-    """Flux for raw rows, oldest first."""
-    return (
-        flux_base(bucket, q.asset_id, clamp_ns(q.start), clamp_ns(q.end))
-        + flux_fields(q.fields, with_seq=True)
-        + PIVOT
-        + f"  |> limit(n: {max(1, q.limit)})\n"
-    )
-
-
-# types.isType needs Flux 0.141 (InfluxDB 2.2+); types.isNumeric would need 0.187
-FLUX_IS_NUMBER = " or ".join(
-    f'types.isType(v: r._value, type: "{t}")' for t in ("float", "int", "uint")
-)
-
-
-def flux_downsampled(q: Query, bucket: str) -> str:
-    """Flux for one row per window (stamped with its start): mean/last of numbers, last of the rest."""
-    every_us, offset_us = window_us(q)
-    window = f"every: {every_us}us, offset: {offset_us}us"
-    fn = "mean" if q.agg == "mean" else "last"
-    return (
-        'import "types"\n'
-        + "data = "
-        + flux_base(bucket, q.asset_id, clamp_ns(q.start), clamp_ns(q.end))
-        + flux_fields(q.fields, with_seq=False)
-        + f"num = data |> filter(fn: (r) => {FLUX_IS_NUMBER})\n"
-        f'  |> aggregateWindow({window}, fn: {fn}, createEmpty: false, timeSrc: "_start")\n'
-        f"other = data |> filter(fn: (r) => not ({FLUX_IS_NUMBER}))\n"
-        f'  |> aggregateWindow({window}, fn: last, createEmpty: false, timeSrc: "_start")\n'
-        "union(tables: [num, other])\n" + PIVOT + f"  |> limit(n: {max(1, q.limit)})\n"
-    )
-
-
-def rows_of_flux(tables: Any) -> list[dict[str, Any]]:
-    """Pivoted Flux tables -> rows `{"ts": iso, field: value}` without nulls or Flux columns."""
-    stamped: list[tuple[datetime, dict[str, Any]]] = []
-    for table in tables:
-        for record in table.records:
-            ts = record.values["_time"].astimezone(UTC)
-            row: dict[str, Any] = {"ts": ts.isoformat()}
-            for key, value in record.values.items():
-                if value is not None and not key.startswith("_") and key not in FLUX_META:
-                    row[key] = value
-            stamped.append((ts, row))
-    stamped.sort(key=lambda pair: pair[0])
-    return [row for _, row in stamped]
-
-
-def major_version(header: str | None) -> int:
-    """The major version from X-Influxdb-Version ("1.6.7~rc0", "v2.7.1", "3.0.1"); 2 if unknown."""
-    digits = (header or "").strip().lstrip("vV").split(".", 1)[0]
-    return int(digits) if digits.isdigit() else 2
-
-
-# ---------------------------------------------------------------- the store
 
 
 class InfluxTelemetryStore:
@@ -326,7 +136,7 @@ class InfluxTelemetryStore:
         self._rp = self._rp or "aerobase"
         seconds = max(3600, int(self.retention_s))  # InfluxDB 1.x refuses less than an hour
         body = await self._ql(f"SHOW RETENTION POLICIES ON {ql_ident(self._db)}")
-        names = {row.get("name") for row in _plain_rows(body)}
+        names = {row.get("name") for row in plain_rows(body)}
         verb = "ALTER" if self._rp in names else "CREATE"
         extra = "" if verb == "ALTER" else " REPLICATION 1"
         await self._ql(
@@ -376,7 +186,7 @@ class InfluxTelemetryStore:
             return rows_of_influxql(await self._ql(ql_raw(q, self._source())))
         body = await self._ql(f"SHOW FIELD KEYS FROM {self._source()}")
         numeric: dict[str, bool] = {}
-        for row in _plain_rows(body):
+        for row in plain_rows(body):
             name, is_num = row["fieldKey"], row["fieldType"] in ("float", "integer")
             numeric[name] = numeric.get(name, True) and is_num
         text = ql_downsampled(q, self._source(), numeric)
@@ -420,7 +230,7 @@ class InfluxTelemetryStore:
                 "InfluxDB %s: prune is left to the database's retention period", self.version
             )
             return 0
-        counted = _plain_rows(
+        counted = plain_rows(
             await self._ql(f'SELECT COUNT("seq") AS n FROM {self._source()} WHERE time < {cut}')
         )
         await self._ql(f"DELETE FROM {ql_ident(MEASUREMENT)} WHERE time < {cut}")
@@ -506,13 +316,3 @@ class InfluxTelemetryStore:
             bucket=self.bucket,
             org=self.org,
         )
-
-
-def _plain_rows(body: dict[str, Any]) -> list[dict[str, Any]]:
-    """Every series' rows of an InfluxQL answer as dicts (column -> value), nothing dropped."""
-    return [
-        dict(zip(series["columns"], values, strict=True))
-        for result in body.get("results", [])
-        for series in result.get("series", [])
-        for values in series.get("values", [])
-    ]

@@ -1,12 +1,16 @@
-"""All SQL of asset events read through the API."""
+"""All SQL of asset events and stream positions."""
 
 from __future__ import annotations
 
 import uuid
+from collections.abc import Iterable
 from datetime import datetime
 
+from sqlalchemy import select
+from sqlalchemy.ext.asyncio import AsyncSession
+
 from server.kit.scope import ScopedRepository
-from server.telemetry.models import AssetEvent
+from server.telemetry.models import AssetEvent, AssetStream
 
 
 class EventRepository(ScopedRepository[AssetEvent]):
@@ -26,3 +30,9 @@ class EventRepository(ScopedRepository[AssetEvent]):
             .limit(limit)
         )
         return list((await self.db.execute(stmt)).scalars())
+
+
+async def streams(db: AsyncSession, stream_ids: Iterable[uuid.UUID]) -> list[AssetStream]:
+    """The rows of these streams (unscoped: streams of connected, authenticated assets)."""
+    stmt = select(AssetStream).where(AssetStream.stream_id.in_(list(stream_ids)))
+    return list((await db.execute(stmt)).scalars())

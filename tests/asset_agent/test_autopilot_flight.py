@@ -46,6 +46,7 @@ def drain(q: asyncio.Queue[Notification]) -> list[Notification]:
     return out
 
 
+@pytest.mark.slow
 async def test_fly_mission_rtl_and_land_on_the_pad(
     autopilot: Autopilot, vehicle: VehicleServer, pad: OpenPad
 ) -> None:
@@ -116,6 +117,7 @@ async def test_fly_mission_rtl_and_land_on_the_pad(
     assert [e.detail["index"] for e in waypoint_events][:4] == [0, 2, 3, 4]
 
 
+@pytest.mark.slow
 async def test_guided_takeoff_velocity_and_abort_over_tcp(vehicle: VehicleServer) -> None:
     ap = Autopilot(fast_config(f"tcp:127.0.0.1:{vehicle.tcp_port}"))
     await ap.start()
@@ -222,6 +224,7 @@ async def test_auto_without_takeoff_item_is_refused_on_the_ground(autopilot: Aut
     await autopilot.disarm()
 
 
+@pytest.mark.slow
 async def test_rtk_corrections_turn_the_fix_to_rtk_fixed_and_bad_crc_does_not(
     autopilot: Autopilot, vehicle: VehicleServer
 ) -> None:
@@ -252,6 +255,7 @@ async def test_rtk_corrections_turn_the_fix_to_rtk_fixed_and_bad_crc_does_not(
     await wait_for(lambda: autopilot.state.fix_type == 3, 15, "back to 3D once corrections stop")
 
 
+@pytest.mark.slow
 async def test_landing_target_frames(autopilot: Autopilot, vehicle: VehicleServer) -> None:
     copter = vehicle.copter
     await autopilot.set_mode("GUIDED")
@@ -329,6 +333,7 @@ async def test_link_loss_and_recovery(autopilot: Autopilot, vehicle: VehicleServ
     assert kinds == ["link_lost", "link_recovered"]
 
 
+@pytest.mark.slow
 async def test_set_message_interval_is_honoured(
     autopilot: Autopilot, vehicle: VehicleServer
 ) -> None:
@@ -351,6 +356,7 @@ async def test_set_message_interval_is_honoured(
         await asyncio.wait_for(q.get(), 5)
 
 
+@pytest.mark.slow
 async def test_battery_failsafe_returns_home(autopilot: Autopilot, vehicle: VehicleServer) -> None:
     tracker = EventTracker()
     tracker.update(autopilot.state)
@@ -374,6 +380,7 @@ async def test_battery_failsafe_returns_home(autopilot: Autopilot, vehicle: Vehi
     assert isinstance(tracker.prev, UavState)
 
 
+@pytest.mark.slow
 async def test_unreachable_autopilot_is_a_typed_error() -> None:
     import socket
 

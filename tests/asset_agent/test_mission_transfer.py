@@ -82,6 +82,7 @@ def test_converter_refuses_out_of_range_before_sending() -> None:
 
 
 @pytest.mark.parametrize("fault", ["drop_mission", "mute"])
+@pytest.mark.slow
 async def test_autopilot_silent_mid_upload_gives_a_clear_error(
     autopilot: Autopilot, vehicle: VehicleServer, fault: str
 ) -> None:

@@ -5,15 +5,18 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from bench.precland_eval import SCENARIOS, EkfVelocityError, main, run_trial
 
 
+@pytest.mark.slow
 def test_a_fused_landing_from_6m_seats_on_the_contacts():
     trial = run_trial(SCENARIOS["fused-6m"], seed=3)
     assert trial.landed and trial.error_m < 0.05 and trial.heading_deg < 2.0
 
 
+@pytest.mark.slow
 def test_ir_only_lands_near_and_no_sensor_lands_where_gnss_says():
     ir = [run_trial(SCENARIOS["ir"], seed=s) for s in range(3)]
     none = [run_trial(SCENARIOS["none"], seed=s) for s in range(3)]

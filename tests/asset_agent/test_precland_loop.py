@@ -45,6 +45,7 @@ async def fly(clock, vehicle, setpoint, loop):
         )
 
 
+@pytest.mark.slow
 async def test_closed_loop_companion_landing_over_real_sockets():
     clock = SimClock(speed=1.5)
     vehicle = KinematicVehicle(n=0.6, e=-0.4, up=3.0, yaw=0.8)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 
+import pytest
 from bs_helpers import SPEED, Rig, rig_at, run, start_daemon, station_config, stop_daemon, wait_for
 
 from base_station.events import EventKind
@@ -142,6 +143,7 @@ async def test_start_charging_refused_without_contacts_or_with_lift_up(rig: Rig)
     )
 
 
+@pytest.mark.slow
 async def test_charging_cc_cv_to_completion_with_limit_and_power_source() -> None:
     async with rig_at(speed=400.0) as rig:
         await rig.inject("/weather/force", {"rain_mm_h": 2.0})  # clouds: solar cannot cover it
@@ -188,6 +190,7 @@ async def test_charger_fault_refuses_charging_and_is_reported(rig: Rig) -> None:
     await wait_for(lambda: rig.station.telemetry().power.grid_present is False, what="grid off")
 
 
+@pytest.mark.slow
 async def test_a_charger_that_never_starts_fails_with_why_while_the_daemon_keeps_polling() -> None:
     """Contacts seated but no battery link to the pack: the charger stays idle. start_charging fails
     after its window saying why, and all the while the daemon keeps polling the PLC and feeding its

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 
+import pytest
 from bs_helpers import Rig, rig_at, run, start_daemon, station_config, stop_daemon, wait_for
 
 from base_station.events import EventKind
@@ -80,6 +81,7 @@ async def test_link_freeze_is_detected_by_timeout_and_motion_refused(rig: Rig) -
     await rig.link_up(True)
 
 
+@pytest.mark.slow
 async def test_link_cut_mid_motion_fails_it_and_the_plc_watchdog_stops_the_motor() -> None:
     async with rig_at(speed=3.0) as rig:  # panels take 4 s wall: longer than the watchdog
         motion = asyncio.ensure_future(run(rig.station, "open_panels"))
@@ -92,6 +94,7 @@ async def test_link_cut_mid_motion_fails_it_and_the_plc_watchdog_stops_the_motor
         assert rig.world.base.panels.position < 1.0
 
 
+@pytest.mark.slow
 async def test_watchdog_expires_when_the_daemon_freezes() -> None:
     async with rig_at(speed=3.0) as rig:
         motion = asyncio.ensure_future(run(rig.station, "open_panels"))

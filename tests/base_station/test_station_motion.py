@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import asyncio
 
+import pytest
 from bs_helpers import Rig, run, wait_for
 
 from base_station.events import EventKind
 from base_station.station import Progress, Result, Status
 
 
+@pytest.mark.slow
 async def test_full_open_then_close_cycle_with_progress(rig: Rig) -> None:
     items = [i async for i in rig.station.execute("open", {})]
     result = items[-1]

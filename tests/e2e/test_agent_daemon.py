@@ -7,6 +7,7 @@ import base64
 import time
 
 import httpx
+import pytest
 
 from asset_agent.config import AgentConfig
 from asset_agent.main import run, setup
@@ -14,6 +15,8 @@ from assetlink.configfile import decrypt_config
 from sim.vehicle.server import run_vehicle
 from sim.vehicle.standalone import OpenPad
 from tests.conftest import Tenant
+
+pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
 
 async def _command(

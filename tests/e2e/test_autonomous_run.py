@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import pytest
+
 from tests.conftest import Tenant
 from tests.e2e.harness import FINAL, platform, until
+
+pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
 WHOLE_SEQUENCE = [
     "checking", "opening", "uploading", "flying", "landing", "confirming", "closing", "charging",

@@ -11,6 +11,7 @@ import base64
 import time
 
 import httpx
+import pytest
 
 from assetlink.configfile import decrypt_config
 from base_station.main import run, setup
@@ -20,6 +21,8 @@ from sim.world import World, WorldConfig
 from tests.base_station.bs_helpers import station_config
 from tests.conftest import Tenant
 from tests.e2e.test_agent_daemon import _command
+
+pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
 SPEED = 10.0
 

@@ -5,7 +5,11 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 from tests.conftest import free_port
+
+pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
 
 def test_demo_runs_a_scheduled_survey_to_completion(tmp_path):

@@ -8,8 +8,12 @@ import itertools
 import socket
 import time
 
+import pytest
+
 from tests.conftest import Tenant
 from tests.e2e.harness import FINAL, platform, until
+
+pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
 SPEED = 4.0  # slow enough for the detector to see the descent frame by frame
 SEED = 21

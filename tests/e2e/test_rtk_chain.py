@@ -6,6 +6,7 @@ from __future__ import annotations
 import base64
 import queue
 
+import pytest
 from pygnssutils import GNSSNTRIPClient
 
 from assetlink.configfile import decrypt_config
@@ -16,6 +17,8 @@ from sim.clock import SimClock
 from sim.gnss.receiver import running_receiver
 from tests.conftest import Tenant
 from tests.e2e.harness import until
+
+pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
 
 def _cfg(asset: dict):  # type: ignore[no-untyped-def]

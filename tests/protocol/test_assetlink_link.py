@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 
 from assetlink.auth import parse_expiry
-from assetlink.conversation import TokenBucket
 from assetlink.link import Link, backoff_delay, renew_at, ws_url
 from assetlink.outbox import Outbox, Token
+from asynckit.ratelimit import TokenBucket
 from protocol import rtcm
 from protocol import telemetry_payloads as t
 from protocol.messages import EventPayload
@@ -85,37 +85,6 @@ async def test_offline_link_queues_durably_and_keeps_its_stream(tmp_path: Path) 
     box = Outbox(state)
     assert box.dropped_unreported() == 3
     assert [e.type for e in box.take(10)] == ["telemetry"] * 4 + ["event"]
-
-
-class FakeClock:
-    def __init__(self) -> None:
-        self.now = 100.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
-def test_token_bucket_allows_a_burst_then_paces_to_the_rate() -> None:
-    clock = FakeClock()
-    bucket = TokenBucket(rate=150, burst=300, clock=clock)
-    assert all(bucket.delay() == 0 for _ in range(300))
-    wait = bucket.delay()
-    assert wait == pytest.approx(1 / 150)
-    clock.now += 1.0
-    assert sum(1 for _ in range(1000) if bucket.delay() == 0) == 150
-    clock.now += 1000.0
-    assert sum(1 for _ in range(1000) if bucket.delay() == 0) == 300  # never above the burst
-
-
-def test_token_bucket_slows_down_when_told() -> None:
-    clock = FakeClock()
-    bucket = TokenBucket(rate=150, burst=300, clock=clock)
-    bucket.slow_down()
-    assert bucket.rate == 75 and bucket.burst == 150
-    assert sum(1 for _ in range(1000) if bucket.delay() == 0) == 150
-    for _ in range(20):
-        bucket.slow_down()
-    assert bucket.rate == 1.0 and bucket.burst == 1.0
 
 
 def test_link_pacing_stays_under_the_servers_default_limit() -> None:

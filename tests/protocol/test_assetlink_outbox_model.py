@@ -10,6 +10,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+import pytest
 from hypothesis import settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
@@ -94,4 +95,4 @@ class OutboxAgainstServer(RuleBasedStateMachine):
 OutboxAgainstServer.TestCase.settings = settings(
     max_examples=60, stateful_step_count=40, deadline=None
 )
-test_outbox_against_server = OutboxAgainstServer.TestCase
+test_outbox_against_server = pytest.mark.slow(OutboxAgainstServer.TestCase)

@@ -151,6 +151,7 @@ def _body(op: dict[str, Any], spec: dict[str, Any]) -> Any:
     return None
 
 
+@pytest.mark.slow
 def test_every_route_respects_organisations_and_roles(api, superuser_email):
     spec = api.get("/api/openapi.json").json()
     victim = Victim(Tenant(api, superuser_email, "victim"))

@@ -9,6 +9,8 @@ import sys
 import tempfile
 import uuid
 
+import pytest
+
 from tests.conftest import Tenant, auth
 
 
@@ -25,6 +27,7 @@ def _run(
     )
 
 
+@pytest.mark.slow
 def test_admin_bootstrap_and_token(database_url, api):
     env = {
         "DATABASE_URL": database_url,
@@ -108,6 +111,7 @@ def test_asset_decrypt(tenant: Tenant):
         assert r.returncode == 1 and "altered" in r.stderr and "Traceback" not in r.stderr
 
 
+@pytest.mark.slow
 def test_precland_eval_route_works_outside_the_checkout(tmp_path):
     """`aerobase sim precland-eval` (DESIGN.md's stable command) reaches bench/precland_eval.py
     from any directory, one scenario, one trial."""

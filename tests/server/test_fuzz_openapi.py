@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 
+import pytest
 import schemathesis
 from hypothesis import HealthCheck, given, settings
 
@@ -12,6 +13,7 @@ from tests.conftest import Tenant
 EXAMPLES = int(os.environ.get("AEROBASE_FUZZ_EXAMPLES", "25"))
 
 
+@pytest.mark.slow
 def test_no_route_answers_5xx(api, live_server, superuser_email):
     tenant = Tenant(api, superuser_email, "fuzz")
     schema = schemathesis.openapi.from_url(f"{live_server.url}/api/openapi.json")

@@ -10,14 +10,9 @@ from statistics import fmean
 import httpx
 import pytest
 
-from server.telemetry.influx import (
-    InfluxTelemetryStore,
-    flux_downsampled,
-    major_version,
-    rfc3339,
-    to_line,
-    to_ns,
-)
+from server.telemetry.influx import InfluxTelemetryStore
+from server.telemetry.influx_flux import flux_downsampled
+from server.telemetry.influx_lines import major_version, rfc3339, to_line, to_ns
 from server.telemetry.sql import downsample
 from server.telemetry.store import Aggregate, Query, Sample, flatten
 from tests.server.influx_fixture import influxdb_url  # noqa: F401  (the session's influxd)

@@ -8,6 +8,7 @@ import tempfile
 import uuid
 from datetime import UTC, datetime
 
+import pytest
 import sqlalchemy as sa
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
@@ -41,11 +42,13 @@ def _cycle(url: str) -> None:
     assert _diff(url) == []
 
 
+@pytest.mark.slow
 def test_sqlite_upgrade_downgrade_upgrade_and_no_autogenerate_diff():
     with tempfile.TemporaryDirectory() as tmp:
         _cycle(f"sqlite+aiosqlite:///{tmp}/m.db")
 
 
+@pytest.mark.slow
 def test_postgresql_upgrade_downgrade_upgrade_and_no_autogenerate_diff():
     need_service("PostgreSQL", "127.0.0.1", 5432)
     url = os.environ.get(
@@ -215,11 +218,13 @@ def _check_data_migration(url: str) -> None:
     migrate.upgrade(url)
 
 
+@pytest.mark.slow
 def test_sqlite_0005_carries_runs_over_both_ways():
     with tempfile.TemporaryDirectory() as tmp:
         _check_data_migration(f"sqlite+aiosqlite:///{tmp}/m.db")
 
 
+@pytest.mark.slow
 def test_postgresql_0005_carries_runs_over_both_ways():
     need_service("PostgreSQL", "127.0.0.1", 5432)
     import asyncpg

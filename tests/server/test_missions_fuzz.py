@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import json
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -87,6 +88,7 @@ def missions(draw):
         st.none(), st.builds(Home, st.floats(-89, 89), st.floats(-179, 179), st.floats(-100, 5000))
     ),
 )
+@pytest.mark.slow
 def test_round_trips_are_lossless_for_any_supported_mission(items, home):
     plan = parse_plan(json.loads(json.dumps(export_plan(items, home, 5.0))))
     assert plan.items == items

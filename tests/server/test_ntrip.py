@@ -23,6 +23,7 @@ from pyrtcm import RTCMReader
 from base_station.rtk import RtkConfig, RtkReader
 from protocol.rtcm import Reframer, frame_ok, message_type
 from server.realtime.broker import InProcessBroker
+from server.realtime.channels import rtcm_channel
 from server.stations.ntrip import (
     LiveCorrections,
     Mountpoint,
@@ -72,7 +73,7 @@ class Source:
 
     async def subscribe(self, mountpoint: Mountpoint) -> AsyncIterator[bytes]:
         if self.broker is not None:
-            frames = broker_frames(self.broker, f"rtcm.{mountpoint.asset_id}")
+            frames = broker_frames(self.broker, rtcm_channel(mountpoint.asset_id))
         else:
             assert self.hub is not None
             frames = self.hub.subscribe(mountpoint.name)

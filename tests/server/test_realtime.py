@@ -17,6 +17,7 @@ from assetlink.configfile import decrypt_config
 from assetlink.link import Link
 from protocol.messages import EventPayload
 from protocol.telemetry_payloads import Battery, Position, UavTelemetry
+from server.deps import services_of
 from tests.conftest import LiveServer, Tenant, test_settings
 
 
@@ -268,6 +269,7 @@ async def test_bad_input_gets_errors_and_oversize_closes_1009(live_server, tenan
         assert info.value.rcvd.code == 1009
 
 
+@pytest.mark.slow
 async def test_link_cut_and_server_restart_lose_nothing_and_duplicate_nothing(
     database_url, tenant: Tenant, tmp_path
 ):
@@ -333,6 +335,7 @@ async def test_link_cut_and_server_restart_lose_nothing_and_duplicate_nothing(
     assert alts == sorted(float(i % 50) for i in range(30))
 
 
+@pytest.mark.slow
 async def test_a_30_second_link_cut_loses_nothing(live_server, tenant: Tenant, tmp_path):
     """10 Hz telemetry through a proxy cut for 30 s: every sample is stored exactly once."""
     from tests.netproxy import TcpProxy
@@ -390,7 +393,7 @@ async def test_a_flooding_asset_is_limited_and_others_keep_their_service(
         token = (
             await c.post("/api/v1/assets/login", json={"name": fcfg.name, "secret": fcfg.secret})
         ).json()["access_token"]
-    before = live_server.app.state.hub.counters.rate_limited
+    before = services_of(live_server.app).hub.counters.rate_limited
     link = Link(live_server.url, qcfg.name, qcfg.secret, tmp_path / "quiet.db", seed=6)
     await link.start()
     ws_url = live_server.url.replace("http", "ws")
@@ -476,7 +479,7 @@ async def test_a_flooding_asset_is_limited_and_others_keep_their_service(
     assert code == 1008
     errors = [m for m in replies if m["type"] == "error"]
     assert errors and errors[0]["payload"]["code"] == "rate_limited"
-    assert live_server.app.state.hub.counters.rate_limited - before >= 1
+    assert services_of(live_server.app).hub.counters.rate_limited - before >= 1
     acked = max((m["payload"]["seq"] for m in replies if m["type"] == "ack"), default=0)
     assert acked < sent  # nothing past the refusal is acknowledged: the client still holds it
     async with httpx.AsyncClient(base_url=live_server.url) as c:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from datetime import UTC, datetime, timedelta
 
+import pytest
+
 from tests.conftest import Tenant, wait_for
 
 
@@ -78,6 +80,7 @@ def test_abort_before_take_off_ends_aborted_with_a_readable_timeline(api, tenant
     assert fleet["success_rate"] == 0.0
 
 
+@pytest.mark.slow
 def test_unanswered_availability_check_aborts_the_run(api, tenant: Tenant):
     """Assets that never answer: the check step times out (10 s in the test server) and the run is
     aborted, nothing moved."""
@@ -93,6 +96,7 @@ def test_unanswered_availability_check_aborts_the_run(api, tenant: Tenant):
     assert "no availability answer from the base and the UAV" in body["reason"]
 
 
+@pytest.mark.slow
 def test_schedules_validate_and_fire_per_policy(api, tenant: Tenant):
     ids = _setup(api, tenant)
     bad = api.post(

@@ -77,6 +77,7 @@ def two_servers(database_url: str, tmp_path) -> Iterator[tuple[str, str]]:  # ty
                     p.kill()
 
 
+@pytest.mark.slow
 async def test_two_processes_act_as_one(two_servers, api, superuser_email, tmp_path):
     url_a, url_b = two_servers
     tenant = Tenant(
@@ -159,6 +160,7 @@ async def test_two_processes_act_as_one(two_servers, api, superuser_email, tmp_p
         await link.stop()
 
 
+@pytest.mark.slow
 def test_two_processes_sharing_a_schedule_start_its_run_exactly_once(
     two_servers, api, superuser_email
 ):

@@ -68,7 +68,10 @@ async def test_readings_stream_at_50hz_over_udp():
         await sensor.stop()
         receiver.close()
     assert all(r.detected for r in readings)
-    span = readings[-1].capture_ts - readings[0].capture_ts
-    assert 39 / 50 * 0.8 <= span <= 39 / 50 * 1.5  # ~50 Hz on the world clock
+    gaps = np.diff([r.capture_ts for r in readings])
+    # 50 Hz on the world clock: the typical gap is the period. A starved process wakes late
+    # now and then (the sensor then catches up with its schedule or skips a reading, as a real
+    # one would), so the median is checked, not the whole span.
+    assert 0.02 * 0.8 <= float(np.median(gaps)) <= 0.02 * 1.5
     assert readings[0].capture_ts >= t0
     assert abs(np.mean([r.angle_x for r in readings]) - math.atan2(-0.1, 3.0)) < 0.002

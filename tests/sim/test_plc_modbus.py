@@ -69,6 +69,7 @@ async def test_plc_refuses_lift_up_with_panels_closed_and_clears_the_coil(
     assert not (await di(plc))[10] and (await di(plc))[4]
 
 
+@pytest.mark.slow
 async def test_full_cycle_and_panels_close_refused_with_lift_up(
     world: World, plc: AsyncModbusTcpClient
 ) -> None:
@@ -126,6 +127,7 @@ async def test_heartbeat_counts_in_wall_time(world: World, plc: AsyncModbusTcpCl
     assert (await ir(plc))[19] >= first + 3
 
 
+@pytest.mark.slow
 async def test_watchdog_armed_by_first_write_expires_after_2_s(
     world: World, plc: AsyncModbusTcpClient
 ) -> None:
@@ -137,6 +139,7 @@ async def test_watchdog_armed_by_first_write_expires_after_2_s(
     assert not (await di(plc))[4] and (await ir(plc))[18] & 16
 
 
+@pytest.mark.slow
 async def test_watchdog_fed_by_a_changing_value_never_expires(
     world: World, plc: AsyncModbusTcpClient
 ) -> None:

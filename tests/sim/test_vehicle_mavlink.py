@@ -105,6 +105,7 @@ async def peer(sim: VehicleServer) -> AsyncIterator[Peer]:
     p.close()
 
 
+@pytest.mark.slow
 async def test_identity_and_mode_numbers(peer: Peer) -> None:
     hb = await peer.recv("HEARTBEAT")
     assert (hb.type, hb.autopilot, hb.custom_mode) == (
@@ -122,6 +123,7 @@ async def test_identity_and_mode_numbers(peer: Peer) -> None:
     assert (await peer.recv("COMMAND_ACK", command=42)).result == 3  # UNSUPPORTED
 
 
+@pytest.mark.slow
 async def test_request_data_stream_and_request_message(peer: Peer) -> None:
     peer.conn.mav.request_data_stream_send(1, 1, 6, 0, 0)  # stop POSITION
     await peer.recv("HEARTBEAT")  # let in-flight messages pass
@@ -147,6 +149,7 @@ async def test_mission_download_starts_with_home_and_clear_all(peer: Peer) -> No
     assert (await peer.recv("MISSION_ACK")).type == 0
 
 
+@pytest.mark.slow
 async def test_autopilot_re_requests_then_cancels_an_abandoned_upload(peer: Peer) -> None:
     peer.conn.mav.mission_count_send(1, 1, 3, 0)
     assert (await peer.recv("MISSION_REQUEST_INT")).seq == 0
@@ -156,6 +159,7 @@ async def test_autopilot_re_requests_then_cancels_an_abandoned_upload(peer: Peer
     assert ack.type == 15  # MAV_MISSION_OPERATION_CANCELLED after the upload timeout
 
 
+@pytest.mark.slow
 async def test_tcp_clients_get_streams_and_replies(sim: VehicleServer, peer: Peer) -> None:
     p = Peer(f"tcp:127.0.0.1:{sim.tcp_port}")
     try:

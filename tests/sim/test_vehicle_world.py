@@ -5,6 +5,8 @@ from __future__ import annotations
 import asyncio
 import contextlib
 
+import pytest
+
 from asset_agent.autopilot import Autopilot, AutopilotConfig, CommandRejected
 from protocol.rtcm import build_frame
 from sim.plc.model import LIFT_UP, PANELS_OPEN
@@ -13,6 +15,7 @@ from sim.world import World, WorldConfig
 from tests.sim.conftest import wait_until
 
 
+@pytest.mark.slow
 async def test_leave_the_open_base_and_land_back_on_the_pad() -> None:
     world = World(WorldConfig.for_tests(speed=20.0, seed=11))
     part = VehiclePart()

@@ -1,0 +1,274 @@
+"""The server half of the link protocol: one connected asset's session on `/ws/asset`.
+
+After hello/welcome the session runs four tasks beside the reader: the sender (one writer per
+socket), the acker (cumulative acks, in order, once storage completed), the heartbeat (keeps the
+auth session alive and the presence claim ours) and command delivery (from the database, nudged
+through the broker). The reader rate-limits, de-duplicates by seq, fans durable messages out to
+operators and hands them to the ingest.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import logging
+import random
+import time
+import uuid
+from collections import deque
+from typing import Any
+
+from fastapi import WebSocket, WebSocketDisconnect
+from starlette.websockets import WebSocketState
+
+from asynckit.ratelimit import TokenBucket
+from protocol.codec import DecodeError, decode, encode
+from protocol.messages import (
+    AckPayload,
+    CommandPayload,
+    Hello,
+    RtcmPayload,
+    WelcomePayload,
+    envelope,
+)
+from server.assets.models import Asset
+from server.commands import service as commands
+from server.kit.scope import Principal
+from server.realtime.channels import asset_channel, command_channel, presence_key, rtcm_channel
+from server.realtime.ingest import Item
+from server.realtime.sender import Sender
+from server.services import Services
+from server.telemetry.service import StreamOfAnotherAsset
+
+log = logging.getLogger(__name__)
+HEARTBEAT_S = 15.0  # the asset session idles out after 60 s without one
+PRESENCE_TTL_S = 30.0
+HELLO_TIMEOUT_S = 15.0
+DURABLE = ("telemetry", "event", "command_result")
+
+
+class AssetSession:
+    """One asset's live connection, from its presence claim to its close."""
+
+    def __init__(
+        self,
+        services: Services,
+        ws: WebSocket,
+        principal: Principal,
+        asset_id: uuid.UUID,
+        organization_id: uuid.UUID,
+    ) -> None:
+        """A session of `principal` (an asset session) over the accepted socket `ws`."""
+        self.services = services
+        self.ws = ws
+        self.principal = principal
+        self.asset_id = asset_id
+        self.organization_id = organization_id
+        self.presence = presence_key(asset_id)
+        self.owner = f"{services.hub.node}:{uuid.uuid4().hex[:8]}"
+        self.sender = Sender(ws, max_queue=10_000)
+        settings = services.settings
+        self.bucket = TokenBucket(settings.ws_rate_per_s, settings.ws_burst)
+        self.wake = asyncio.Event()  # commands wait in the database
+        self.stream = uuid.UUID(int=0)
+        self.last_seq = 0
+        self.pending: deque[tuple[int, asyncio.Future[None]]] = deque()
+        self.have_pending = asyncio.Event()
+
+    async def serve(self) -> None:
+        """Claim presence, exchange hello/welcome, then serve until the socket or a task ends."""
+        hub, broker = self.services.hub, self.services.broker
+        if await broker.claim(self.presence, self.owner, PRESENCE_TTL_S) is not None:
+            await self.ws.close(4409, "another connection of this asset is live")
+            return
+        hub.register_closer(self.principal.session_id, self.sender.close)
+        broker.subscribe(command_channel(self.asset_id), self._nudge)
+        # a UAV bound to a landing base receives that base's RTK corrections
+        async with self.services.sessionmaker() as db:
+            asset = await db.get(Asset, self.asset_id)
+        corrections = rtcm_channel(asset.base_id) if asset is not None and asset.base_id else None
+        if corrections:
+            broker.subscribe(corrections, self._forward_rtcm)
+        tasks: list[asyncio.Task[Any]] = []
+        try:
+            if not await self._hello():
+                return
+            tasks = [
+                asyncio.create_task(self.sender.run()),
+                asyncio.create_task(self.acker()),
+                asyncio.create_task(self.heartbeat()),
+                asyncio.create_task(self.deliver_commands()),
+            ]
+            reader = asyncio.create_task(self.read())
+            done, _ = await asyncio.wait([reader, tasks[0]], return_when=asyncio.FIRST_COMPLETED)
+            for t in done:
+                if t.exception() and not isinstance(t.exception(), WebSocketDisconnect):
+                    log.warning("asset socket ended: %r", t.exception())
+            reader.cancel()
+        except (WebSocketDisconnect, TimeoutError):
+            pass
+        finally:
+            for t in tasks:
+                t.cancel()
+            broker.unsubscribe(command_channel(self.asset_id), self._nudge)
+            if corrections:
+                broker.unsubscribe(corrections, self._forward_rtcm)
+            hub.unregister_closer(self.principal.session_id, self.sender.close)
+            with contextlib.suppress(Exception):
+                await broker.release(self.presence, self.owner)
+            if (
+                self.ws.application_state != WebSocketState.DISCONNECTED
+                and self.ws.client_state != WebSocketState.DISCONNECTED
+            ):
+                with contextlib.suppress(Exception):
+                    await self.ws.close(1000)
+
+    def _nudge(self, _message: dict[str, Any]) -> None:
+        self.wake.set()
+
+    def _forward_rtcm(self, message: dict[str, Any]) -> None:
+        if self.sender.send_text(encode(envelope(RtcmPayload(data=message["data"])))):
+            self.services.hub.counters.rtcm_forwarded += 1
+
+    async def _hello(self) -> bool:
+        """Read the hello, find where its stream stands, send the welcome; False once closed."""
+        raw = await asyncio.wait_for(self.ws.receive_text(), HELLO_TIMEOUT_S)
+        hello = decode(raw, "asset_to_server")
+        if not isinstance(hello, Hello):
+            await self.ws.close(1008, "the first message must be hello")
+            return False
+        self.stream = hello.payload.stream
+        try:
+            self.last_seq = await self.services.ingest.last_seq(self.stream, self.asset_id)
+        except StreamOfAnotherAsset:
+            await self.ws.close(1008, "that stream belongs to another asset")
+            return False
+        welcome = WelcomePayload(
+            session_id=str(self.principal.session_id),
+            last_acked_seq=self.last_seq,
+            heartbeat_s=HEARTBEAT_S,
+            server_time=int(time.time() * 1000),
+        )
+        await self.ws.send_text(encode(envelope(welcome)))
+        return True
+
+    async def read(self) -> None:
+        """Validate, rate-limit, de-duplicate, fan out and store what the asset sends."""
+        hub, broker, ingest = self.services.hub, self.services.broker, self.services.ingest
+        while True:
+            raw = await self.ws.receive_text()
+            hub.counters.received += 1
+            if not self.bucket.take():
+                # Acks are cumulative: storing later messages past a rejected one would lose it. So the
+                # excess is refused with an error and the socket closed; the client reconnects and
+                # replays from the last ack, at its own pace.
+                hub.counters.rate_limited += 1
+                self.sender.send_error(
+                    "rate_limited",
+                    f"over {self.bucket.rate:.0f} messages/s (burst "
+                    f"{self.bucket.burst:.0f}): reconnect and replay from the last ack",
+                )
+                self.sender.close(1008, "rate limit exceeded")
+                return
+            msg = decode(raw, "asset_to_server")
+            if isinstance(msg, DecodeError):
+                hub.counters.malformed += 1
+                self.sender.send_error(msg.code, msg.message)
+                continue
+            if msg.type in DURABLE:
+                if msg.seq <= self.last_seq:
+                    hub.counters.duplicates += 1
+                    if not self.pending:
+                        self.sender.send_text(encode(envelope(AckPayload(seq=self.last_seq))))
+                    continue
+                self.last_seq = msg.seq
+                data = msg.model_dump(mode="json")
+                data["payload"]["asset_id"] = str(self.asset_id)
+                # encoded once here, not once per operator socket
+                await broker.publish(
+                    asset_channel(self.asset_id),
+                    {"id": data["id"], "text": json.dumps(data, separators=(",", ":"))},
+                )
+                item = Item(
+                    self.stream,
+                    self.asset_id,
+                    self.organization_id,
+                    msg.seq,
+                    msg.type,
+                    msg.ts,
+                    data["payload"],
+                    getattr(msg, "re", None),
+                )
+                self.pending.append((msg.seq, ingest.submit(item)))
+                self.have_pending.set()
+            elif msg.type == "rtcm":
+                await broker.publish(rtcm_channel(self.asset_id), {"data": msg.payload.data})
+            elif msg.type == "hello":
+                self.sender.send_error(
+                    "unexpected_hello", "hello is only valid as the first message", msg.seq
+                )
+
+    async def acker(self) -> None:
+        """Ack the highest seq whose storage completed, in order."""
+        while True:
+            await self.have_pending.wait()
+            seq, fut = self.pending[0]
+            try:
+                await fut
+            except Exception:
+                self.sender.close(1011, "storage failed; reconnect and replay")
+                return
+            highest = seq
+            self.pending.popleft()
+            while self.pending and self.pending[0][1].done() and not self.pending[0][1].exception():
+                highest = self.pending.popleft()[0]
+            if not self.pending:
+                self.have_pending.clear()
+            self.sender.send_text(encode(envelope(AckPayload(seq=highest))))
+
+    async def heartbeat(self) -> None:
+        """Keep the session alive and the presence claim ours while the socket lives."""
+        from server.auth.service import SessionService
+
+        rng = random.Random()
+        while True:
+            # jittered so that a thousand sockets opened together do not all write at once
+            await asyncio.sleep(HEARTBEAT_S * rng.uniform(0.8, 1.2))
+            async with self.services.sessionmaker() as db:
+                alive = await SessionService(db, self.services.settings).touch(
+                    self.principal.session_id
+                )
+                await db.commit()
+            if not alive:
+                self.sender.close(4001, "session ended")
+                return
+            if not await self.services.broker.refresh(self.presence, self.owner, PRESENCE_TTL_S):
+                self.sender.close(4409, "another connection of this asset took over")
+                return
+
+    async def deliver_commands(self) -> None:
+        """Send queued commands (from the database) now and whenever nudged through the broker; a
+        slow, jittered sweep covers a nudge lost in a broker hiccup."""
+        rng = random.Random()
+        while True:
+            async with self.services.sessionmaker() as db:
+                for cmd in await commands.due_for_delivery(db, self.asset_id):
+                    text = encode(
+                        envelope(
+                            CommandPayload(
+                                name=cmd.name,
+                                params=cmd.params,
+                                deadline=int(cmd.deadline.timestamp() * 1000),
+                            ),
+                            id=cmd.id,
+                        )
+                    )
+                    if self.sender.send_text(text):
+                        await commands.set_status(db, cmd, "sent", "delivered to the asset")
+                await db.commit()
+            self.wake.clear()
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(
+                    self.wake.wait(), self.services.settings.command_sweep_s * rng.uniform(0.5, 1.5)
+                )

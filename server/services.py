@@ -1,0 +1,39 @@
+"""The server's long-lived services, built once in the app's lifespan and handed to whoever needs them.
+
+Background loops (run engine, scheduler, NTRIP relay) take this object in their constructor and
+routes reach it through one dependency (`server.deps.ServicesDep`), so what each part uses shows
+in its imports instead of hiding in an untyped `app.state`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
+from typing import Any
+
+from sqlalchemy.ext.asyncio import AsyncEngine, AsyncSession, async_sessionmaker
+
+from server.config import Settings
+from server.kit.security import Passwords
+from server.realtime.broker import Broker
+from server.realtime.hub import Hub
+from server.realtime.ingest import Ingest
+from server.telemetry.store import TelemetryStore
+
+# called with the ids of sessions that ended (logout, takeover, a disabled account or asset)
+SessionEndListener = Callable[[list[Any]], Awaitable[None]]
+
+
+@dataclass(frozen=True)
+class Services:
+    """Everything a request, a socket or a background loop may use; one per running app."""
+
+    settings: Settings
+    passwords: Passwords
+    engine: AsyncEngine
+    sessionmaker: async_sessionmaker[AsyncSession]
+    broker: Broker
+    telemetry: TelemetryStore
+    ingest: Ingest
+    hub: Hub
+    session_end_listeners: tuple[SessionEndListener, ...] = ()
