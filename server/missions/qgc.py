@@ -2,7 +2,9 @@
 
 Import takes every SimpleItem, and the flattened simple items QGroundControl stores inside a
 ComplexItem (`TransectStyleComplexItem.Items`); anything else is named in a `Problem` by index
-and command, never dropped. Geofence and rally points are carried through untouched.
+and command, never dropped. Altitudes are read as QGroundControl means them (qgc_altitude.py).
+Geofence and rally points are carried through untouched; so are the plan's `doJumpId`s, altitude
+keys, speeds, firmware and vehicle type (in `extras["qgc"]`), for the export to write them back.
 """
 
 from __future__ import annotations
@@ -19,14 +21,27 @@ from server.missions.items import (
     frame_problem,
     normalize_frame,
 )
+from server.missions.qgc_altitude import (
+    MODE_LABELS,
+    Source,
+    export_keys,
+    needs_home,
+    read_altitude,
+)
 from server.missions.validate import Home, Problem
 
 FIRMWARE_ARDUPILOT = 3
 VEHICLE_MULTIROTOR = 2
 MULTIROTOR_TYPES = {2, 3, 4, 13, 14, 15}  # MAV_TYPE quad, coaxial, heli, hexa, octo, tri
 DEFAULT_CRUISE_MPS, DEFAULT_HOVER_MPS = 15.0, 5.0
-# QGroundControl's AltitudeMode of a positional item: 1 relative, 2 absolute (AMSL), 4 terrain frame
-ALTITUDE_MODES = {3: 1, 0: 2, 10: 4}
+# mission-level keys of a plan kept for the export (numbers only)
+KEPT_MISSION_KEYS = (
+    "cruiseSpeed",
+    "firmwareType",
+    "globalPlanAltitudeMode",
+    "hoverSpeed",
+    "vehicleType",
+)
 
 
 @dataclass(frozen=True)
@@ -47,6 +62,16 @@ class ImportRejected(Exception):
         self.problems = problems
 
 
+@dataclass(frozen=True)
+class _Found:
+    """One item taken from the plan, with what it carried that our item has no field for."""
+
+    item: MissionItem
+    jump_id: Any
+    kept: dict[str, Any]
+    src: Source
+
+
 def _num(value: Any) -> float | None:
     """A JSON number as a finite float; None for null or non-numbers/NaN."""
     if isinstance(value, bool) or not isinstance(value, int | float):
@@ -59,10 +84,9 @@ def _is_int(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
-def _simple(
-    raw: Any, index: int, where: str, problems: list[Problem]
-) -> tuple[MissionItem, Any] | None:
-    """One SimpleItem -> (item, doJumpId), or a Problem appended."""
+def _simple(raw: Any, src: Source, problems: list[Problem]) -> _Found | None:
+    """One SimpleItem -> _Found, or a Problem appended."""
+    index, where = src.index, src.where
     if not isinstance(raw, dict):
         problems.append(
             Problem(where, "an item must be a JSON object", type(raw).__name__, index=index)
@@ -121,17 +145,25 @@ def _simple(
         )
         return None
     values = [_num(p) for p in params]
+    kept: dict[str, Any] = {}
+    if COMMANDS[command].positional:
+        kept, refused = read_altitude(raw, command, normalize_frame(frame), values, src)
+        if refused:
+            problems += refused
+            return None
     auto = raw.get("autoContinue", True)
     item = MissionItem(
         command=command,
         frame=normalize_frame(frame),
         params=(values[0], values[1], values[2], values[3]),
+        # a positional item's nulls were refused above (take-off and land: 0, 0 is "here");
+        # a non-positional item does not use lat/lon/alt
         lat=values[4] or 0.0,
         lon=values[5] or 0.0,
         alt=values[6] or 0.0,
         autocontinue=bool(auto) if isinstance(auto, bool) else True,
     )
-    return item, raw.get("doJumpId")
+    return _Found(item, raw.get("doJumpId"), kept, src)
 
 
 def parse_plan(plan: Any) -> Imported:
@@ -154,12 +186,12 @@ def parse_plan(plan: Any) -> Imported:
     if not isinstance(mission, dict) or not isinstance(mission.get("items"), list):
         problems.append(Problem("mission.items", "the plan has no mission items list", None))
         raise ImportRejected(problems)
-    found: list[tuple[MissionItem, Any]] = []
+    found: list[_Found] = []
     for i, raw in enumerate(mission["items"]):
         where = f"mission.items[{i}]"
         kind = raw.get("type") if isinstance(raw, dict) else None
         if kind == "SimpleItem":
-            one = _simple(raw, i, where, problems)
+            one = _simple(raw, Source(i, where), problems)
             if one:
                 found.append(one)
         elif kind == "ComplexItem":
@@ -176,6 +208,8 @@ def parse_plan(plan: Any) -> Imported:
             )
     items = _resolve_jumps(found, problems)
     home = _home(mission.get("plannedHomePosition"), problems)
+    if mission.get("plannedHomePosition") is None:
+        problems += _amsl_without_home(found)
     if problems:
         raise ImportRejected(problems)
     vehicle = mission.get("vehicleType")
@@ -184,26 +218,73 @@ def parse_plan(plan: Any) -> Imported:
             "hoverSpeed" if vehicle in MULTIROTOR_TYPES or vehicle is None else "cruiseSpeed"
         )
     )
-    extras = {k: plan[k] for k in ("geoFence", "rallyPoints") if isinstance(plan.get(k), dict)}
+    extras: dict[str, Any] = {
+        k: plan[k] for k in ("geoFence", "rallyPoints") if isinstance(plan.get(k), dict)
+    }
+    extras["qgc"] = _kept(mission, found)
     return Imported(
         items=items, home=home, speed_mps=speed if speed and speed > 0 else None, extras=extras
     )
 
 
-def _complex(
-    raw: dict[str, Any], i: int, where: str, problems: list[Problem]
-) -> list[tuple[MissionItem, Any]]:
+def _kept(mission: dict[str, Any], found: list[_Found]) -> dict[str, Any]:
+    """What the export writes back: the plan's mission keys and, per item, what it carried.
+
+    Each item's entry names the command, frame and altitude it was read with, so the export
+    uses it only while the item is still that item.
+    """
+    kept: dict[str, Any] = {
+        k: mission[k] for k in KEPT_MISSION_KEYS if _num(mission.get(k)) is not None
+    }
+    kept["items"] = [
+        {
+            **f.kept,
+            "doJumpId": f.jump_id if _is_int(f.jump_id) else None,
+            "command": f.item.command,
+            "frame": f.item.frame,
+            "alt": f.item.alt,
+        }
+        for f in found
+    ]
+    return kept
+
+
+def _amsl_without_home(found: list[_Found]) -> list[Problem]:
+    """AMSL items of a plan without plannedHomePosition: nothing to check their height against."""
+    return [
+        Problem(
+            f"{f.src.where}.frame",
+            f"{f.src.label}: {_amsl_mode(f)} needs the plan's plannedHomePosition "
+            "to be checked against home, and the plan has none",
+            f.item.alt,
+            index=f.src.index,
+            command=f.item.command,
+        )
+        for f in found
+        if f.item.spec is not None and f.item.spec.positional and needs_home(f.item.frame)
+    ]
+
+
+def _amsl_mode(found: _Found) -> str:
+    """ "AltitudeMode 3 (terrain-calculated, AMSL)" or, without the key, the frame."""
+    mode = found.kept.get("AltitudeMode")
+    if mode in MODE_LABELS:
+        label = MODE_LABELS[mode]
+        return f"AltitudeMode {mode} ({label if mode == 2 else f'{label}, AMSL'})"
+    return "frame 0 GLOBAL (AMSL)"
+
+
+def _complex(raw: dict[str, Any], i: int, where: str, problems: list[Problem]) -> list[_Found]:
     kind = raw.get("complexItemType")
     # survey, corridor and structure scans keep their flattened items in TransectStyleComplexItem;
     # other styles (e.g. AgriculturalStyleComplexItem) in a section of their own, with the same key
     sections = [raw.get("TransectStyleComplexItem")] + [
         v for v in raw.values() if isinstance(v, dict)
     ]
-    inner = next(
-        (s["Items"] for s in sections if isinstance(s, dict) and isinstance(s.get("Items"), list)),
-        None,
+    section: dict[str, Any] | None = next(
+        (s for s in sections if isinstance(s, dict) and isinstance(s.get("Items"), list)), None
     )
-    if not isinstance(inner, list) or not inner:
+    if section is None or not section["Items"]:
         problems.append(
             Problem(
                 where,
@@ -216,27 +297,50 @@ def _complex(
         )
         return []
     out = []
-    for k, sub in enumerate(inner):
-        one = _simple(sub, i, f"{where}.TransectStyleComplexItem.Items[{k}]", problems)
+    name = "TransectStyleComplexItem" if section is raw.get("TransectStyleComplexItem") else None
+    name = name or next(k for k, v in raw.items() if v is section)
+    for k, sub in enumerate(section["Items"]):
+        src = Source(
+            i,
+            f"{where}.{name}.Items[{k}]",
+            complex_kind=str(kind),
+            distance_mode=_distance_mode(section),
+        )
+        one = _simple(sub, src, problems)
         if one:
             out.append(one)
     return out
 
 
-def _resolve_jumps(
-    found: list[tuple[MissionItem, Any]], problems: list[Problem]
-) -> list[MissionItem]:
+def _distance_mode(section: dict[str, Any]) -> Any:
+    """The AltitudeMode a transect's items were built in (CameraCalc.DistanceMode; v1 FollowTerrain)."""
+    camera = section.get("CameraCalc")
+    if isinstance(camera, dict) and "DistanceMode" in camera:
+        return camera["DistanceMode"]
+    if section.get("FollowTerrain") is True:
+        return 3
+    return None
+
+
+def _resolve_jumps(found: list[_Found], problems: list[Problem]) -> list[MissionItem]:
     """DO_JUMP targets are doJumpIds in a plan; ours are seq numbers (index + 1)."""
-    seq_of = {jid: n + 1 for n, (_, jid) in enumerate(found) if _is_int(jid)}
+    seq_of: dict[int, list[int]] = {}
+    for n, f in enumerate(found):
+        if _is_int(f.jump_id):
+            seq_of.setdefault(f.jump_id, []).append(n + 1)
     items = []
-    for n, (item, _) in enumerate(found):
+    for n, f in enumerate(found):
+        item = f.item
         if item.command == DO_JUMP and item.params[0] is not None:
             target = item.params[0]
-            if target != int(target) or int(target) not in seq_of:
+            seqs = seq_of.get(int(target), []) if target == int(target) else []
+            if len(seqs) != 1:
                 problems.append(
                     Problem(
                         f"items[{n}].params[0]",
-                        "DO_JUMP target is no item's doJumpId",
+                        "DO_JUMP target is no item's doJumpId"
+                        if not seqs
+                        else f"DO_JUMP target doJumpId is carried by {len(seqs)} items",
                         target,
                         index=n,
                         command=DO_JUMP,
@@ -244,9 +348,7 @@ def _resolve_jumps(
                 )
             else:
                 p = item.params
-                item = item.model_copy(
-                    update={"params": (float(seq_of[int(target)]), p[1], p[2], p[3])}
-                )
+                item = item.model_copy(update={"params": (float(seqs[0]), p[1], p[2], p[3])})
         items.append(item)
     return items
 
@@ -258,7 +360,46 @@ def _home(raw: Any, problems: list[Problem]) -> Home | None:
     if values is None or values[0] is None or values[1] is None:
         problems.append(Problem("mission.plannedHomePosition", "must be [lat, lon, alt]", raw))
         return None
-    return Home(values[0], values[1], values[2] or 0.0)
+    if values[2] is None:
+        # AMSL items are checked against it: a home altitude is never assumed to be 0
+        problems.append(
+            Problem(
+                "mission.plannedHomePosition[2]",
+                "the planned home has no altitude (null); give its altitude above mean sea level",
+                raw[2],
+            )
+        )
+        return None
+    return Home(values[0], values[1], values[2])
+
+
+def _kept_for(items: list[MissionItem], extras: dict[str, Any]) -> tuple[list[Any], list[int]]:
+    """Per item: the altitude keys its import carried (None: derive them), and the doJumpIds.
+
+    Altitude keys are used for an item still of the command, frame and altitude they were read
+    with; the plan's doJumpIds while the mission still has the plan's commands in order and
+    they are distinct (a stale or repeated id would send a DO_JUMP elsewhere): else seq numbers.
+    """
+    kept = extras.get("qgc")
+    entries = kept.get("items") if isinstance(kept, dict) else None
+    if not isinstance(entries, list) or len(entries) != len(items):
+        entries = [None] * len(items)
+    entries = [e if isinstance(e, dict) else None for e in entries]
+    alts = [
+        e
+        if e is not None
+        and (e.get("command"), e.get("frame"), e.get("alt")) == (i.command, i.frame, i.alt)
+        else None
+        for e, i in zip(entries, items, strict=True)
+    ]
+    kept_ids = [e.get("doJumpId") if e is not None else None for e in entries]
+    same = all(
+        e is not None and e.get("command") == i.command for e, i in zip(entries, items, strict=True)
+    )
+    ids = [j for j in kept_ids if isinstance(j, int) and not isinstance(j, bool)]
+    if not same or len(ids) != len(items) or len(set(ids)) != len(ids):
+        ids = [n + 1 for n in range(len(items))]
+    return alts, ids
 
 
 def export_plan(
@@ -267,18 +408,27 @@ def export_plan(
     speed_mps: float | None = None,
     extras: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """Mission items -> a `.plan` document in QGroundControl's structure (ArduPilot, multirotor)."""
+    """Mission items -> a `.plan` document in QGroundControl's structure.
+
+    An imported plan's firmware, vehicle, speeds, doJumpIds and altitude keys come back as they
+    were (`extras["qgc"]`); otherwise ArduPilot, multirotor, seq numbers as doJumpIds.
+    """
     extras = extras or {}
+    alts, ids = _kept_for(items, extras)
     out_items = []
     for n, item in enumerate(items):
         p = list(item.params)
-        out: dict[str, Any] = {"AMSLAltAboveTerrain": None}
+        if item.command == DO_JUMP and p[0] is not None and p[0] == int(p[0]):
+            # our DO_JUMP target is a seq number; the plan's is the target's doJumpId
+            if 1 <= p[0] <= len(items):
+                p[0] = float(ids[int(p[0]) - 1])
+        out: dict[str, Any] = {}
         if item.spec is not None and item.spec.positional:
-            out |= {"Altitude": item.alt, "AltitudeMode": ALTITUDE_MODES.get(item.frame, 1)}
+            out |= export_keys(item.frame, item.alt, alts[n])
         out |= {
             "autoContinue": item.autocontinue,
             "command": item.command,
-            "doJumpId": n + 1,
+            "doJumpId": ids[n],
             "frame": item.frame,
             "params": [*p, item.lat, item.lon, item.alt],
             "type": "SimpleItem",
@@ -289,18 +439,30 @@ def export_plan(
     else:
         first = next((i for i in items if i.spec and i.spec.positional), None)
         planned = [first.lat, first.lon, 0.0] if first else [0.0, 0.0, 0.0]
+    kept: dict[str, Any] = extras["qgc"] if isinstance(extras.get("qgc"), dict) else {}
+    mission = {k: kept[k] for k in KEPT_MISSION_KEYS if _num(kept.get(k)) is not None}
+    vehicle = mission.get("vehicleType", VEHICLE_MULTIROTOR)
+    speed_key = "hoverSpeed" if vehicle in MULTIROTOR_TYPES else "cruiseSpeed"
+    mission = {
+        "cruiseSpeed": DEFAULT_CRUISE_MPS,
+        "firmwareType": FIRMWARE_ARDUPILOT,
+        "globalPlanAltitudeMode": 1,
+        "hoverSpeed": DEFAULT_HOVER_MPS,
+        "vehicleType": VEHICLE_MULTIROTOR,
+        **mission,
+    }
+    if speed_mps:
+        mission[speed_key] = speed_mps
     return {
         "fileType": "Plan",
         "geoFence": extras.get("geoFence") or {"circles": [], "polygons": [], "version": 2},
         "groundStation": "QGroundControl",
         "mission": {
-            "cruiseSpeed": DEFAULT_CRUISE_MPS,
-            "firmwareType": FIRMWARE_ARDUPILOT,
-            "globalPlanAltitudeMode": 1,
-            "hoverSpeed": speed_mps or DEFAULT_HOVER_MPS,
+            **{k: mission[k] for k in ("cruiseSpeed", "firmwareType", "globalPlanAltitudeMode")},
+            "hoverSpeed": mission["hoverSpeed"],
             "items": out_items,
             "plannedHomePosition": planned,
-            "vehicleType": VEHICLE_MULTIROTOR,
+            "vehicleType": mission["vehicleType"],
             "version": 2,
         },
         "rallyPoints": extras.get("rallyPoints") or {"points": [], "version": 2},

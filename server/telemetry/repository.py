@@ -34,5 +34,6 @@ class EventRepository(ScopedRepository[AssetEvent]):
 
 async def streams(db: AsyncSession, stream_ids: Iterable[uuid.UUID]) -> list[AssetStream]:
     """The rows of these streams (unscoped: streams of connected, authenticated assets)."""
+    # unscoped: streams of connected, authenticated assets (the socket proved whose they are)
     stmt = select(AssetStream).where(AssetStream.stream_id.in_(list(stream_ids)))
     return list((await db.execute(stmt)).scalars())

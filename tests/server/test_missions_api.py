@@ -7,6 +7,14 @@ import math
 
 from tests.conftest import Tenant
 from tests.server.test_missions_formats import SIMPLE_SQUARE_PLAN
+from tests.server.test_missions_qgc_altitude import (
+    MIXED,
+    item,
+    plan,
+    survey,
+    takeoff,
+    waypoint,
+)
 
 LAT0, LON0 = 47.3977, 8.5456
 DLAT = 200 / 111_195.0
@@ -285,6 +293,9 @@ def test_import_the_qgroundcontrol_fixture_and_export_it_back(api, tenant: Tenan
         assert {k: ours[k] for k in ("command", "frame", "params")} == {
             k: theirs[k] for k in ("command", "frame", "params")
         }
+    # the plan QGroundControl wrote comes back as it was: doJumpIds, altitude keys, speeds,
+    # firmware (12, PX4) and the null yaw included
+    assert plan == reference
     # our export imports again to the same items
     again = api.post(
         "/api/v1/missions/import",
@@ -341,7 +352,7 @@ def test_import_refusals_name_every_item(api, tenant: Tenant):
     assert r.status_code == 422 and r.json()["error"]["details"][0]["command"] == 84
     # an imported plan is validated like any mission (here: above the altitude limit)
     high = json.loads(SIMPLE_SQUARE_PLAN)
-    high["mission"]["items"][1]["params"][6] = 500
+    high["mission"]["items"][1]["params"][6] = high["mission"]["items"][1]["Altitude"] = 500
     r = api.post("/api/v1/missions/import", json=high, headers=tenant.h("operator"))
     assert r.status_code == 422 and r.json()["error"]["details"][0]["where"] == "items[1].alt"
     for content, ctype, status in (
@@ -359,6 +370,40 @@ def test_import_refusals_name_every_item(api, tenant: Tenant):
     assert (
         api.post("/api/v1/missions/import", json=plan, headers=tenant.h("viewer")).status_code
         == 403
+    )
+
+
+def test_qgroundcontrol_altitude_modes_over_http(api, tenant: Tenant):
+    headers = tenant.h("operator")
+    r = api.post("/api/v1/missions/import?name=mixed", json=MIXED, headers=headers)
+    assert r.status_code == 201, r.text
+    mission = r.json()
+    assert [(i["frame"], i["alt"]) for i in mission["items"][3:5]] == [(0, 530.25), (0, 531.5)]
+    assert mission["home"]["alt"] == 488 and mission["speed_mps"] == 4.5
+    assert mission["extras"]["qgc"]["items"][4]["AltitudeMode"] == 3
+    r = api.get(f"/api/v1/missions/{mission['id']}/export", headers=tenant.h("viewer"))
+    assert r.status_code == 200 and r.json() == MIXED
+    # terrain modes the server cannot take: 422 naming each item and its mode, never a 5xx
+    refused = plan(
+        [
+            takeoff(),
+            waypoint(2, 3, 0, None, altitude=80),
+            waypoint(3, 4, 10, 50),
+            survey(1, [item(16, 0, [0, 0, 0, None, 47.3981, 8.546, None], 4)]),
+        ]
+    )
+    r = api.post("/api/v1/missions/import", json=refused, headers=headers)
+    assert r.status_code == 422, r.text
+    error = r.json()["error"]
+    assert error["code"] == "import_rejected"
+    assert error["message"] == (
+        "mission.items[1].params[6]: item 1: no altitude "
+        "(AltitudeMode 3, terrain-calculated, unresolved) (and 2 more)"
+    )
+    assert [(d["index"], d["command"]) for d in error["details"]] == [(1, 16), (2, 16), (3, 16)]
+    assert "AltitudeMode 4 (terrain frame" in error["details"][1]["what"]
+    assert error["details"][2]["what"] == (
+        "item 3 (complex item 'survey', flattened item 0): no altitude (frame 0 GLOBAL, AMSL)"
     )
 
 

@@ -245,11 +245,12 @@ def test_do_jump_targets_are_mapped_from_jump_ids_to_sequence_numbers():
         parse_plan(wrap([*items[:2], simple(177, 2, (42, 1, 0, 0, 0, 0, 0), 10)]))
 
 
-def test_qgc_round_trip_keeps_every_supported_item():
+def every_supported_item(frames: tuple[int, ...]) -> list[MissionItem]:
+    """One item of each supported command, positional ones in the given frames in turn."""
     items = [MissionItem(command=22, frame=3, params=(0, 0, 0, None), lat=47.1, lon=8.2, alt=15)]
     for n, cmd in enumerate(sorted(COMMANDS)):
         spec = COMMANDS[cmd]
-        frame = 10 if n % 3 == 0 else (0 if n % 3 == 1 else 3)
+        frame = frames[n % len(frames)]
         if cmd == 177:
             items.append(MissionItem(command=cmd, frame=2, params=(1, 2, 0, 0)))
         elif spec.positional:
@@ -266,8 +267,25 @@ def test_qgc_round_trip_keeps_every_supported_item():
             )
         else:
             items.append(MissionItem(command=cmd, frame=2, params=(1, 7.5, -1, 0)))
+    return items
+
+
+def test_qgc_round_trip_keeps_every_supported_item():
+    items = every_supported_item((0, 3))
     again = parse_plan(json.loads(json.dumps(export_plan(items, Home(47.1, 8.2, 410.5), 6.5))))
     assert again.items == items and again.home == Home(47.1, 8.2, 410.5) and again.speed_mps == 6.5
+    # a terrain-frame item (made through the API) exports as QGroundControl writes it, and is
+    # refused on the way back in, by name, like any plan holding one
+    terrain = every_supported_item((10, 0, 3))
+    with pytest.raises(ImportRejected) as err:
+        parse_plan(json.loads(json.dumps(export_plan(terrain, Home(47.1, 8.2, 410.5)))))
+    refused = [p for p in err.value.problems if "terrain frame" in p.what]
+    assert refused and len(refused) == len(err.value.problems)
+    assert all(p.where.endswith(".AltitudeMode") and p.value == 4 for p in refused)
+
+
+def test_wpl_round_trip_keeps_every_supported_item():
+    items = every_supported_item((10, 0, 3))
     wpl = parse_wpl(export_wpl(items, Home(47.1, 8.2, 410.5)))
     assert wpl.items == items and wpl.home == Home(47.1, 8.2, 410.5)
 
@@ -277,10 +295,13 @@ def test_int_frames_are_stored_as_their_plain_numbers():
         [
             simple(16, 6, (0, 0, 0, None, 47, 8, 20)),
             simple(16, 5, (0, 0, 0, None, 47, 8, 420)),
-            simple(16, 11, (0, 0, 0, None, 47, 8, 30)),
+            simple(178, 11, (1, 5, -1, 0, 0, 0, 0)),
         ]
     )
     assert [i.frame for i in parse_plan(plan).items] == [3, 0, 10]
+    with pytest.raises(ImportRejected) as err:
+        parse_plan(wrap([simple(16, 11, (0, 0, 0, None, 47, 8, 30))]))
+    assert "frame 10 GLOBAL_TERRAIN_ALT" in err.value.problems[0].what
 
 
 def test_wpl_import_as_mission_planner_writes_it():

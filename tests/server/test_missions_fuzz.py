@@ -90,11 +90,66 @@ def missions(draw):
 )
 @pytest.mark.slow
 def test_round_trips_are_lossless_for_any_supported_mission(items, home):
-    plan = parse_plan(json.loads(json.dumps(export_plan(items, home, 5.0))))
-    assert plan.items == items
+    # a .plan refuses the terrain frame (no terrain data to check it against): relative instead
+    flat = [
+        i.model_copy(update={"frame": 3}) if i.spec and i.spec.positional and i.frame == 10 else i
+        for i in items
+    ]
+    plan = parse_plan(json.loads(json.dumps(export_plan(flat, home, 5.0))))
+    assert plan.items == flat
+    again = parse_plan(json.loads(json.dumps(export_plan(plan.items, plan.home, 5.0, plan.extras))))
+    assert again.items == flat and again.extras == plan.extras
     if home is not None:
         assert plan.home == home
     text = parse_wpl(export_wpl(items, home))
     assert text.items == items
     if home is not None and (home.lat, home.lon) != (0.0, 0.0):
         assert text.home == home
+
+
+ALTITUDE_VALUES = st.one_of(
+    st.none(),
+    st.integers(-2, 6),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=3),
+    st.booleans(),
+    st.lists(st.integers(), max_size=2),
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.sampled_from([16, 21, 22, 82, 195, 201]),
+    st.sampled_from([0, 2, 3, 5, 6, 10, 11]),
+    st.dictionaries(
+        st.sampled_from(["AltitudeMode", "Altitude", "AMSLAltAboveTerrain"]), ALTITUDE_VALUES
+    ),
+    st.one_of(st.none(), st.floats(-100, 1000)),
+    st.one_of(st.none(), st.floats(-90, 90)),
+)
+def test_any_altitude_keys_are_taken_or_refused_by_item(command, frame, keys, alt, lat):
+    raw = {
+        "type": "SimpleItem",
+        "command": command,
+        "frame": frame,
+        "params": [0, 0, 0, None, lat, 8.5, alt],
+        "autoContinue": True,
+        "doJumpId": 2,
+        **keys,
+    }
+    takeoff = {
+        "type": "SimpleItem",
+        "command": 22,
+        "frame": 3,
+        "params": [0, 0, 0, None, 47, 8, 20],
+        "autoContinue": True,
+        "doJumpId": 1,
+    }
+    try:
+        imported = parse_plan(wrap([takeoff, raw]))
+    except ImportRejected as err:
+        assert err.problems and all(p.index == 1 for p in err.problems)
+    else:
+        # nothing null was read as a number, and no terrain frame got through
+        wp = imported.items[1]
+        assert alt is not None and wp.alt == alt and wp.frame != 10
