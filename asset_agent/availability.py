@@ -1,11 +1,11 @@
-"""Pure availability check: can this UAV take a mission now? Each failed condition with value and limit."""
+"""Pure availability check: can this UAV take a mission now? Every condition with value and limit."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 from asset_agent.autopilot.state import FIX_NAMES, UavState
+from protocol.vocabulary import AvailabilityCondition, AvailabilityReport
 
 
 @dataclass(frozen=True)
@@ -16,48 +16,49 @@ class AvailabilityLimits:
     min_fix_type: int = 3  # 3D fix
 
 
-@dataclass(frozen=True)
-class FailedCondition:
-    """One unmet condition: its name, the measured value, the limit and a sentence."""
-
-    name: str
-    value: Any
-    limit: Any
-    message: str
+def conditions(
+    state: UavState, limits: AvailabilityLimits | None = None
+) -> list[AvailabilityCondition]:
+    """Every condition, met or not: autopilot link and health, battery, GNSS fix, disarmed."""
+    limits = limits or AvailabilityLimits()
+    healthy = state.sensors_healthy is True and not state.failsafe
+    battery_ok = state.battery_pct is not None and state.battery_pct >= limits.min_battery_pct
+    need = FIX_NAMES.get(limits.min_fix_type, str(limits.min_fix_type))
+    return [
+        AvailabilityCondition(
+            name="autopilot_link", ok=state.link_up, value=state.link_up, limit=True,
+            message="HEARTBEAT from the autopilot" if state.link_up
+            else "no HEARTBEAT from the autopilot",
+        ),
+        AvailabilityCondition(
+            name="autopilot_healthy", ok=healthy,
+            value="failsafe" if state.failsafe else state.sensors_healthy, limit=True,
+            message="autopilot healthy" if healthy
+            else "autopilot reports unhealthy sensors or a failsafe",
+        ),
+        AvailabilityCondition(
+            name="battery", ok=battery_ok, value=state.battery_pct, limit=limits.min_battery_pct,
+            message=f"battery {state.battery_pct}% "
+            f"{'at or above' if battery_ok else 'below'} {limits.min_battery_pct}%",
+        ),
+        AvailabilityCondition(
+            name="gnss_fix", ok=state.fix_type >= limits.min_fix_type, value=state.fix_name,
+            limit=need, message=f"GNSS fix {state.fix_name}, need {need}",
+        ),
+        AvailabilityCondition(
+            name="disarmed", ok=not state.armed, value=state.armed, limit=False,
+            message="the UAV is armed" if state.armed else "the UAV is disarmed",
+        ),
+    ]  # fmt: skip
 
 
 def check_availability(
     state: UavState, limits: AvailabilityLimits | None = None
-) -> list[FailedCondition]:
+) -> list[AvailabilityCondition]:
     """Every unmet condition (an empty list means available)."""
-    limits = limits or AvailabilityLimits()
-    failed: list[FailedCondition] = []
-    if not state.link_up:
-        failed.append(
-            FailedCondition("autopilot_link", False, True, "no HEARTBEAT from the autopilot")
-        )
-    if state.sensors_healthy is not True or state.failsafe:
-        value = "failsafe" if state.failsafe else state.sensors_healthy
-        failed.append(
-            FailedCondition(
-                "autopilot_healthy",
-                value,
-                True,
-                "autopilot reports unhealthy sensors or a failsafe",
-            )
-        )
-    if state.battery_pct is None or state.battery_pct < limits.min_battery_pct:
-        failed.append(
-            FailedCondition("battery", state.battery_pct, limits.min_battery_pct,
-                            f"battery {state.battery_pct}% below {limits.min_battery_pct}%")
-        )  # fmt: skip
-    if state.fix_type < limits.min_fix_type:
-        need = FIX_NAMES.get(limits.min_fix_type, str(limits.min_fix_type))
-        failed.append(
-            FailedCondition(
-                "gnss_fix", state.fix_name, need, f"GNSS fix {state.fix_name}, need {need}"
-            )
-        )
-    if state.armed:
-        failed.append(FailedCondition("disarmed", True, False, "the UAV is armed"))
-    return failed
+    return [c for c in conditions(state, limits) if not c.ok]
+
+
+def report(state: UavState, limits: AvailabilityLimits | None = None) -> AvailabilityReport:
+    """The `check_availability` answer: every condition, the failed ones repeated."""
+    return AvailabilityReport.of(conditions(state, limits))

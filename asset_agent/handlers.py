@@ -1,10 +1,8 @@
-"""The agent's commands: thin async handlers from protocol commands to the autopilot adapter."""
+"""The agent's commands: thin async handlers from typed protocol commands to the autopilot."""
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator
-from dataclasses import asdict
-from typing import Any
+from collections.abc import AsyncIterator, Awaitable, Callable
 
 from asset_agent.autopilot import (
     Autopilot,
@@ -13,9 +11,20 @@ from asset_agent.autopilot import (
     InvalidMissionItem,
     items_from_dicts,
 )
-from asset_agent.availability import AvailabilityLimits, check_availability
-from assetlink.dispatch import CommandRequest, result
+from asset_agent.availability import AvailabilityLimits, report
+from assetlink.dispatch import CommandRequest, Handler, result
 from protocol.messages import CommandProgress, CommandResultPayload
+from protocol.vocabulary import (
+    Abort,
+    CheckAvailability,
+    CommandParams,
+    Land,
+    Pause,
+    Resume,
+    ReturnToBase,
+    StartMission,
+    UploadMission,
+)
 
 
 def _failure(err: AutopilotError) -> CommandResultPayload:
@@ -29,42 +38,35 @@ class Handlers:
         self.autopilot = autopilot
         self.limits = limits
 
-    def table(self) -> dict[str, Any]:
-        """Command name -> handler, for `Link.on_command`."""
+    def table(self) -> dict[type[CommandParams], Handler]:
+        """Command type -> handler, for `Link.on_command`."""
         return {
-            "check_availability": self.check_availability,
-            "upload_mission": self.upload_mission,
-            "start_mission": self.start_mission,
-            "pause": self.simple("pause"),
-            "resume": self.simple("resume"),
-            "return_to_base": self.simple("return_to_base"),
-            "land": self.simple("land"),
-            "abort": self.abort,
+            CheckAvailability: self.check_availability,
+            UploadMission: self.upload_mission,
+            StartMission: self.start_mission,
+            Pause: self.simple(self.autopilot.pause),
+            Resume: self.simple(self.autopilot.resume),
+            ReturnToBase: self.simple(self.autopilot.return_to_base),
+            Land: self.simple(self.autopilot.land),
+            Abort: self.abort,
         }
 
-    async def check_availability(self, request: CommandRequest) -> CommandResultPayload:
+    async def check_availability(
+        self, request: CommandRequest[CheckAvailability]
+    ) -> CommandResultPayload:
         """Battery, GNSS fix, autopilot health and link, disarmed: every failed condition listed."""
-        failed = check_availability(self.autopilot.state, self.limits)
-        conditions = [{**asdict(f), "value": f.value, "limit": f.limit} for f in failed]
-        if failed:
-            return result("failed", "; ".join(f.message for f in failed), {"failed": conditions})
-        s = self.autopilot.state
-        return result(
-            "succeeded",
-            "available",
-            {"failed": [], "battery_pct": s.battery_pct, "fix": s.fix_name},
-        )
+        answer = report(self.autopilot.state, self.limits)
+        data = answer.model_dump(mode="json")
+        if not answer.available:
+            return result("failed", answer.summary, data)
+        return result("succeeded", "available", data)
 
     async def upload_mission(
-        self, request: CommandRequest
+        self, request: CommandRequest[UploadMission]
     ) -> AsyncIterator[CommandProgress | CommandResultPayload]:
         """Upload the items, read them back and compare."""
-        raw = request.params.get("items")
-        if not isinstance(raw, list) or not raw:
-            yield result("rejected", "upload_mission needs a non-empty list `items`")
-            return
         try:
-            items = items_from_dicts(raw)
+            items = items_from_dicts([i.model_dump() for i in request.command.items])
         except InvalidMissionItem as err:
             yield result("rejected", str(err))
             return
@@ -81,7 +83,7 @@ class Handlers:
             "succeeded", f"{len(items)} items uploaded and verified", {"count": len(items)}
         )
 
-    async def start_mission(self, request: CommandRequest) -> CommandResultPayload:
+    async def start_mission(self, request: CommandRequest[StartMission]) -> CommandResultPayload:
         """Arm and start the uploaded mission (AUTO)."""
         try:
             await self.autopilot.start_mission()
@@ -89,19 +91,19 @@ class Handlers:
             return _failure(err)
         return result("succeeded", "mission started")
 
-    def simple(self, name: str):  # type: ignore[no-untyped-def]
+    def simple(self, method: Callable[[], Awaitable[object]]) -> Handler:
         """A handler calling one autopilot method without arguments."""
 
-        async def handler(request: CommandRequest) -> CommandResultPayload:
+        async def handler(request: CommandRequest[CommandParams]) -> CommandResultPayload:
             try:
-                await getattr(self.autopilot, name)()
+                await method()
             except AutopilotError as err:
                 return _failure(err)
-            return result("succeeded", name.replace("_", " "))
+            return result("succeeded", request.name.replace("_", " "))
 
         return handler
 
-    async def abort(self, request: CommandRequest) -> CommandResultPayload:
+    async def abort(self, request: CommandRequest[Abort]) -> CommandResultPayload:
         """Return to the base when flying, disarm when on the ground."""
         try:
             done = await self.autopilot.abort()

@@ -71,8 +71,8 @@ def setup(config: AgentConfig, asset: AssetConfig) -> Agent:
     limits = AvailabilityLimits(
         config.availability.min_battery_pct, config.availability.min_fix_type
     )
-    for name, handler in Handlers(autopilot, limits).table().items():
-        link.on_command(name, handler)
+    for command, handler in Handlers(autopilot, limits).table().items():
+        link.on_command(command.name, handler)
 
     def inject_rtcm(frame: bytes) -> None:
         autopilot.inject_rtcm(frame)  # the fragment count is of no use to the link

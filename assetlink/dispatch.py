@@ -1,5 +1,9 @@
 """Inbound commands: run each id once, answer redeliveries from the ledger.
 
+Before a handler runs, the command's `(name, params)` is parsed into its typed model from
+`protocol.vocabulary`: params that do not fit are answered `rejected` naming the field, so a
+handler only ever sees a valid `CommandRequest[Model]`.
+
 A handler is an async function taking a `CommandRequest` and either returning a final
 `CommandResultPayload` (or None for plain success), or an async generator that yields
 `CommandProgress` values (sent as in_progress results) and finally a final result.
@@ -13,12 +17,16 @@ import asyncio
 import logging
 import uuid
 from collections.abc import AsyncIterator, Awaitable, Callable
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Generic, TypeVar
+
+from pydantic import ValidationError
 
 from assetlink.outbox import AsyncOutbox
 from asynckit.tasks import cancel_and_wait
+from protocol import vocabulary
 from protocol.messages import Command, CommandProgress, CommandResultPayload, now_ms
+from protocol.vocabulary import CommandParams, CommandStatus
 
 log = logging.getLogger(__name__)
 
@@ -27,28 +35,35 @@ HandlerOutput = (
 )
 
 
+C = TypeVar("C", bound=CommandParams, covariant=True)
+
+
 @dataclass(frozen=True, slots=True)
-class CommandRequest:
-    """One command for a handler: its id, name, params and deadline (unix ms)."""
+class CommandRequest(Generic[C]):
+    """One command for a handler: its id, the typed command and its deadline (unix ms)."""
 
     id: uuid.UUID
-    name: str
-    params: dict[str, Any] = field(default_factory=dict)
+    command: C
     deadline: int = 0
+
+    @property
+    def name(self) -> str:
+        """The command's name on the wire."""
+        return self.command.name
 
     def remaining_s(self) -> float:
         """Seconds left before the deadline (negative once past it)."""
         return (self.deadline - now_ms()) / 1000
 
 
-Handler = Callable[[CommandRequest], HandlerOutput]
+Handler = Callable[[CommandRequest[Any]], HandlerOutput]
 
 
 def result(
-    status: str, reason: str = "", data: dict[str, Any] | None = None
+    status: CommandStatus, reason: str = "", data: dict[str, Any] | None = None
 ) -> CommandResultPayload:
     """Shorthand for a command result."""
-    return CommandResultPayload(status=status, reason=reason, data=data)  # type: ignore[arg-type]
+    return CommandResultPayload(status=status, reason=reason, data=data)
 
 
 @dataclass(slots=True)
@@ -71,8 +86,11 @@ class CommandDispatcher:
         self._tasks: dict[str, asyncio.Task[None]] = {}
         self.stats = CommandStats()
 
-    def register(self, name: str, handler: Handler) -> None:
-        """Run `handler` for commands called `name` (replacing any previous one)."""
+    def register(self, command: type[CommandParams] | str, handler: Handler) -> None:
+        """Run `handler` for this command of the vocabulary (replacing any previous one)."""
+        name = command if isinstance(command, str) else command.name
+        if name not in vocabulary.COMMANDS:
+            raise ValueError(f"{name!r} is not a command of protocol.vocabulary")
         self._handlers[name] = handler
 
     @property
@@ -112,9 +130,14 @@ class CommandDispatcher:
             self.stats.rejected += 1
             await self._finish(cid, result("timed_out", "the deadline passed before it started"))
             return
-        request = CommandRequest(
-            command.id, name, dict(command.payload.params), command.payload.deadline
-        )
+        try:
+            typed = vocabulary.parse(name, command.payload.params)
+        except ValidationError as err:
+            self.stats.rejected += 1
+            reason = f"invalid params for {name}: {vocabulary.describe(err)}"
+            await self._finish(cid, result("rejected", reason))
+            return
+        request = CommandRequest(command.id, typed, command.payload.deadline)
         self.stats.executed += 1
         task = asyncio.create_task(self._run(handler, request), name=f"command-{name}-{cid}")
         self._tasks[cid] = task
@@ -124,7 +147,7 @@ class CommandDispatcher:
         """Cancel running commands; each records a `canceled` result."""
         await cancel_and_wait(list(self._tasks.values()))
 
-    async def _run(self, handler: Handler, request: CommandRequest) -> None:
+    async def _run(self, handler: Handler, request: CommandRequest[Any]) -> None:
         cid = str(request.id)
         try:
             final = await self._drive(handler, request)
@@ -136,7 +159,7 @@ class CommandDispatcher:
             final = result("failed", f"{type(err).__name__}: {err}")
         await self._finish(cid, final)
 
-    async def _drive(self, handler: Handler, request: CommandRequest) -> CommandResultPayload:
+    async def _drive(self, handler: Handler, request: CommandRequest[Any]) -> CommandResultPayload:
         output = handler(request)
         if not hasattr(output, "__aiter__"):
             value = await output  # type: ignore[misc]

@@ -6,9 +6,21 @@ from base_station.config import StationConfig
 from base_station.devices.weather import Condition, weather_conditions
 from base_station.plc import fault_names
 from base_station.snapshot import Snapshot
+from protocol.vocabulary import AvailabilityCondition, AvailabilityReport
 
 
-def availability(snap: Snapshot, config: StationConfig) -> list[Condition]:
+def availability(snap: Snapshot, config: StationConfig) -> AvailabilityReport:
+    """The `check_availability` answer: every condition, the failed ones repeated."""
+    return AvailabilityReport.of([_wire(c) for c in conditions(snap, config)])
+
+
+def _wire(c: Condition) -> AvailabilityCondition:
+    return AvailabilityCondition(
+        name=c.name, ok=c.ok, value=c.measured, limit=c.limit, message=c.message
+    )
+
+
+def conditions(snap: Snapshot, config: StationConfig) -> list[Condition]:
     """All conditions (weather, base health, UAV present); none is skipped when another fails."""
     if not snap.link_up or snap.plc is None:
         return [

@@ -13,7 +13,7 @@ from collections.abc import AsyncIterator
 from pathlib import Path
 
 from assetlink.configfile import AssetConfig
-from assetlink.dispatch import CommandRequest
+from assetlink.dispatch import CommandRequest, Handler
 from assetlink.link import Link
 from asynckit.tasks import cancel_and_wait
 from base_station.config import StationConfig
@@ -22,6 +22,7 @@ from base_station.rtk import RtkConfig as ReaderConfig
 from base_station.rtk import RtkReader, source_url, to_telemetry
 from base_station.station import Progress, Result, Station
 from protocol.messages import CommandProgress, CommandResultPayload, EventPayload, Severity
+from protocol.vocabulary import CommandParams
 
 log = logging.getLogger(__name__)
 
@@ -37,14 +38,14 @@ def to_event(e: Event) -> EventPayload:
     return EventPayload(name=e.kind.value, severity=severity, message=e.message, data=dict(e.data))
 
 
-def command_handler(station: Station, name: str):  # type: ignore[no-untyped-def]
-    """A link handler running one station command, its progress numbered as it comes."""
+def command_handler(station: Station) -> Handler:
+    """A link handler running the station's typed commands, progress numbered as it comes."""
 
     async def handler(
-        request: CommandRequest,
+        request: CommandRequest[CommandParams],
     ) -> AsyncIterator[CommandProgress | CommandResultPayload]:
         index = 0
-        async for item in station.execute(name, request.params):
+        async for item in station.execute(request.command):
             if isinstance(item, Progress):
                 index += 1
                 yield CommandProgress(
@@ -70,8 +71,9 @@ def link_runner(link: Link):  # type: ignore[no-untyped-def]
     """A `base_station.main.LinkRunner` serving `link`."""
 
     async def serve(station: Station, config: StationConfig) -> None:
-        for name in station.commands:
-            link.on_command(name, command_handler(station, name))
+        handler = command_handler(station)
+        for command in station.commands:
+            link.on_command(command.name, handler)
         await link.start()
         reader = None
         if config.rtk.tcp_port or config.rtk.serial_device:

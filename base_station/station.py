@@ -1,9 +1,10 @@
 """The `Station` facade: the daemon's command entry point and event stream.
 
-`execute(name, params)` is an async iterator of `Progress` values ending in exactly one
-`Result` (succeeded / rejected / failed, with a human-readable reason). Commands: open,
-close, open_panels, close_panels, lift_up, lift_down, start_charging, stop_charging,
-check_availability, stop, reset_faults. `subscribe()` streams `Event`s. These two are all
+`execute(command)` is an async iterator of `Progress` values ending in exactly one
+`Result` (succeeded / rejected / failed, with a human-readable reason); the command is one of
+`protocol.vocabulary`'s models (or a `(name, params)` pair, parsed into one): Open, Close,
+OpenPanels, ClosePanels, LiftUp, LiftDown, StartCharging, StopCharging, CheckAvailability,
+Stop, ResetFaults. `subscribe()` streams `Event`s. These two are all
 a server link needs.
 
 Safety rules enforced here: one motion at a time (a duplicate or replayed motion command
@@ -18,10 +19,12 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Callable, Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
+
+from pydantic import ValidationError
 
 from base_station.availability import availability
 from base_station.base_telemetry import build_telemetry
@@ -40,7 +43,22 @@ from base_station.plc import (
     PlcLinkError,
     fault_names,
 )
+from protocol import vocabulary
 from protocol.telemetry_payloads import LandingBaseTelemetry, Rtk
+from protocol.vocabulary import (
+    CheckAvailability,
+    Close,
+    ClosePanels,
+    CommandParams,
+    LiftDown,
+    LiftUp,
+    Open,
+    OpenPanels,
+    ResetFaults,
+    StartCharging,
+    Stop,
+    StopCharging,
+)
 
 log = logging.getLogger(__name__)
 
@@ -74,6 +92,7 @@ class Result:
 
 
 Item = Progress | Result
+CommandHandler = Callable[[Any], AsyncIterator[Item]]
 MOTION_COMMANDS = ("open", "close", "open_panels", "close_panels", "lift_up", "lift_down")
 
 
@@ -85,23 +104,23 @@ class Station:
         self.config = config
         self._motion: str | None = None
         self._stop_gen = 0
-        self._handlers: dict[str, Callable[[str, dict[str, Any]], AsyncIterator[Item]]] = {
-            "open": self._open,
-            "close": self._close,
-            "open_panels": self._axis_cmd(PANELS, +1, check_open_panels),
-            "close_panels": self._axis_cmd(PANELS, -1, check_close_panels),
-            "lift_up": self._axis_cmd(LIFT, +1, check_lift_up),
-            "lift_down": self._axis_cmd(LIFT, -1, check_lift_down),
-            "start_charging": self._start_charging,
-            "stop_charging": self._stop_charging,
-            "check_availability": self._check_availability,
-            "stop": self._stop,
-            "reset_faults": self._reset_faults,
+        self._handlers: dict[type[CommandParams], CommandHandler] = {
+            Open: self._open,
+            Close: self._close,
+            OpenPanels: self._axis_cmd(PANELS, +1, check_open_panels),
+            ClosePanels: self._axis_cmd(PANELS, -1, check_close_panels),
+            LiftUp: self._axis_cmd(LIFT, +1, check_lift_up),
+            LiftDown: self._axis_cmd(LIFT, -1, check_lift_down),
+            StartCharging: self._start_charging,
+            StopCharging: self._stop_charging,
+            CheckAvailability: self._check_availability,
+            Stop: self._stop,
+            ResetFaults: self._reset_faults,
         }
 
     @property
-    def commands(self) -> tuple[str, ...]:
-        """Names `execute` accepts."""
+    def commands(self) -> tuple[type[CommandParams], ...]:
+        """The command types `execute` accepts."""
         return tuple(self._handlers)
 
     def subscribe(self) -> Subscription:
@@ -121,16 +140,27 @@ class Station:
             yield self.telemetry()
             await asyncio.sleep(period)
 
-    async def execute(self, name: str, params: dict[str, Any] | None = None) -> AsyncIterator[Item]:
-        """Run one command: Progress values, then one Result. Never raises for bad input."""
-        handler = self._handlers.get(name)
+    async def execute(
+        self, command: CommandParams | str, params: Mapping[str, Any] | None = None
+    ) -> AsyncIterator[Item]:
+        """Run one command: Progress values, then one Result. Never raises for bad input.
+
+        `command` is a typed command, or a name whose `params` are parsed into one here.
+        """
+        if isinstance(command, str):
+            name = command
+            if params is not None and not isinstance(params, Mapping):
+                yield self._reject(name, "params must be an object")
+                return
+            try:
+                command = vocabulary.parse(name, params)
+            except (vocabulary.UnknownCommand, ValidationError) as err:
+                yield self._reject(name, self._refusal(name, err))
+                return
+        name = command.name
+        handler = self._handlers.get(type(command))
         if handler is None:
-            yield self._reject(
-                name, f"unknown command {name!r}; known: {', '.join(self._handlers)}"
-            )
-            return
-        if not isinstance(params, dict | None):
-            yield self._reject(name, "params must be an object")
+            yield self._reject(name, self._refusal(name, vocabulary.UnknownCommand(name)))
             return
         exclusive = name in MOTION_COMMANDS
         if exclusive and self._motion is not None:
@@ -139,7 +169,7 @@ class Station:
         if exclusive:
             self._motion = name
         try:
-            async for item in handler(name, params or {}):
+            async for item in handler(command):
                 yield item
         except PlcLinkError as err:
             yield self._fail(name, f"PLC link error: {err}")
@@ -150,10 +180,12 @@ class Station:
             if exclusive:
                 self._motion = None
 
-    async def run(self, name: str, params: dict[str, Any] | None = None) -> Result:
+    async def run(
+        self, command: CommandParams | str, params: Mapping[str, Any] | None = None
+    ) -> Result:
         """Execute a command to its end and return only its Result."""
         result: Result | None = None
-        async for item in self.execute(name, params):
+        async for item in self.execute(command, params):
             if isinstance(item, Result):
                 result = item
         assert result is not None
@@ -169,6 +201,12 @@ class Station:
                 log.warning("station: could not stop motion on shutdown: %s", err)
 
     # --- helpers -------------------------------------------------------------------------
+
+    def _refusal(self, name: str, err: Exception) -> str:
+        if isinstance(err, ValidationError):
+            return f"invalid params for {name}: {vocabulary.describe(err)}"
+        known = ", ".join(c.name for c in self._handlers)
+        return f"unknown command {name!r}; known: {known}"
 
     def _reject(self, command: str, reason: str) -> Result:
         self.coord.emit(Event(EventKind.REFUSAL, reason, {"command": command}))
@@ -192,9 +230,9 @@ class Station:
     # --- motion --------------------------------------------------------------------------
 
     def _axis_cmd(self, spec: AxisSpec, direction: int, check: Callable[..., Decision]):  # type: ignore[no-untyped-def]
-        async def handler(name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+        async def handler(command: CommandParams) -> AsyncIterator[Item]:
             """Move `spec` towards `direction`."""
-            async for item in self._move(name, spec, direction, check):
+            async for item in self._move(command.name, spec, direction, check):
                 yield item
 
         return handler
@@ -272,7 +310,8 @@ class Station:
                 return
         yield Result(command, Status.SUCCEEDED, f"base {'open' if command == 'open' else 'closed'}")
 
-    async def _open(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+    async def _open(self, command: CommandParams) -> AsyncIterator[Item]:
+        name = command.name
         steps = [
             ("open_panels", PANELS, +1, check_open_panels),
             ("lift_up", LIFT, +1, check_lift_up),
@@ -280,7 +319,8 @@ class Station:
         async for item in self._sequence(name, steps):
             yield item
 
-    async def _close(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+    async def _close(self, command: CommandParams) -> AsyncIterator[Item]:
+        name = command.name
         steps = [
             ("lift_down", LIFT, -1, check_lift_down),
             ("close_panels", PANELS, -1, check_close_panels),
@@ -288,7 +328,8 @@ class Station:
         async for item in self._sequence(name, steps):
             yield item
 
-    async def _stop(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+    async def _stop(self, command: CommandParams) -> AsyncIterator[Item]:
+        name = command.name
         self._stop_gen += 1
         if not self.coord.snapshot.link_up:
             yield self._fail(
@@ -304,7 +345,8 @@ class Station:
             return
         yield Result(name, Status.SUCCEEDED, "all motion stopped")
 
-    async def _reset_faults(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+    async def _reset_faults(self, command: CommandParams) -> AsyncIterator[Item]:
+        name = command.name
         if not self.coord.snapshot.link_up:
             yield self._fail(name, "PLC link down")
             return
@@ -326,11 +368,11 @@ class Station:
 
     # --- charging and availability -------------------------------------------------------
 
-    async def _start_charging(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
-        limit = params.get("current_limit_ma", self.config.charge.current_limit_ma)
-        if isinstance(limit, bool) or not isinstance(limit, int) or not 0 <= limit <= 65535:
-            yield self._reject(name, "current_limit_ma must be an integer in 0..65535")
-            return
+    async def _start_charging(self, command: StartCharging) -> AsyncIterator[Item]:
+        name = command.name
+        limit = command.current_limit_ma
+        if limit is None:
+            limit = self.config.charge.current_limit_ma
         snap = self.coord.snapshot
         decision = check_start_charging(snap.plc, snap.link_up)
         if not decision.allowed:
@@ -370,27 +412,20 @@ class Station:
             + charger_idle_reason(snap.plc, snap.link_up),
         )
 
-    async def _stop_charging(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
+    async def _stop_charging(self, command: CommandParams) -> AsyncIterator[Item]:
+        name = command.name
         if not self.coord.snapshot.link_up:
             yield self._fail(name, "PLC link down")
             return
         await self.coord.write_coil(Coil.CHARGER_ENABLE, False)
         yield Result(name, Status.SUCCEEDED, "charger disabled")
 
-    async def _check_availability(self, name: str, params: dict[str, Any]) -> AsyncIterator[Item]:
-        conditions = availability(self.coord.snapshot, self.config)
-        failed = [c for c in conditions if not c.ok]
-        data = {
-            "available": not failed,
-            "failed": [c.__dict__ for c in failed],
-            "conditions": [c.__dict__ for c in conditions],
-        }
-        if failed:
-            yield Result(
-                name,
-                Status.REJECTED,
-                "not available: " + "; ".join(c.message for c in failed),
-                data,
-            )
+    async def _check_availability(self, command: CheckAvailability) -> AsyncIterator[Item]:
+        # mass_g / mass_window_g are typed but unused: the UAV window comes from config.uav
+        name = command.name
+        report = availability(self.coord.snapshot, self.config)
+        data = report.model_dump(mode="json")
+        if not report.available:
+            yield Result(name, Status.REJECTED, "not available: " + report.summary, data)
         else:
             yield Result(name, Status.SUCCEEDED, "available", data)

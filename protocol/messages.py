@@ -22,15 +22,10 @@ from pydantic import Field, TypeAdapter, field_validator, model_serializer
 from protocol import rtcm
 from protocol.base import Frozen
 from protocol.telemetry_payloads import LandingBaseTelemetry, TelemetryPayload, UavTelemetry
+from protocol.vocabulary import FINAL_STATUSES, CommandStatus, RunProgressPayload
 
 AgentKind = Literal["base_station", "asset_agent", "operator"]
 Severity = Literal["info", "warning", "critical"]
-CommandStatus = Literal[
-    "queued", "sent", "in_progress", "succeeded", "rejected", "failed", "canceled", "timed_out"
-]
-FINAL_STATUSES: frozenset[str] = frozenset(
-    {"succeeded", "rejected", "failed", "canceled", "timed_out"}
-)
 Seq = Annotated[int, Field(ge=0)]
 UnixMs = Annotated[int, Field(ge=0)]
 Name = Annotated[str, Field(min_length=1, max_length=200)]
@@ -72,7 +67,11 @@ class EventPayload(Frozen):
 
 
 class CommandPayload(Frozen):
-    """Server -> asset: run the named command with params before the deadline."""
+    """Server -> asset: run the named command with params before the deadline.
+
+    `params` stays a JSON object here: the receiver parses `(name, params)` into the typed
+    command with `protocol.vocabulary.parse`, so a bad one is answered `rejected`, not dropped.
+    """
 
     name: Name
     params: dict[str, Any] = Field(default_factory=dict)
@@ -254,10 +253,10 @@ class Unsubscribe(_Envelope):
 
 
 class RunProgress(_Envelope):
-    """Envelope of kind `run_progress` (server -> operator); the payload model is the lead's."""
+    """Envelope of kind `run_progress` (server -> operator)."""
 
     type: Literal["run_progress"] = "run_progress"
-    payload: dict[str, Any]
+    payload: RunProgressPayload
 
 
 AssetToServer = Annotated[
@@ -328,6 +327,7 @@ _BY_PAYLOAD: dict[type, type[_Envelope]] = {
     ErrorPayload: Error,
     SubscribePayload: Subscribe,
     UnsubscribePayload: Unsubscribe,
+    RunProgressPayload: RunProgress,
 }
 
 

@@ -7,7 +7,7 @@ from server.commands.models import AssetCommand, CommandStatusChange
 from server.kit.db import Base
 from server.missions.models import Mission, MissionKind
 from server.organizations.models import Membership, Organization, Role, User
-from server.runs.models import Run, RunTransition
+from server.runs.models import Run, RunStepCommand, RunTransition
 from server.schedules.models import Schedule
 from server.telemetry.models import AssetEvent, AssetStream, TelemetrySample
 
@@ -28,6 +28,7 @@ __all__ = [
     "Organization",
     "Role",
     "Run",
+    "RunStepCommand",
     "RunTransition",
     "Schedule",
     "TelemetrySample",

@@ -33,6 +33,7 @@ from asset_agent.precland.transport import IrReceiver, frames_forever
 from assetlink.dispatch import CommandRequest, result
 from asynckit.tasks import cancel_and_wait
 from protocol.messages import CommandResultPayload
+from protocol.vocabulary import PreclandFault
 
 log = logging.getLogger(__name__)
 
@@ -108,11 +109,11 @@ class PrecisionLander:
         if self.loop is not None:
             self.loop.set_fault(source, fault)
 
-    async def fault_command(self, request: CommandRequest) -> CommandResultPayload:
+    async def fault_command(self, request: CommandRequest[PreclandFault]) -> CommandResultPayload:
         """`precland_fault {source, r_drop, p_keep, p_drop, below_m, above_m}`; source "marker"
         means pattern and ArUco."""
-        p = request.params
-        source = str(p.get("source", ""))
+        p = request.command
+        source = p.source
         targets = ("pattern", "aruco") if source == "marker" else (source,)
         if not all(s in SOURCES for s in targets):
             return result(
@@ -120,11 +121,11 @@ class PrecisionLander:
             )
         try:
             fault = FaultConfig(
-                r_drop=p.get("r_drop") or 0.0,
-                p_keep=p.get("p_keep") or 0.0,
-                p_drop=p.get("p_drop") or 0.0,
-                fail_below_m=p.get("below_m"),
-                fail_above_m=p.get("above_m"),
+                r_drop=p.r_drop or 0.0,
+                p_keep=p.p_keep or 0.0,
+                p_drop=p.p_drop or 0.0,
+                fail_below_m=p.below_m,
+                fail_above_m=p.above_m,
             )
         except ValidationError as err:
             return result("rejected", f"bad fault: {err.errors()[0]['msg']}")

@@ -65,8 +65,7 @@ async def send_command(
         db,
         organization_id=asset.organization_id,
         asset_id=asset.id,
-        name=body.name,
-        params=body.params,
+        command=service.parse_command(body.name, body.params),
         timeout_s=body.timeout_s,
         created_by=principal.actor_id,
     )

@@ -12,8 +12,6 @@ from sqlalchemy.orm import Mapped, mapped_column
 from server.kit.db import Base, IdMixin
 from server.kit.time import utcnow
 
-FINAL = frozenset({"succeeded", "rejected", "failed", "canceled", "timed_out"})
-
 
 class AssetCommand(IdMixin, Base):
     """A command for one asset and its current status."""

@@ -3,14 +3,32 @@
 from __future__ import annotations
 
 import uuid
+from collections.abc import Mapping
 from datetime import timedelta
 from typing import Any
 
+from pydantic import ValidationError
 from sqlalchemy import select
 from sqlalchemy.ext.asyncio import AsyncSession
 
-from server.commands.models import FINAL, AssetCommand, CommandStatusChange
+from protocol import vocabulary
+from protocol.vocabulary import FINAL_STATUSES, CommandParams
+from server.commands.models import AssetCommand, CommandStatusChange
+from server.kit.errors import Unprocessable
 from server.kit.time import utcnow
+
+
+def parse_command(name: str, params: Mapping[str, Any]) -> CommandParams:
+    """The typed command of a request's name and params; 422 naming the field when they do not fit."""
+    try:
+        return vocabulary.parse(name, params)
+    except vocabulary.UnknownCommand as err:
+        known = ", ".join(sorted(vocabulary.COMMANDS))
+        raise Unprocessable(f"{err}; known: {known}", code="invalid_command") from err
+    except ValidationError as err:
+        raise Unprocessable(
+            f"invalid params for {name}: {vocabulary.describe(err)}", code="invalid_command"
+        ) from err
 
 
 async def create(
@@ -18,18 +36,17 @@ async def create(
     *,
     organization_id: uuid.UUID,
     asset_id: uuid.UUID,
-    name: str,
-    params: dict[str, Any],
+    command: CommandParams,
     timeout_s: float,
     created_by: str | None,
 ) -> AssetCommand:
-    """A queued command with its deadline."""
+    """A queued command with its deadline; its params are stored as they go on the wire."""
     now = utcnow()
     cmd = AssetCommand(
         organization_id=organization_id,
         asset_id=asset_id,
-        name=name,
-        params=params,
+        name=command.name,
+        params=vocabulary.params_of(command),
         status="queued",
         deadline=now + timedelta(seconds=timeout_s),
         created_by=created_by,
@@ -52,7 +69,7 @@ async def set_status(
     result: dict[str, Any] | None = None,
 ) -> bool:
     """Move a command on; a final status is never left. Returns False when nothing changed."""
-    if cmd.status in FINAL:
+    if cmd.status in FINAL_STATUSES:
         return False
     now = utcnow()
     cmd.status, cmd.reason, cmd.updated_at = status, reason[:2000], now
@@ -101,7 +118,7 @@ async def due_for_delivery(db: AsyncSession, asset_id: uuid.UUID) -> list[AssetC
 async def expire(db: AsyncSession) -> list[AssetCommand]:
     """Every unfinished command past its deadline becomes timed_out."""
     stmt = select(AssetCommand).where(  # unscoped: system sweep
-        AssetCommand.status.not_in(list(FINAL)), AssetCommand.deadline <= utcnow()
+        AssetCommand.status.not_in(list(FINAL_STATUSES)), AssetCommand.deadline <= utcnow()
     )
     expired = []
     for cmd in (await db.execute(stmt)).scalars():

@@ -9,10 +9,20 @@ from __future__ import annotations
 
 import logging
 import uuid
-from dataclasses import asdict
 from datetime import datetime, timedelta
 from typing import Any
 
+from pydantic import ValidationError
+
+from protocol.messages import RunProgress
+from protocol.vocabulary import (
+    COMMANDS,
+    CheckAvailability,
+    CommandParams,
+    MissionItem,
+    RunProgressPayload,
+    UploadMission,
+)
 from server.assets.models import Asset
 from server.commands import service as commands
 from server.kit.periodic import Periodic
@@ -27,6 +37,7 @@ from server.runs.machine import (
     CommandOutcome,
     Observations,
     State,
+    Transition,
     advance,
 )
 from server.runs.models import Run, RunTransition
@@ -36,26 +47,26 @@ log = logging.getLogger(__name__)
 LEASE_S = 15.0
 
 
-def progress_payload(run: Run, label_override: str | None = None) -> dict[str, Any]:
+def progress_payload(run: Run, label_override: str | None = None) -> RunProgressPayload:
     """What operators see of a run: readable step, number, status, reason."""
     state = State(run.state)
     step = STEPS[state]
-    return {
-        "run_id": str(run.id),
-        "state": state.value,
-        "step": step.number,
-        "total_steps": TOTAL_STEPS,
-        "label": label_override or step.label,
-        "final": state in FINAL,
-        "outcome": run.outcome,
-        "cause": run.cause,
-        "reason": run.reason,
-        "alert": run.alert,
-        "mission_id": str(run.mission_id),
-        "uav_id": str(run.uav_id),
-        "base_id": str(run.base_id),
-        "at": utcnow().isoformat(),
-    }
+    return RunProgressPayload(
+        run_id=run.id,
+        state=state.value,
+        step=step.number,
+        total_steps=TOTAL_STEPS,
+        label=label_override or step.label,
+        final=state in FINAL,
+        outcome=run.outcome,  # type: ignore[arg-type]
+        cause=run.cause,
+        reason=run.reason,
+        alert=run.alert,
+        mission_id=run.mission_id,
+        uav_id=run.uav_id,
+        base_id=run.base_id,
+        at=utcnow(),
+    )
 
 
 class RunEngine:
@@ -113,104 +124,105 @@ class RunEngine:
             if transition is None:
                 return
             previous = run.state
-            now = utcnow()
             # written first: a server that dies right after this resumes in the new step
-            db.add(
-                RunTransition(
-                    run_id=run.id,
-                    at=now,
-                    from_state=previous,
-                    to_state=transition.to.value,
-                    reason=transition.reason,
-                    cause=transition.cause,
-                )
-            )
-            if transition.cause == "operator_abort":
-                run.aborting = True
-            if previous == State.flying.value:
-                run.facts = {**run.facts, "flight_ended_at": now.isoformat()}
-            if transition.to == State.flying:
-                run.facts = {**run.facts, "flight_started_at": now.isoformat()}
-            run.state, run.step_started_at, run.updated_at = transition.to.value, now, now
-            run.reason = transition.reason
-            run.alert = run.alert or transition.alert
-            pending = [*transition.extra_actions, *STEPS[transition.to].actions]
-            run.facts = {**run.facts, "pending_actions": [asdict(a) for a in pending]}
-            run.step_commands, run.actions_issued = {}, not pending
-            if transition.to in FINAL:
-                run.outcome, run.cause, run.finished_at = (
-                    transition.to.value,
-                    transition.cause or None,
-                    now,
-                )
+            await self._record(db, run, transition)
             await db.commit()
             log.info(
                 "run %s: %s -> %s: %s", run.id, previous, transition.to.value, transition.reason
             )
         await self._publish(run)
 
-    async def _publish(self, run: Run) -> None:
-        from protocol.messages import RunProgress
+    async def _record(self, db: Any, run: Run, transition: Transition) -> None:
+        """The transition in the timeline, the run in its new step, the step's commands pending."""
+        now = utcnow()
+        db.add(
+            RunTransition(
+                run_id=run.id,
+                at=now,
+                from_state=run.state,
+                to_state=transition.to.value,
+                reason=transition.reason,
+                cause=transition.cause,
+            )
+        )
+        if transition.cause == "operator_abort":
+            run.aborting = True
+        if run.state == State.flying.value:
+            run.flight_ended_at = now
+        if transition.to == State.flying:
+            run.flight_started_at = now
+        run.state, run.step_started_at, run.updated_at = transition.to.value, now, now
+        run.reason = transition.reason
+        run.alert = run.alert or transition.alert
+        pending = [*transition.extra_actions, *STEPS[transition.to].actions]
+        await repo.replace_step_commands(db, run.id, pending)
+        run.actions_issued = not pending
+        if transition.to in FINAL:
+            run.outcome, run.cause, run.finished_at = (
+                transition.to.value,
+                transition.cause or None,
+                now,
+            )
 
+    async def _publish(self, run: Run) -> None:
         message = RunProgress(payload=progress_payload(run)).model_dump(mode="json")
         for asset_id in {run.uav_id, run.base_id}:
             await self.services.broker.publish(asset_channel(asset_id), message)
 
     async def _issue(self, db: Any, run: Run) -> set[uuid.UUID]:
-        pending = run.facts.get("pending_actions")
-        actions = (
-            [Action(**a) for a in pending]
-            if pending is not None
-            else list(STEPS[State(run.state)].actions)
-        )
-        timeout = self.timeout_s(State(run.state)) if State(run.state) not in FINAL else 120.0
-        issued = dict(run.step_commands)
+        """Create the step's pending commands; the assets to nudge."""
+        state = State(run.state)
+        rows = await repo.step_commands(db, run.id)
+        if not rows:  # a step entered before its commands were recorded: the table's own
+            rows = await repo.replace_step_commands(db, run.id, STEPS[state].actions)
+        timeout = self.timeout_s(state) if state not in FINAL else 120.0
         nudges: set[uuid.UUID] = set()
-        for action in actions:
-            key = f"{action.target}:{action.command}"
-            if key in issued:
+        for row in rows:
+            if row.command_id is not None:
                 continue
+            # rows are written from Actions only, so a target is "uav" or "base"
+            action = Action("uav" if row.target == "uav" else "base", COMMANDS[row.command])
             asset_id = run.uav_id if action.target == "uav" else run.base_id
-            params = dict(action.params) or await self._params(db, run, action)
             cmd = await commands.create(
                 db,
                 organization_id=run.organization_id,
                 asset_id=asset_id,
-                name=action.command,
-                params=params,
+                command=await self._command(db, run, action),
                 timeout_s=timeout,
                 created_by=f"run:{run.id}",
             )
-            issued[key] = str(cmd.id)
+            row.command_id = cmd.id
             nudges.add(asset_id)
-        run.step_commands, run.actions_issued = issued, True
-        run.facts = {k: v for k, v in run.facts.items() if k != "pending_actions"}
+        run.actions_issued = True
         return nudges
 
-    async def _params(self, db: Any, run: Run, action: Action) -> dict[str, Any]:
-        if action.command == "upload_mission":
+    async def _command(self, db: Any, run: Run, action: Action) -> CommandParams:
+        """The typed command of an action, its params filled in from the run."""
+        if action.command is UploadMission:
             from server.missions.models import Mission
 
             mission = await db.get(Mission, run.mission_id)
-            return {
-                "mission_id": str(run.mission_id),
-                "items": list(mission.items) if mission else [],
-            }
-        if action.target == "base" and action.command == "check_availability":
+            items = [MissionItem.model_validate(i) for i in (mission.items if mission else [])]
+            return UploadMission(mission_id=run.mission_id, items=tuple(items))
+        if action.target == "base" and action.command is CheckAvailability:
             uav = await db.get(Asset, run.uav_id)
             attrs = (uav.attributes if uav else None) or {}
-            return {k: attrs[k] for k in ("mass_g", "mass_window_g") if k in attrs}
-        return {}
+            weight = {k: attrs[k] for k in ("mass_g", "mass_window_g") if k in attrs}
+            try:
+                return CheckAvailability.model_validate(weight)
+            except ValidationError:
+                log.warning("run %s: the UAV's mass attributes are not numbers: %s", run.id, weight)
+                return CheckAvailability()
+        return action.command()
 
     async def _observe(self, db: Any, run: Run) -> Observations:
-        ids = [uuid.UUID(v) for v in run.step_commands.values()]
-        found = await repo.commands_by_id(db, ids)
-        outcomes = {}
-        for key, value in run.step_commands.items():
-            cmd = found.get(uuid.UUID(value))
-            if cmd is not None:
-                target, name = key.split(":", 1)
-                outcomes[(target, name)] = CommandOutcome(cmd.status, cmd.reason, cmd.result)
+        rows = await repo.step_commands(db, run.id)
+        found = await repo.commands_by_id(db, [r.command_id for r in rows if r.command_id])
+        outcomes = {
+            (row.target, row.command): CommandOutcome(cmd.status, cmd.reason, cmd.result)
+            for row in rows
+            if row.command_id and (cmd := found.get(row.command_id)) is not None
+        }
         since = run.step_started_at
         uav_events = await repo.event_names_since(db, run.uav_id, since)
         base_events = await repo.event_names_since(db, run.base_id, since)

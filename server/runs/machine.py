@@ -4,12 +4,16 @@ A run walks the ALPHA base's sequence (Moreira et al. 2021, Fig. 8):
 
     pending → checking → opening → uploading → flying → landing → confirming → closing → charging → completed
 
-Each step has: what is commanded on entry, what completes it, how long it may take, and where it
-goes on failure. `advance` looks at what has been observed since the step began and returns the
-next transition (or None to keep waiting). It does no I/O: the engine persists the transition
-first, then issues the commands the new step names.
+Each step (a row of `STEPS`) names what is commanded on entry and its exits: `done` (a
+completion predicate holds), `failure` (a command of the step ended without success),
+`timeout` (the step's time budget ran out) and `abort` (an operator asked to stop). An exit
+says where the run goes, why, with what short cause, whether a person must look (`alert`) and
+which commands are issued on the way out (`safe`). `advance` is a generic evaluator over that
+table: it looks at what has been observed since the step began and returns the next transition
+(or None to keep waiting). It does no I/O: the engine persists the transition first, then issues
+the commands the exit and the new step name.
 
-Safety rules encoded here:
+The safety policy, as the table encodes it:
 - before take-off, a failure closes the base (the UAV is on the lift: the check saw it on the scale);
 - after take-off, nothing closes the panels until the scale has confirmed the UAV on the lift;
 - an operator abort before take-off closes the base; in flight it returns the UAV to the base and lands.
@@ -18,9 +22,24 @@ Safety rules encoded here:
 from __future__ import annotations
 
 import enum
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from protocol.vocabulary import (
+    FINAL_STATUSES,
+    AvailabilityReport,
+    CheckAvailability,
+    Close,
+    CommandParams,
+    CommandStatus,
+    Open,
+    ReturnToBase,
+    StartCharging,
+    StartMission,
+    Stop,
+    UploadMission,
+)
 
 
 class State(enum.StrEnum):
@@ -42,94 +61,45 @@ class State(enum.StrEnum):
 
 FINAL = frozenset({State.completed, State.aborted, State.failed})
 AIRBORNE = frozenset({State.flying, State.landing})
+TOTAL_STEPS = 8
+Target = Literal["base", "uav"]
+WHO: dict[str, str] = {"base": "the base", "uav": "the UAV"}
 
 
 @dataclass(frozen=True)
 class Action:
-    """A command to issue on entering a step: to the `base` or the `uav`."""
+    """A command to issue on entering a step: to the `base` or the `uav`.
 
-    target: str  # "base" | "uav"
-    command: str
-    params: Mapping[str, Any] = field(default_factory=dict)
+    `command` is the command's model; the engine fills in its params (the mission's items, the
+    UAV's mass) when it issues it.
+    """
 
+    target: Target
+    command: type[CommandParams]
 
-@dataclass(frozen=True)
-class Step:
-    """One row of the sequence table."""
+    @property
+    def name(self) -> str:
+        """The command's name on the wire."""
+        return self.command.name
 
-    state: State
-    number: int
-    label: str
-    actions: tuple[Action, ...]
-    default_timeout_s: float
-
-
-STEPS: dict[State, Step] = {
-    s.state: s
-    for s in (
-        Step(State.pending, 0, "Waiting to start", (), 30),
-        Step(
-            State.checking,
-            1,
-            "Checking weather, base health and UAV readiness",
-            (Action("base", "check_availability"), Action("uav", "check_availability")),
-            60,
-        ),
-        Step(
-            State.opening,
-            2,
-            "Opening the base (side panels, then lift up)",
-            (Action("base", "open"),),
-            120,
-        ),
-        Step(
-            State.uploading,
-            3,
-            "Uploading the mission to the UAV and reading it back",
-            (Action("uav", "upload_mission"),),
-            90,
-        ),
-        Step(State.flying, 4, "Flying the mission", (Action("uav", "start_mission"),), 3600),
-        Step(
-            State.landing,
-            5,
-            "Returning to the base and landing on the pad",
-            (Action("uav", "return_to_base"),),
-            900,
-        ),
-        Step(State.confirming, 6, "Confirming the landing on the base's scale", (), 90),
-        Step(
-            State.closing,
-            7,
-            "Closing the base (lift down, then side panels)",
-            (Action("base", "close"),),
-            120,
-        ),
-        Step(
-            State.charging, 8, "Starting to charge the UAV", (Action("base", "start_charging"),), 60
-        ),
-        Step(State.completed, 9, "Completed", (), 0),
-        Step(State.aborted, 9, "Aborted", (), 0),
-        Step(State.failed, 9, "Failed", (), 0),
-    )
-}
-TOTAL_STEPS = 8
+    @property
+    def key(self) -> str:
+        """``target:name``, how a run records the command it issued for this action."""
+        return f"{self.target}:{self.command.name}"
 
 
 @dataclass(frozen=True)
 class CommandOutcome:
     """What became of a command the step issued."""
 
-    status: (
-        str  # queued | sent | in_progress | succeeded | rejected | failed | canceled | timed_out
-    )
+    status: CommandStatus | str
     reason: str = ""
     data: Mapping[str, Any] | None = None
 
     @property
     def final(self) -> bool:
         """True once the command has ended."""
-        return self.status in ("succeeded", "rejected", "failed", "canceled", "timed_out")
+        return self.status in FINAL_STATUSES
 
 
 @dataclass(frozen=True)
@@ -154,7 +124,7 @@ class Observations:
 
 @dataclass(frozen=True)
 class Transition:
-    """Go to `to` because of `reason`; `cause` is a short code for reports, `safe` what was done."""
+    """Go to `to` because of `reason`; `cause` is a short code for reports."""
 
     to: State
     reason: str
@@ -165,201 +135,321 @@ class Transition:
     extra_actions: tuple[Action, ...] = ()
 
 
-def _failed_conditions(outcome: CommandOutcome) -> str:
-    data = outcome.data or {}
-    failed = data.get("failed") or data.get("conditions") or []
-    parts = []
-    for c in failed if isinstance(failed, list) else []:
-        if isinstance(c, Mapping):
-            parts.append(str(c.get("message") or c.get("reason") or c.get("name")))
-    return "; ".join(p for p in parts if p) or outcome.reason or outcome.status
+# --- what a step has seen, and the predicates over it ---------------------------------
+
+
+@dataclass(frozen=True)
+class Seen:
+    """The context an exit is judged in: the step, the observations, the failed command."""
+
+    step: Step
+    obs: Observations
+    aborting: bool
+    failure: tuple[Action, CommandOutcome] | None
+
+    def words(self) -> dict[str, str]:
+        """The fields an exit's reason may name, e.g. ``{timeout}`` or ``{failure}``."""
+        obs, step = self.obs, self.step
+        action, outcome = self.failure or (None, None)
+        missing = [
+            WHO[a.target]
+            for a in step.actions
+            if not (o := obs.commands.get((a.target, a.name))) or not o.final
+        ]
+        why = "aborted by an operator"
+        return {
+            "why": f"{why}: {obs.abort_reason}" if obs.abort_reason else why,
+            "who": WHO[action.target] if action else "",
+            "failure": (outcome.reason or outcome.status) if outcome else "",
+            "conditions": _failed_conditions(outcome) if outcome else "",
+            "timeout": f"{obs.timeout_s:.0f}",
+            "label": step.label.lower(),
+            "missing": " and ".join(missing),
+            "mass": f"{obs.base_mass_g:.0f} g" if obs.base_mass_g is not None else "no reading",
+        }
+
+
+Guard = Callable[[Seen], bool]
+
+
+def always(seen: Seen) -> bool:
+    """Every time."""
+    return True
+
+
+def all_succeeded(seen: Seen) -> bool:
+    """Every command of the step succeeded."""
+    return all(
+        (o := seen.obs.commands.get((a.target, a.name))) is not None and o.status == "succeeded"
+        for a in seen.step.actions
+    )
+
+
+def took_off(seen: Seen) -> bool:
+    """The UAV has left the lift."""
+    return seen.obs.took_off or "took_off" in seen.obs.uav_events
+
+
+def on_the_lift(seen: Seen) -> bool:
+    """Not taken off, and telemetry shows it disarmed on the ground: still on the lift."""
+    return not took_off(seen) and seen.obs.uav_landed
+
+
+def mission_finished(seen: Seen) -> bool:
+    """The UAV reports its mission over (or already landing)."""
+    return bool({"mission_finished", "landing", "landed"} & set(seen.obs.uav_events))
+
+
+def uav_landed(seen: Seen) -> bool:
+    """The UAV reports it has landed."""
+    return seen.obs.uav_landed or "landed" in seen.obs.uav_events
+
+
+def scale_confirms(seen: Seen) -> bool:
+    """The base's scale confirms the UAV on the lift."""
+    return "landing_confirmed" in seen.obs.base_events or seen.obs.base_confirms
+
+
+def aborting(seen: Seen) -> bool:
+    """An operator's abort is being carried out."""
+    return seen.aborting
+
+
+def both(a: Guard, b: Guard) -> Guard:
+    """A guard holding when `a` and `b` do."""
+    return lambda seen: a(seen) and b(seen)
+
+
+def negate(a: Guard) -> Guard:
+    """A guard holding when `a` does not."""
+    return lambda seen: not a(seen)
+
+
+# --- the table ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Exit:
+    """A way out of a step, taken when `when` holds; `reason` is formatted by `Seen.words`."""
+
+    to: State
+    reason: str
+    cause: str = ""
+    alert: bool = False
+    safe: tuple[Action, ...] = ()  # issued on the way out, before the new step's own actions
+    when: Guard = always
+
+    def take(self, seen: Seen) -> Transition:
+        """The transition of this exit in this context."""
+        return Transition(
+            self.to, self.reason.format(**seen.words()), self.cause, self.alert, self.safe
+        )
+
+
+@dataclass(frozen=True)
+class Step:
+    """One row of the sequence table: entry actions, time budget and the four kinds of exit."""
+
+    state: State
+    number: int
+    label: str
+    actions: tuple[Action, ...] = ()
+    default_timeout_s: float = 0
+    done: tuple[Exit, ...] = ()
+    failure: tuple[Exit, ...] = ()
+    timeout: tuple[Exit, ...] = ()
+    abort: tuple[Exit, ...] = ()  # none: already heading home, the run finishes safely
+
+
+CLOSE, STOP = Action("base", Close), Action("base", Stop)
+ABORT_NOTHING_MOVED = Exit(State.aborted, "{why}; nothing had moved", "operator_abort")
+ABORT_ON_THE_LIFT = Exit(
+    State.closing,
+    "{why}; closing the base (the UAV is still on the lift)",
+    "operator_abort",
+    safe=(STOP,),
+)
+CHARGING_FAILED = "the base is closed but charging did not start: {failure}"
+
+STEPS: dict[State, Step] = {
+    s.state: s
+    for s in (
+        Step(
+            State.pending, 0, "Waiting to start", default_timeout_s=30,
+            done=(Exit(State.checking, "run started"),),
+            abort=(ABORT_NOTHING_MOVED,),
+        ),
+        Step(
+            State.checking, 1, "Checking weather, base and UAV readiness",
+            (Action("base", CheckAvailability), Action("uav", CheckAvailability)), 60,
+            done=(
+                Exit(State.opening, "weather, base and UAV are all within limits",
+                     when=all_succeeded),
+            ),
+            failure=(Exit(State.aborted, "{who} is not available: {conditions}", "not_available"),),
+            timeout=(
+                Exit(State.aborted, "no availability answer from {missing} within {timeout} s",
+                     "check_timeout"),
+            ),
+            abort=(ABORT_NOTHING_MOVED,),
+        ),
+        Step(
+            State.opening, 2, "Opening the base (side panels, then lift up)",
+            (Action("base", Open),), 120,
+            done=(Exit(State.uploading, "base open, lift up", when=all_succeeded),),
+            failure=(
+                Exit(State.failed, "opening the base failed at {who}: {failure}; "
+                     "the base is being closed (the UAV never left the lift)",
+                     "opening_failed", safe=(CLOSE,)),
+            ),
+            timeout=(
+                Exit(State.failed, "{label} did not finish within {timeout} s; "
+                     "the base is being closed", "opening_timeout", safe=(STOP, CLOSE)),
+            ),
+            abort=(ABORT_ON_THE_LIFT,),
+        ),
+        Step(
+            State.uploading, 3, "Uploading the mission to the UAV and reading it back",
+            (Action("uav", UploadMission),), 90,
+            done=(Exit(State.flying, "mission uploaded and verified", when=all_succeeded),),
+            failure=(
+                Exit(State.failed, "uploading the mission failed at {who}: {failure}; "
+                     "the base is being closed (the UAV never left the lift)",
+                     "uploading_failed", safe=(CLOSE,)),
+            ),
+            timeout=(
+                Exit(State.failed, "{label} did not finish within {timeout} s; "
+                     "the base is being closed", "uploading_timeout", safe=(STOP, CLOSE)),
+            ),
+            abort=(ABORT_ON_THE_LIFT,),
+        ),
+        Step(
+            State.flying, 4, "Flying the mission", (Action("uav", StartMission),), 3600,
+            done=(Exit(State.landing, "mission finished", when=mission_finished),),
+            # once it has taken off, a failed start is not a failure: the mission is flying
+            failure=(
+                Exit(State.failed, "the UAV could not start the mission: {failure}; "
+                     "it is on the lift, disarmed: the base is being closed",
+                     "takeoff_failed", safe=(CLOSE,), when=on_the_lift),
+                Exit(State.failed, "the UAV could not start the mission: {failure}; "
+                     "the UAV's state is unknown, so the base stays open",
+                     "takeoff_failed", alert=True, when=negate(took_off)),
+            ),
+            # a lost UAV link is waited out: the autopilot flies the mission on its own
+            timeout=(
+                Exit(State.landing, "the mission overran its {timeout} s budget; "
+                     "returning to the base", "mission_overrun", alert=True),
+            ),
+            abort=(
+                Exit(State.landing, "{why}; returning the UAV to the base to land",
+                     "operator_abort"),
+            ),
+        ),
+        Step(
+            State.landing, 5, "Returning to the base and landing on the pad",
+            (Action("uav", ReturnToBase),), 900,
+            done=(Exit(State.confirming, "the UAV reports it has landed", when=uav_landed),),
+            timeout=(
+                Exit(State.failed, "the UAV has not landed within {timeout} s of heading home; "
+                     "the base stays open", "landing_timeout", alert=True),
+            ),
+        ),
+        Step(
+            State.confirming, 6, "Confirming the landing on the base's scale",
+            default_timeout_s=90,
+            done=(
+                Exit(State.closing, "the base's scale confirms the UAV on the lift",
+                     when=scale_confirms),
+            ),
+            timeout=(
+                Exit(State.failed, "the scale did not confirm the UAV within {timeout} s "
+                     "(scale reads {mass}); the UAV may be off the pad, the panels stay open",
+                     "landing_not_confirmed", alert=True),
+            ),
+        ),
+        Step(
+            State.closing, 7, "Closing the base (lift down, then side panels)",
+            (CLOSE,), 120,
+            done=(Exit(State.charging, "base closed", when=all_succeeded),),
+            failure=(
+                Exit(State.failed, "closing the base failed: {failure}", "closing_failed",
+                     alert=True),
+            ),
+            timeout=(
+                Exit(State.failed, "{label} did not finish within {timeout} s",
+                     "closing_timeout", alert=True),
+            ),
+        ),
+        Step(
+            State.charging, 8, "Starting to charge the UAV",
+            (Action("base", StartCharging),), 60,
+            done=(
+                Exit(State.aborted, "the UAV is back and charging; "
+                     "the run was aborted by an operator", "operator_abort",
+                     when=both(all_succeeded, aborting)),
+                Exit(State.completed, "charging; the run is over", when=all_succeeded),
+            ),
+            failure=(
+                Exit(State.aborted, CHARGING_FAILED, "charging_failed", alert=True,
+                     when=aborting),
+                Exit(State.completed, CHARGING_FAILED, "charging_failed", alert=True),
+            ),
+            timeout=(
+                Exit(State.failed, "{label} did not finish within {timeout} s",
+                     "charging_timeout", alert=True),
+            ),
+        ),
+        Step(State.completed, 9, "Completed"),
+        Step(State.aborted, 9, "Aborted"),
+        Step(State.failed, 9, "Failed"),
+    )
+}  # fmt: skip
+
+
+# --- the evaluator --------------------------------------------------------------------
+
+
+def advance(state: State, obs: Observations, *, aborting: bool = False) -> Transition | None:
+    """The next transition of a run in `state`, or None to keep waiting.
+
+    In order: an operator's abort (the step's abort exit; a step without one is already
+    heading home and carries on as an aborting run), a failed command, completion, then the
+    time budget. The first exit whose guard holds wins.
+    """
+    if state in FINAL:
+        return None
+    step = STEPS[state]
+    if obs.abort_requested and not aborting:
+        if step.abort:
+            return _first(step.abort, Seen(step, obs, aborting, None))
+        aborting = True
+    seen = Seen(step, obs, aborting, _command_failure(step, obs.commands))
+    exits = [*(step.failure if seen.failure else ()), *step.done]
+    if obs.elapsed_s > obs.timeout_s:
+        exits += step.timeout
+    return _first(tuple(exits), seen)
+
+
+def _first(exits: tuple[Exit, ...], seen: Seen) -> Transition | None:
+    for exit_ in exits:
+        if exit_.when(seen):
+            return exit_.take(seen)
+    return None
 
 
 def _command_failure(
     step: Step, outcomes: Mapping[tuple[str, str], CommandOutcome]
 ) -> tuple[Action, CommandOutcome] | None:
     for action in step.actions:
-        outcome = outcomes.get((action.target, action.command))
+        outcome = outcomes.get((action.target, action.name))
         if outcome and outcome.final and outcome.status != "succeeded":
             return action, outcome
     return None
 
 
-def _all_succeeded(step: Step, outcomes: Mapping[tuple[str, str], CommandOutcome]) -> bool:
-    return all(
-        (o := outcomes.get((a.target, a.command))) is not None and o.status == "succeeded"
-        for a in step.actions
-    )
-
-
-WHO = {"base": "the base", "uav": "the UAV"}
-
-
-def advance(state: State, obs: Observations, *, aborting: bool = False) -> Transition | None:
-    """The next transition of a run in `state`, or None to keep waiting."""
-    if state in FINAL:
-        return None
-    step = STEPS[state]
-    # 1. operator abort: the safe outcome depends on where the run stands
-    if obs.abort_requested and not aborting:
-        why = (
-            f"aborted by an operator: {obs.abort_reason}"
-            if obs.abort_reason
-            else "aborted by an operator"
-        )
-        if state in (State.pending, State.checking):
-            return Transition(State.aborted, f"{why}; nothing had moved", "operator_abort")
-        if state in (State.opening, State.uploading):
-            return Transition(
-                State.closing,
-                f"{why}; closing the base (the UAV is still on the lift)",
-                "operator_abort",
-                extra_actions=(Action("base", "stop"),),
-            )
-        if state is State.flying:
-            return Transition(
-                State.landing, f"{why}; returning the UAV to the base to land", "operator_abort"
-            )
-        return None  # landing, confirming, closing, charging: already heading home; finish safely
-    failure = _command_failure(step, obs.commands)
-    if state is State.pending:
-        return Transition(State.checking, "run started")
-    if state is State.checking:
-        if failure:
-            action, outcome = failure
-            return Transition(
-                State.aborted,
-                f"{WHO[action.target]} is not available: {_failed_conditions(outcome)}",
-                "not_available",
-            )
-        if _all_succeeded(step, obs.commands):
-            return Transition(State.opening, "weather, base and UAV are all within limits")
-        if obs.elapsed_s > obs.timeout_s:
-            missing = [
-                WHO[a.target]
-                for a in step.actions
-                if not (o := obs.commands.get((a.target, a.command))) or not o.final
-            ]
-            return Transition(
-                State.aborted,
-                f"no availability answer from {' and '.join(missing)} within {obs.timeout_s:.0f} s",
-                "check_timeout",
-            )
-        return None
-    if state in (State.opening, State.uploading):
-        if failure:
-            action, outcome = failure
-            what = "opening the base" if state is State.opening else "uploading the mission"
-            return Transition(
-                State.failed,
-                f"{what} failed at {WHO[action.target]}: {outcome.reason or outcome.status}; "
-                "the base is being closed (the UAV never left the lift)",
-                f"{state.value}_failed",
-                extra_actions=(Action("base", "close"),),
-            )
-        if _all_succeeded(step, obs.commands):
-            nxt = State.uploading if state is State.opening else State.flying
-            return Transition(
-                nxt,
-                "base open, lift up" if state is State.opening else "mission uploaded and verified",
-            )
-        if obs.elapsed_s > obs.timeout_s:
-            return Transition(
-                State.failed,
-                f"{step.label.lower()} did not finish within {obs.timeout_s:.0f} s; "
-                "the base is being closed",
-                f"{state.value}_timeout",
-                extra_actions=(Action("base", "stop"), Action("base", "close")),
-            )
-        return None
-    if state is State.flying:
-        took_off = obs.took_off or "took_off" in obs.uav_events
-        if failure:
-            _, outcome = failure
-            why = f"the UAV could not start the mission: {outcome.reason or outcome.status}"
-            if not took_off and obs.uav_landed:
-                return Transition(
-                    State.failed,
-                    f"{why}; it is on the lift, disarmed: the base is being closed",
-                    "takeoff_failed",
-                    extra_actions=(Action("base", "close"),),
-                )
-            if not took_off:
-                return Transition(
-                    State.failed,
-                    f"{why}; the UAV's state is unknown, so the base stays open",
-                    "takeoff_failed",
-                    alert=True,
-                )
-        if {"mission_finished", "landing", "landed"} & set(obs.uav_events):
-            return Transition(State.landing, "mission finished")
-        if obs.elapsed_s > obs.timeout_s:
-            return Transition(
-                State.landing,
-                f"the mission overran its {obs.timeout_s:.0f} s budget; returning to the base",
-                "mission_overrun",
-                alert=True,
-            )
-        return None  # a lost UAV link is waited out: the autopilot flies the mission on its own
-    if state is State.landing:
-        if obs.uav_landed or "landed" in obs.uav_events:
-            return Transition(State.confirming, "the UAV reports it has landed")
-        if obs.elapsed_s > obs.timeout_s:
-            return Transition(
-                State.failed,
-                f"the UAV has not landed within {obs.timeout_s:.0f} s of heading home; "
-                "the base stays open",
-                "landing_timeout",
-                alert=True,
-            )
-        return None
-    if state is State.confirming:
-        if "landing_confirmed" in obs.base_events or obs.base_confirms:
-            return Transition(State.closing, "the base's scale confirms the UAV on the lift")
-        if obs.elapsed_s > obs.timeout_s:
-            mass = f"{obs.base_mass_g:.0f} g" if obs.base_mass_g is not None else "no reading"
-            return Transition(
-                State.failed,
-                f"the scale did not confirm the UAV within {obs.timeout_s:.0f} s "
-                f"(scale reads {mass}); the UAV may be off the pad, the panels stay open",
-                "landing_not_confirmed",
-                alert=True,
-            )
-        return None
-    if state in (State.closing, State.charging):
-        final_ok = State.aborted if aborting else State.completed
-        if failure:
-            action, outcome = failure
-            if state is State.charging:
-                return Transition(
-                    final_ok,
-                    f"the base is closed but charging did not start: "
-                    f"{outcome.reason or outcome.status}",
-                    "charging_failed",
-                    alert=True,
-                )
-            return Transition(
-                State.failed,
-                f"closing the base failed: {outcome.reason or outcome.status}",
-                "closing_failed",
-                alert=True,
-            )
-        if _all_succeeded(step, obs.commands):
-            if state is State.closing:
-                return Transition(State.charging, "base closed")
-            return Transition(
-                final_ok,
-                "charging; the run is over"
-                if not aborting
-                else "the UAV is back and charging; the run was aborted by an operator",
-                "operator_abort" if aborting else "",
-            )
-        if obs.elapsed_s > obs.timeout_s:
-            return Transition(
-                State.failed,
-                f"{step.label.lower()} did not finish within {obs.timeout_s:.0f} s",
-                f"{state.value}_timeout",
-                alert=True,
-            )
-        return None
-    return None
+def _failed_conditions(outcome: CommandOutcome) -> str:
+    try:
+        summary = AvailabilityReport.model_validate(outcome.data or {}).summary
+    except ValueError:  # no report (e.g. the command failed before checking): its reason says why
+        summary = ""
+    return summary or outcome.reason or outcome.status

@@ -1,12 +1,11 @@
-"""Tables of runs and their transitions."""
+"""Tables of runs, the commands of their current step, and their transitions."""
 
 from __future__ import annotations
 
 import uuid
 from datetime import datetime
-from typing import Any
 
-from sqlalchemy import JSON, ForeignKey, Index, String
+from sqlalchemy import Float, ForeignKey, Index, String
 from sqlalchemy.orm import Mapped, mapped_column
 
 from server.kit.db import Base, IdMixin
@@ -34,12 +33,8 @@ class Run(IdMixin, Base):
     scheduled_for: Mapped[datetime | None] = mapped_column(default=None)
     state: Mapped[str] = mapped_column(String(16), default="pending")
     step_started_at: Mapped[datetime] = mapped_column(default=utcnow)
-    step_commands: Mapped[dict[str, Any]] = mapped_column(
-        JSON, default=dict
-    )  # "target:command" -> command id
-    actions_issued: Mapped[bool] = mapped_column(
-        default=False
-    )  # the current step's commands are out
+    # the current step's commands are out (its RunStepCommand rows all have a command_id)
+    actions_issued: Mapped[bool] = mapped_column(default=False)
     aborting: Mapped[bool] = mapped_column(default=False)
     abort_requested: Mapped[bool] = mapped_column(default=False)
     abort_reason: Mapped[str] = mapped_column(String(2000), default="")
@@ -49,15 +44,36 @@ class Run(IdMixin, Base):
     cause: Mapped[str | None] = mapped_column(String(64), default=None)
     reason: Mapped[str] = mapped_column(String(2000), default="")
     alert: Mapped[bool] = mapped_column(default=False)
-    facts: Mapped[dict[str, Any]] = mapped_column(
-        JSON, default=dict
-    )  # battery at start, take-off time, ...
+    flight_started_at: Mapped[datetime | None] = mapped_column(default=None)
+    flight_ended_at: Mapped[datetime | None] = mapped_column(default=None)
+    landing_error_m: Mapped[float | None] = mapped_column(Float, default=None)
     lease_owner: Mapped[str | None] = mapped_column(String(64), default=None)
     lease_until: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str | None] = mapped_column(String(64), default=None)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(default=utcnow)
     finished_at: Mapped[datetime | None] = mapped_column(default=None)
+
+
+class RunStepCommand(IdMixin, Base):
+    """One command of a run's current step: pending until issued, then the command it became.
+
+    A transition replaces a run's rows with the exit's safe actions and the new step's own; the
+    engine issues the pending ones (`command_id` null) in `position` order.
+    """
+
+    __tablename__ = "run_step_commands"
+    __table_args__ = (
+        Index("uq_run_step_commands_action", "run_id", "target", "command", unique=True),
+    )
+
+    run_id: Mapped[uuid.UUID] = mapped_column(ForeignKey("runs.id", ondelete="CASCADE"))
+    position: Mapped[int] = mapped_column(default=0)
+    target: Mapped[str] = mapped_column(String(8))  # base | uav
+    command: Mapped[str] = mapped_column(String(64))  # its name in protocol.vocabulary
+    command_id: Mapped[uuid.UUID | None] = mapped_column(
+        ForeignKey("commands.id", ondelete="CASCADE"), default=None
+    )
 
 
 class RunTransition(IdMixin, Base):

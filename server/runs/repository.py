@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 import uuid
+from collections.abc import Sequence
 from datetime import datetime
 
-from sqlalchemy import or_, select
+from sqlalchemy import delete, or_, select
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.commands.models import AssetCommand
 from server.kit.scope import ScopedRepository
-from server.runs.machine import FINAL
-from server.runs.models import Run, RunTransition
+from server.runs.machine import FINAL, Action
+from server.runs.models import Run, RunStepCommand, RunTransition
 from server.telemetry.models import AssetEvent
 
 FINAL_VALUES = [s.value for s in FINAL]
@@ -110,3 +111,33 @@ async def event_names_since(db: AsyncSession, asset_id: uuid.UUID, since: dateti
         .order_by(AssetEvent.created_at)
     )
     return list((await db.execute(stmt)).scalars())
+
+
+async def step_commands(db: AsyncSession, run_id: uuid.UUID) -> list[RunStepCommand]:
+    """The commands of a run's current step, in the order they are issued."""
+    stmt = (
+        select(RunStepCommand)  # unscoped: engine, a run it holds the lock of
+        .where(RunStepCommand.run_id == run_id)
+        .order_by(RunStepCommand.position)
+    )
+    return list((await db.execute(stmt)).scalars())
+
+
+async def replace_step_commands(
+    db: AsyncSession, run_id: uuid.UUID, actions: Sequence[Action]
+) -> list[RunStepCommand]:
+    """A new step's commands, all pending: one row per distinct action, in order."""
+    await db.execute(
+        delete(RunStepCommand).where(RunStepCommand.run_id == run_id)
+    )  # unscoped: engine, a run it holds the lock of
+    rows: dict[str, RunStepCommand] = {}
+    for action in actions:
+        rows.setdefault(
+            action.key,
+            RunStepCommand(
+                run_id=run_id, position=len(rows), target=action.target, command=action.name
+            ),
+        )
+    db.add_all(rows.values())
+    await db.flush()
+    return list(rows.values())

@@ -77,17 +77,17 @@ def run_out(run: Run, timeline: list[Any] | None = None) -> RunOut:
     """The API view of a run."""
     p = progress_payload(run)
     out = RunOut.model_validate(run)
-    out.step, out.total_steps, out.label = p["step"], p["total_steps"], p["label"]
+    out.step, out.total_steps, out.label = p.step, p.total_steps, p.label
     out.timeline = [TransitionOut.model_validate(t) for t in timeline or []]
     return out
 
 
 def _flight_time(run: Run) -> float | None:
-    start, end = run.facts.get("flight_started_at"), run.facts.get("flight_ended_at")
-    if not start:
+    start = run.flight_started_at
+    if start is None:
         return None
-    end_dt = datetime.fromisoformat(end) if end else (run.finished_at or utcnow())
-    return max(0.0, (end_dt - datetime.fromisoformat(start)).total_seconds())
+    end = run.flight_ended_at or run.finished_at or utcnow()
+    return max(0.0, (end - start).total_seconds())
 
 
 async def report(runs: RunRepository, store: Any, run: Run) -> RunReport:
@@ -114,7 +114,7 @@ async def report(runs: RunRepository, store: Any, run: Run) -> RunReport:
         run=run_out(run, timeline),
         flight_time_s=_flight_time(run),
         battery_used_pct=used,
-        landing_error_m=run.facts.get("landing_error_m"),
+        landing_error_m=run.landing_error_m,
         track=track,
     )
 
@@ -136,7 +136,7 @@ def fleet(runs_in_window: list[Run], start: datetime, end: datetime) -> FleetRep
             per[asset_id]["runs"] += 1
             per[asset_id]["completed"] += r.outcome == "completed"
             per[asset_id]["flight"] += ft
-        if r.facts.get("flight_started_at") and r.state in {s.value for s in FINAL}:
+        if r.flight_started_at is not None and r.state in {s.value for s in FINAL}:
             times.append(ft)
     return FleetReport(
         start=start,

@@ -62,15 +62,15 @@ async def test_every_failed_condition_is_listed_with_measured_value_and_limit(ri
         "lift_down",
         "uav_present",
     }
-    assert (failed["wind"]["measured"], failed["wind"]["limit"]) == (11.0, 8.0)
-    assert (failed["gust"]["measured"], failed["gust"]["limit"]) == (16.0, 12.0)
-    assert (failed["rain"]["measured"], failed["rain"]["limit"]) == (2.5, 0.0)
-    assert (failed["temperature_min"]["measured"], failed["temperature_min"]["limit"]) == (
+    assert (failed["wind"]["value"], failed["wind"]["limit"]) == (11.0, 8.0)
+    assert (failed["gust"]["value"], failed["gust"]["limit"]) == (16.0, 12.0)
+    assert (failed["rain"]["value"], failed["rain"]["limit"]) == (2.5, 0.0)
+    assert (failed["temperature_min"]["value"], failed["temperature_min"]["limit"]) == (
         -9.0,
         -5.0,
     )
-    assert failed["faults"]["measured"] == "ESTOP"
-    assert failed["panels_closed"]["measured"] == 50.0 and failed["lift_down"]["measured"] == 25.0
+    assert failed["faults"]["value"] == "ESTOP"
+    assert failed["panels_closed"]["value"] == 50.0 and failed["lift_down"]["value"] == 25.0
     assert failed["uav_present"]["limit"] == "1200..1800 g"
     for text in (
         "wind 11.0 m/s (max 8.0)",

@@ -116,6 +116,7 @@ async def test_agent_reports_telemetry_and_answers_commands(live_server, tenant:
                 check = await _command(c, tenant, asset["id"], "check_availability")
                 assert check["status"] in ("succeeded", "failed"), check
                 assert isinstance(check["result"]["failed"], list)
+                assert {c["name"] for c in check["result"]["conditions"]} >= {"battery", "gnss_fix"}
                 if check["status"] == "failed":
                     assert check["reason"] and all(
                         "message" in f for f in check["result"]["failed"]
@@ -139,27 +140,22 @@ async def test_agent_reports_telemetry_and_answers_commands(live_server, tenant:
                     and steps[-1] == "succeeded"
                 )
 
-                bad = await _command(
-                    c,
-                    tenant,
-                    asset["id"],
-                    "upload_mission",
-                    {
-                        "items": [
-                            {
-                                "command": 16,
-                                "frame": 3,
-                                "params": [0, 0, 0, 0],
-                                "lat": 123.0,
-                                "lon": 0,
-                                "alt": 10,
-                            }
-                        ]
-                    },
+                # an item out of range or an unknown command never reaches the agent: the
+                # server checks both against protocol.vocabulary (the agent's own refusal of
+                # them is in tests/protocol/test_assetlink_dispatch.py)
+                item = {"command": 16, "frame": 3, "params": [0, 0, 0, 0], "lat": 123.0, "alt": 10}
+                bad = await c.post(
+                    f"/api/v1/assets/{asset['id']}/commands",
+                    headers=tenant.h("operator"),
+                    json={"name": "upload_mission", "params": {"items": [item]}},
                 )
-                assert bad["status"] == "rejected" and "0" in bad["reason"]
-                unknown = await _command(c, tenant, asset["id"], "teleport")
-                assert unknown["status"] == "rejected" and "unknown command" in unknown["reason"]
+                assert bad.status_code == 422 and "items.0.lat" in bad.text
+                unknown = await c.post(
+                    f"/api/v1/assets/{asset['id']}/commands",
+                    headers=tenant.h("operator"),
+                    json={"name": "teleport"},
+                )
+                assert unknown.status_code == 422 and "unknown command" in unknown.text
         finally:
             stop.set()
             await asyncio.wait_for(task, 20)

@@ -14,6 +14,7 @@ from assetlink.dispatch import CommandDispatcher, CommandRequest, result
 from assetlink.outbox import AsyncOutbox
 from protocol import messages as m
 from protocol.codec import decode
+from protocol.vocabulary import StartCharging, UploadMission
 
 
 async def wait_for(predicate: Callable[[], bool], timeout: float = 5.0) -> None:  # noqa: ASYNC109
@@ -72,13 +73,14 @@ async def test_plain_handler_runs_once_and_redelivery_gets_the_first_result(box)
     counter = Counter()
     queued = []
     dispatcher = CommandDispatcher(box, lambda: queued.append(1))
-    dispatcher.register("open_base", counter.plain)
-    cmd = command("open_base", lift=True)
+    dispatcher.register(StartCharging, counter.plain)
+    cmd = command("start_charging", current_limit_ma=1500)
     await dispatcher.handle(cmd)
     await wait_for(lambda: not dispatcher.running)
     await dispatcher.handle(cmd)
     assert len(counter.calls) == 1
-    assert counter.calls[0].params == {"lift": True} and counter.calls[0].id == cmd.id
+    assert counter.calls[0].command == StartCharging(current_limit_ma=1500)
+    assert counter.calls[0].id == cmd.id
     first, again = await results(box)
     assert first.re == again.re == cmd.id
     assert first.payload == again.payload
@@ -91,8 +93,8 @@ async def test_plain_handler_runs_once_and_redelivery_gets_the_first_result(box)
 async def test_progress_then_exactly_one_final_result(box) -> None:
     counter = Counter()
     dispatcher = CommandDispatcher(box)
-    dispatcher.register("open_base", counter.steps)
-    cmd = command("open_base")
+    dispatcher.register("open", counter.steps)
+    cmd = command("open")
     await dispatcher.handle(cmd)
     await wait_for(lambda: len(counter.calls) == 1 and len(box.sync) == 1)
     await dispatcher.handle(cmd)  # redelivered while running: answered, not run again
@@ -114,10 +116,10 @@ async def test_progress_then_exactly_one_final_result(box) -> None:
 async def test_redelivery_after_restart_is_not_executed(tmp_path: Path) -> None:
     path = tmp_path / "link.sqlite"
     counter = Counter()
-    cmd = command("open_base")
+    cmd = command("open")
     box = await AsyncOutbox.open(path)
     dispatcher = CommandDispatcher(box)
-    dispatcher.register("open_base", counter.plain)
+    dispatcher.register("open", counter.plain)
     await dispatcher.handle(cmd)
     await wait_for(lambda: not dispatcher.running)
     first = (await results(box))[0]
@@ -126,7 +128,7 @@ async def test_redelivery_after_restart_is_not_executed(tmp_path: Path) -> None:
     box = await AsyncOutbox.open(path)
     try:
         dispatcher = CommandDispatcher(box)
-        dispatcher.register("open_base", counter.plain)
+        dispatcher.register("open", counter.plain)
         assert await dispatcher.recover() == 0
         await dispatcher.handle(cmd)
         (again,) = await results(box)
@@ -139,23 +141,23 @@ async def test_redelivery_after_restart_is_not_executed(tmp_path: Path) -> None:
 async def test_command_interrupted_by_a_restart_fails_and_never_reruns(tmp_path: Path) -> None:
     path = tmp_path / "link.sqlite"
     counter = Counter()
-    cmd = command("open_base")
+    cmd = command("open")
     box = await AsyncOutbox.open(path)
     dispatcher = CommandDispatcher(box)
-    dispatcher.register("open_base", counter.steps)
+    dispatcher.register("open", counter.steps)
     await dispatcher.handle(cmd)
     await wait_for(lambda: len(box.sync) == 1)
     # The process dies: no cancellation runs, the ledger still says "running".
     await box.close()
     for task in asyncio.all_tasks():
-        if task.get_name().startswith("command-open_base"):
+        if task.get_name().startswith("command-open"):
             task.cancel()
             await asyncio.gather(task, return_exceptions=True)
 
     box = await AsyncOutbox.open(path)
     try:
         dispatcher = CommandDispatcher(box)
-        dispatcher.register("open_base", counter.steps)
+        dispatcher.register("open", counter.steps)
         assert await dispatcher.recover() == 1
         await dispatcher.handle(cmd)
         statuses = [r.payload.status for r in await results(box)]
@@ -175,8 +177,8 @@ async def test_unknown_command_is_rejected(box) -> None:
 async def test_past_deadline_times_out_without_running(box) -> None:
     counter = Counter()
     dispatcher = CommandDispatcher(box)
-    dispatcher.register("open_base", counter.plain)
-    await dispatcher.handle(command("open_base", deadline_in_s=-1))
+    dispatcher.register("open", counter.plain)
+    await dispatcher.handle(command("open", deadline_in_s=-1))
     (got,) = await results(box)
     assert got.payload.status == "timed_out" and not counter.calls
 
@@ -193,10 +195,10 @@ async def test_exceptions_and_bad_outputs_become_failed(box) -> None:
         yield 42
 
     dispatcher = CommandDispatcher(box)
-    dispatcher.register("broken", broken)
-    dispatcher.register("wrong", wrong)
-    dispatcher.register("not_final", not_final)
-    for name in ("broken", "wrong", "not_final"):
+    dispatcher.register("stop", broken)
+    dispatcher.register("close", wrong)
+    dispatcher.register("lift_up", not_final)
+    for name in ("stop", "close", "lift_up"):
         await dispatcher.handle(command(name))
         await wait_for(lambda: not dispatcher.running)
     got = [(r.payload.status, r.payload.reason) for r in await results(box)]
@@ -214,10 +216,10 @@ async def test_none_means_success_and_generator_without_final_succeeds(box) -> N
         yield m.CommandProgress(step="a", index=1, total=1)
 
     dispatcher = CommandDispatcher(box)
-    dispatcher.register("quiet", quiet)
-    dispatcher.register("only_progress", only_progress)
-    await dispatcher.handle(command("quiet"))
-    await dispatcher.handle(command("only_progress"))
+    dispatcher.register("pause", quiet)
+    dispatcher.register("resume", only_progress)
+    await dispatcher.handle(command("pause"))
+    await dispatcher.handle(command("resume"))
     await wait_for(lambda: not dispatcher.running)
     statuses = sorted(r.payload.status for r in await results(box))
     assert statuses == ["in_progress", "succeeded", "succeeded"]
@@ -226,8 +228,8 @@ async def test_none_means_success_and_generator_without_final_succeeds(box) -> N
 async def test_stop_cancels_running_commands_with_a_result(box) -> None:
     counter = Counter()
     dispatcher = CommandDispatcher(box)
-    dispatcher.register("open_base", counter.steps)
-    cmd = command("open_base")
+    dispatcher.register("open", counter.steps)
+    cmd = command("open")
     await dispatcher.handle(cmd)
     await wait_for(lambda: len(box.sync) == 1)
     await dispatcher.stop()
@@ -235,3 +237,27 @@ async def test_stop_cancels_running_commands_with_a_result(box) -> None:
     assert [r.payload.status for r in got] == ["in_progress", "canceled"]
     await dispatcher.handle(cmd)
     assert (await results(box))[0].payload.status == "canceled"
+
+
+async def test_params_that_do_not_fit_are_rejected_naming_the_field(box) -> None:
+    counter = Counter()
+    dispatcher = CommandDispatcher(box)
+    dispatcher.register(StartCharging, counter.plain)
+    dispatcher.register(UploadMission, counter.plain)
+    await dispatcher.handle(command("start_charging", current_limit_ma="lots"))
+    await dispatcher.handle(
+        command("upload_mission", items=[{"command": 16, "lat": 123.0, "lon": 0, "alt": 10}])
+    )
+    await dispatcher.handle(command("start_charging", current_limit_ma=500, voltage=12))
+    got = [(r.payload.status, r.payload.reason) for r in await results(box)]
+    assert [status for status, _ in got] == ["rejected"] * 3
+    assert "current_limit_ma" in got[0][1]
+    assert "items.0.lat" in got[1][1]
+    assert "voltage" in got[2][1]
+    assert not counter.calls and dispatcher.stats.rejected == 3
+
+
+def test_only_commands_of_the_vocabulary_can_be_registered(box) -> None:
+    dispatcher = CommandDispatcher(box)
+    with pytest.raises(ValueError, match="teleport"):
+        dispatcher.register("teleport", Counter().plain)

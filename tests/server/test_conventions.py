@@ -78,3 +78,27 @@ def test_frontend_api_documents_every_openapi_path(api):
             if f"{method.upper()} {path}" not in doc:
                 missing.append(f"{method.upper()} {path}")
     assert not missing, "frontend_api.md lacks: " + ", ".join(missing)
+
+
+def _long_functions(path: Path, limit: int) -> list[str]:
+    """Functions (and methods) of a module longer than `limit` lines, decorators excluded."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            length = (node.end_lineno or node.lineno) - node.lineno + 1
+            if length > limit:
+                out.append(f"{path.relative_to(ROOT)}:{node.lineno}: {node.name} ({length} lines)")
+    return out
+
+
+def test_no_function_in_the_run_package_is_over_80_lines():
+    """The run machine is a table and a short evaluator; the engine a few small steps."""
+    offenders = []
+    for path in (ROOT / "server" / "runs").rglob("*.py"):
+        offenders += _long_functions(path, 80)
+    assert not offenders, offenders
+
+
+def test_the_length_check_sees_a_long_function():
+    probe = ROOT / "server" / "runs" / "machine.py"
+    assert _long_functions(probe, 5)  # the same file has functions longer than 5 lines

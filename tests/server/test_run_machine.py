@@ -4,7 +4,16 @@ from __future__ import annotations
 
 import pytest
 
-from server.runs.machine import FINAL, STEPS, CommandOutcome, Observations, State, advance
+from protocol.vocabulary import AvailabilityCondition, AvailabilityReport, Close
+from server.runs.machine import (
+    FINAL,
+    STEPS,
+    CommandOutcome,
+    Observations,
+    State,
+    advance,
+    on_the_lift,
+)
 
 
 def obs(**kw):  # type: ignore[no-untyped-def]
@@ -53,16 +62,20 @@ def test_the_happy_path_walks_the_whole_sequence():
 
 
 def test_failed_availability_aborts_listing_every_condition():
-    failed = CommandOutcome(
-        "failed",
-        "2 conditions failed",
-        {
-            "failed": [
-                {"name": "gust", "message": "gust 14.2 m/s over the 12.0 m/s limit"},
-                {"name": "rain", "message": "rain 3.1 mm/h over the 0.5 mm/h limit"},
-            ]
-        },
-    )
+    report = AvailabilityReport.of(
+        [
+            AvailabilityCondition(name="wind", ok=True, value=3.0, limit=8.0, message="wind 3"),
+            AvailabilityCondition(
+                name="gust", ok=False, value=14.2, limit=12.0,
+                message="gust 14.2 m/s over the 12.0 m/s limit",
+            ),
+            AvailabilityCondition(
+                name="rain", ok=False, value=3.1, limit=0.5,
+                message="rain 3.1 mm/h over the 0.5 mm/h limit",
+            ),
+        ]
+    )  # fmt: skip
+    failed = CommandOutcome("rejected", "not available", report.model_dump(mode="json"))
     t = advance(
         State.checking,
         obs(commands={("base", "check_availability"): failed, ("uav", "check_availability"): OK}),
@@ -70,6 +83,16 @@ def test_failed_availability_aborts_listing_every_condition():
     assert t is not None and t.to is State.aborted and t.cause == "not_available"
     assert "gust 14.2 m/s over the 12.0 m/s limit" in t.reason and "rain 3.1" in t.reason
     assert not t.extra_actions  # nothing moved, nothing to undo
+    assert "wind 3" not in t.reason  # only the failed conditions
+
+
+def test_an_availability_failure_without_a_report_gives_its_reason():
+    failed = CommandOutcome("failed", "PLC link error: timeout", {"unexpected": True})
+    t = advance(
+        State.checking,
+        obs(commands={("base", "check_availability"): failed, ("uav", "check_availability"): OK}),
+    )
+    assert t is not None and t.to is State.aborted and "PLC link error: timeout" in t.reason
 
 
 def test_waiting_steps_wait_and_then_time_out():
@@ -84,7 +107,7 @@ def test_panel_stall_while_opening_fails_and_closes_the_base():
         obs(commands={("base", "open"): CommandOutcome("failed", "panel motor stalled at 40 %")}),
     )
     assert t is not None and t.to is State.failed and "panel motor stalled" in t.reason
-    assert [(a.target, a.command) for a in t.extra_actions] == [("base", "close")]
+    assert [(a.target, a.name) for a in t.extra_actions] == [("base", "close")]
 
 
 def test_lost_uav_link_in_flight_is_waited_out():
@@ -112,7 +135,7 @@ def test_unconfirmed_landing_fails_and_leaves_the_panels_open():
     t = advance(State.confirming, obs(elapsed_s=91, timeout_s=90, base_mass_g=310.0))
     assert t is not None and t.to is State.failed and t.alert
     assert "310 g" in t.reason and "panels stay open" in t.reason
-    assert not any(a.command in ("close", "close_panels") for a in t.extra_actions)
+    assert not any(a.name in ("close", "close_panels") for a in t.extra_actions)
 
 
 @pytest.mark.parametrize("state", [State.flying, State.landing, State.confirming])
@@ -124,13 +147,13 @@ def test_no_failure_after_take_off_closes_the_panels(state):
             timeout_s=1,
             uav_events=["took_off"],
             commands={
-                (a.target, a.command): CommandOutcome("failed", "x") for a in STEPS[state].actions
+                (a.target, a.name): CommandOutcome("failed", "x") for a in STEPS[state].actions
             },
         ),
     ):
         t = advance(state, o)
         if t is not None:
-            assert not any(a.command in ("close", "close_panels") for a in t.extra_actions), (
+            assert not any(a.name in ("close", "close_panels") for a in t.extra_actions), (
                 state,
                 t,
             )
@@ -170,9 +193,7 @@ def test_takeoff_failure_closes_the_base_while_the_uav_is_still_on_the_lift():
             uav_landed=True,
         ),
     )
-    assert (
-        t is not None and t.to is State.failed and [a.command for a in t.extra_actions] == ["close"]
-    )
+    assert t is not None and t.to is State.failed and [a.name for a in t.extra_actions] == ["close"]
     # without telemetry showing the UAV disarmed on the lift, nothing closes
     t = advance(
         State.flying,
@@ -185,3 +206,46 @@ def test_a_landing_confirmed_before_the_step_began_is_read_from_the_base_state()
     """The base may confirm while the UAV's own 'landed' is still on its way (e.g. after a reconnect)."""
     t = advance(State.confirming, obs(base_confirms=True))
     assert t is not None and t.to is State.closing
+
+
+def _closes(exit_) -> bool:  # type: ignore[no-untyped-def]
+    return exit_.to is State.closing or any(a.command is Close for a in exit_.safe)
+
+
+def test_the_table_reads_as_the_safety_policy():
+    """The module docstring's rules, read off the table itself rather than from examples."""
+    before_take_off = (State.opening, State.uploading)
+    for state in before_take_off:
+        step = STEPS[state]
+        # a failure, a timeout or an abort with the UAV on the lift closes the base
+        assert all(_closes(e) for e in (*step.failure, *step.timeout, *step.abort)), state
+    for state in (State.landing, State.confirming):
+        step = STEPS[state]
+        exits = (*step.done, *step.failure, *step.timeout, *step.abort)
+        # after take-off nothing closes until the scale confirms; an abort is finished safely
+        assert not any(any(a.command is Close for a in e.safe) for e in exits), state
+        assert not step.abort, state
+    # in flight, only a start that never left the lift closes the base
+    assert [e.when for e in STEPS[State.flying].failure if _closes(e)] == [on_the_lift]
+    assert [e.to for e in STEPS[State.flying].abort] == [State.landing]
+    assert STEPS[State.confirming].done[0].to is State.closing
+    # every step but the final ones has a way out on time
+    assert all(STEPS[s].timeout for s in State if s not in FINAL and s is not State.pending)
+
+
+@pytest.mark.parametrize(
+    ("state", "feed", "to"),
+    [
+        (State.landing, {"uav_landed": True}, State.confirming),
+        (State.landing, {"elapsed_s": 901, "timeout_s": 900}, State.failed),
+        (State.confirming, {"base_confirms": True}, State.closing),
+        (State.closing, {"commands": {("base", "close"): OK}}, State.charging),
+        (State.charging, {"commands": {("base", "start_charging"): OK}}, State.aborted),
+    ],
+)
+def test_an_abort_after_take_off_lets_the_run_finish_safely_and_end_aborted(state, feed, to):
+    """Already heading home: the abort neither freezes the run nor closes anything early."""
+    t = advance(state, obs(abort_requested=True, abort_reason="fog", **feed))
+    assert t is not None and t.to is to
+    if to is State.aborted:
+        assert t.cause == "operator_abort"
