@@ -4,8 +4,7 @@
 `Result` (succeeded / rejected / failed, with a human-readable reason); the command is one of
 `protocol.vocabulary`'s models (or a `(name, params)` pair, parsed into one): Open, Close,
 OpenPanels, ClosePanels, LiftUp, LiftDown, StartCharging, StopCharging, CheckAvailability,
-Stop, ResetFaults. `subscribe()` streams `Event`s. These two are all
-a server link needs.
+Stop, ResetFaults. `subscribe()` streams `Event`s. These two are all a server link needs.
 
 Safety rules enforced here: one motion at a time (a duplicate or replayed motion command
 while one runs is rejected; one whose target is already reached succeeds without writing
@@ -20,8 +19,6 @@ import asyncio
 import logging
 import time
 from collections.abc import AsyncIterator, Callable, Mapping
-from dataclasses import dataclass, field
-from enum import StrEnum
 from typing import Any
 
 from pydantic import ValidationError
@@ -35,6 +32,7 @@ from base_station.devices.charger import charger_idle_reason, check_start_chargi
 from base_station.devices.lift import LIFT, check_lift_down, check_lift_up
 from base_station.devices.panels import PANELS, check_close_panels, check_open_panels
 from base_station.events import Event, EventKind, Subscription
+from base_station.outcomes import Item, Progress, Result, Status
 from base_station.plc import (
     MOTION_BLOCKING_FAULTS,
     ChargerState,
@@ -62,36 +60,6 @@ from protocol.vocabulary import (
 
 log = logging.getLogger(__name__)
 
-
-class Status(StrEnum):
-    """How a command ended."""
-
-    SUCCEEDED = "succeeded"
-    REJECTED = "rejected"
-    FAILED = "failed"
-
-
-@dataclass(frozen=True)
-class Progress:
-    """One progress step of a running command."""
-
-    command: str
-    step: str
-    message: str
-    percent: float | None = None
-
-
-@dataclass(frozen=True)
-class Result:
-    """The end of a command."""
-
-    command: str
-    status: Status
-    reason: str
-    data: dict[str, Any] = field(default_factory=dict)
-
-
-Item = Progress | Result
 CommandHandler = Callable[[Any], AsyncIterator[Item]]
 MOTION_COMMANDS = ("open", "close", "open_panels", "close_panels", "lift_up", "lift_down")
 

@@ -17,6 +17,9 @@ The safety policy, as the table encodes it:
 - before take-off, a failure closes the base (the UAV is on the lift: the check saw it on the scale);
 - after take-off, nothing closes the panels until the scale has confirmed the UAV on the lift;
 - an operator abort before take-off closes the base; in flight it returns the UAV to the base and lands.
+
+Long because: the sequence table and its exits are the safety policy, and it must read in one
+place; the evaluator and the predicates around it are short.
 """
 
 from __future__ import annotations
