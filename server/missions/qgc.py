@@ -1,4 +1,4 @@
-"""QGroundControl `.plan` files (JSON) to and from mission items. Pure functions.
+"""QGroundControl `.plan` files (JSON) to mission items (the export is qgc_export.py). Pure functions.
 
 Import takes every SimpleItem, and the flattened simple items QGroundControl stores inside a
 ComplexItem (`TransectStyleComplexItem.Items`); anything else is named in a `Problem` by index
@@ -24,7 +24,6 @@ from server.missions.items import (
 from server.missions.qgc_altitude import (
     MODE_LABELS,
     Source,
-    export_keys,
     needs_home,
     read_altitude,
 )
@@ -72,7 +71,7 @@ class _Found:
     src: Source
 
 
-def _num(value: Any) -> float | None:
+def plan_number(value: Any) -> float | None:
     """A JSON number as a finite float; None for null or non-numbers/NaN."""
     if isinstance(value, bool) or not isinstance(value, int | float):
         return None
@@ -132,7 +131,7 @@ def _simple(raw: Any, src: Source, problems: list[Problem]) -> _Found | None:
             )
         )
         return None
-    bad = [k for k, p in enumerate(params) if p is not None and _num(p) is None]
+    bad = [k for k, p in enumerate(params) if p is not None and plan_number(p) is None]
     if bad:
         problems.append(
             Problem(
@@ -144,7 +143,7 @@ def _simple(raw: Any, src: Source, problems: list[Problem]) -> _Found | None:
             )
         )
         return None
-    values = [_num(p) for p in params]
+    values = [plan_number(p) for p in params]
     kept: dict[str, Any] = {}
     if COMMANDS[command].positional:
         kept, refused = read_altitude(raw, command, normalize_frame(frame), values, src)
@@ -213,7 +212,7 @@ def parse_plan(plan: Any) -> Imported:
     if problems:
         raise ImportRejected(problems)
     vehicle = mission.get("vehicleType")
-    speed = _num(
+    speed = plan_number(
         mission.get(
             "hoverSpeed" if vehicle in MULTIROTOR_TYPES or vehicle is None else "cruiseSpeed"
         )
@@ -234,7 +233,7 @@ def _kept(mission: dict[str, Any], found: list[_Found]) -> dict[str, Any]:
     uses it only while the item is still that item.
     """
     kept: dict[str, Any] = {
-        k: mission[k] for k in KEPT_MISSION_KEYS if _num(mission.get(k)) is not None
+        k: mission[k] for k in KEPT_MISSION_KEYS if plan_number(mission.get(k)) is not None
     }
     kept["items"] = [
         {
@@ -356,7 +355,7 @@ def _resolve_jumps(found: list[_Found], problems: list[Problem]) -> list[Mission
 def _home(raw: Any, problems: list[Problem]) -> Home | None:
     if raw is None:
         return None
-    values = [_num(v) for v in raw] if isinstance(raw, list) and len(raw) == 3 else None
+    values = [plan_number(v) for v in raw] if isinstance(raw, list) and len(raw) == 3 else None
     if values is None or values[0] is None or values[1] is None:
         problems.append(Problem("mission.plannedHomePosition", "must be [lat, lon, alt]", raw))
         return None
@@ -371,100 +370,3 @@ def _home(raw: Any, problems: list[Problem]) -> Home | None:
         )
         return None
     return Home(values[0], values[1], values[2])
-
-
-def _kept_for(items: list[MissionItem], extras: dict[str, Any]) -> tuple[list[Any], list[int]]:
-    """Per item: the altitude keys its import carried (None: derive them), and the doJumpIds.
-
-    Altitude keys are used for an item still of the command, frame and altitude they were read
-    with; the plan's doJumpIds while the mission still has the plan's commands in order and
-    they are distinct (a stale or repeated id would send a DO_JUMP elsewhere): else seq numbers.
-    """
-    kept = extras.get("qgc")
-    entries = kept.get("items") if isinstance(kept, dict) else None
-    if not isinstance(entries, list) or len(entries) != len(items):
-        entries = [None] * len(items)
-    entries = [e if isinstance(e, dict) else None for e in entries]
-    alts = [
-        e
-        if e is not None
-        and (e.get("command"), e.get("frame"), e.get("alt")) == (i.command, i.frame, i.alt)
-        else None
-        for e, i in zip(entries, items, strict=True)
-    ]
-    kept_ids = [e.get("doJumpId") if e is not None else None for e in entries]
-    same = all(
-        e is not None and e.get("command") == i.command for e, i in zip(entries, items, strict=True)
-    )
-    ids = [j for j in kept_ids if isinstance(j, int) and not isinstance(j, bool)]
-    if not same or len(ids) != len(items) or len(set(ids)) != len(ids):
-        ids = [n + 1 for n in range(len(items))]
-    return alts, ids
-
-
-def export_plan(
-    items: list[MissionItem],
-    home: Home | None,
-    speed_mps: float | None = None,
-    extras: dict[str, Any] | None = None,
-) -> dict[str, Any]:
-    """Mission items -> a `.plan` document in QGroundControl's structure.
-
-    An imported plan's firmware, vehicle, speeds, doJumpIds and altitude keys come back as they
-    were (`extras["qgc"]`); otherwise ArduPilot, multirotor, seq numbers as doJumpIds.
-    """
-    extras = extras or {}
-    alts, ids = _kept_for(items, extras)
-    out_items = []
-    for n, item in enumerate(items):
-        p = list(item.params)
-        if item.command == DO_JUMP and p[0] is not None and p[0] == int(p[0]):
-            # our DO_JUMP target is a seq number; the plan's is the target's doJumpId
-            if 1 <= p[0] <= len(items):
-                p[0] = float(ids[int(p[0]) - 1])
-        out: dict[str, Any] = {}
-        if item.spec is not None and item.spec.positional:
-            out |= export_keys(item.frame, item.alt, alts[n])
-        out |= {
-            "autoContinue": item.autocontinue,
-            "command": item.command,
-            "doJumpId": ids[n],
-            "frame": item.frame,
-            "params": [*p, item.lat, item.lon, item.alt],
-            "type": "SimpleItem",
-        }
-        out_items.append(out)
-    if home is not None:
-        planned = [home.lat, home.lon, home.alt]
-    else:
-        first = next((i for i in items if i.spec and i.spec.positional), None)
-        planned = [first.lat, first.lon, 0.0] if first else [0.0, 0.0, 0.0]
-    kept: dict[str, Any] = extras["qgc"] if isinstance(extras.get("qgc"), dict) else {}
-    mission = {k: kept[k] for k in KEPT_MISSION_KEYS if _num(kept.get(k)) is not None}
-    vehicle = mission.get("vehicleType", VEHICLE_MULTIROTOR)
-    speed_key = "hoverSpeed" if vehicle in MULTIROTOR_TYPES else "cruiseSpeed"
-    mission = {
-        "cruiseSpeed": DEFAULT_CRUISE_MPS,
-        "firmwareType": FIRMWARE_ARDUPILOT,
-        "globalPlanAltitudeMode": 1,
-        "hoverSpeed": DEFAULT_HOVER_MPS,
-        "vehicleType": VEHICLE_MULTIROTOR,
-        **mission,
-    }
-    if speed_mps:
-        mission[speed_key] = speed_mps
-    return {
-        "fileType": "Plan",
-        "geoFence": extras.get("geoFence") or {"circles": [], "polygons": [], "version": 2},
-        "groundStation": "QGroundControl",
-        "mission": {
-            **{k: mission[k] for k in ("cruiseSpeed", "firmwareType", "globalPlanAltitudeMode")},
-            "hoverSpeed": mission["hoverSpeed"],
-            "items": out_items,
-            "plannedHomePosition": planned,
-            "vehicleType": mission["vehicleType"],
-            "version": 2,
-        },
-        "rallyPoints": extras.get("rallyPoints") or {"points": [], "version": 2},
-        "version": 1,
-    }

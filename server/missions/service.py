@@ -9,7 +9,7 @@ from typing import Any
 
 from server.assets.models import Asset, AssetKind
 from server.kit.errors import Unprocessable
-from server.missions import qgc, wpl
+from server.missions import qgc, qgc_export, wpl
 from server.missions.build import Built, build, home_of
 from server.missions.flight import estimate_flight
 from server.missions.items import MissionItem, item_dicts, items_of
@@ -180,7 +180,7 @@ class MissionService:
         if fmt == "wpl":
             return wpl.export_wpl(items, home), safe_filename(mission.name, ".waypoints")
         return (
-            qgc.export_plan(items, home, mission.speed_mps, mission.extras),
+            qgc_export.export_plan(items, home, mission.speed_mps, mission.extras),
             safe_filename(mission.name, ".plan"),
         )
 

@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from server.missions.items import COMMANDS, MissionItem
-from server.missions.qgc import ImportRejected, export_plan, parse_plan
+from server.missions.qgc import ImportRejected, parse_plan
+from server.missions.qgc_export import export_plan
 from server.missions.validate import Home
 from server.missions.wpl import HEADER, export_wpl, parse_wpl
 

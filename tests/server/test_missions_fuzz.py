@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from server.missions.items import COMMANDS, MissionItem
-from server.missions.qgc import ImportRejected, export_plan, parse_plan
+from server.missions.qgc import ImportRejected, parse_plan
+from server.missions.qgc_export import export_plan
 from server.missions.validate import Home
 from server.missions.wpl import HEADER, export_wpl, parse_wpl
 from tests.server.test_missions_formats import wrap

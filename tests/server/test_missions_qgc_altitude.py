@@ -17,7 +17,8 @@ from typing import Any
 import pytest
 
 from server.missions.items import MissionItem
-from server.missions.qgc import ImportRejected, export_plan, parse_plan
+from server.missions.qgc import ImportRejected, parse_plan
+from server.missions.qgc_export import export_plan
 from server.missions.validate import Home, MissionLimits, validate_items
 
 HOME = [47.397742, 8.545594, 488]  # plannedHomePosition: lat, lon, metres AMSL
