@@ -10,6 +10,7 @@ PACKAGES = ("server", "base_station", "asset_agent", "assetlink", "protocol", "s
 MAX_LINES = 400
 REASON = "Long because:"
 
+
 def too_long(path: Path) -> bool:
     """True when the file is over MAX_LINES lines and its module docstring gives no reason
     (a line starting with "Long because:")."""

@@ -8,7 +8,7 @@ from datetime import timedelta
 from typing import Any
 
 from pydantic import ValidationError
-from sqlalchemy import select
+from sqlalchemy import select, update
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from protocol import vocabulary
@@ -68,13 +68,29 @@ async def set_status(
     progress: dict[str, Any] | None = None,
     result: dict[str, Any] | None = None,
 ) -> bool:
-    """Move a command on; a final status is never left. Returns False when nothing changed."""
+    """Move a command on; a final status is never left. Returns False when nothing changed.
+
+    The database decides, not the object in hand: the update is conditional on the stored status
+    not being final. A deadline sweep holding a command it read as in_progress cannot overwrite
+    the `succeeded` an asset's result committed a moment later (it turned a finished
+    check_availability into timed_out and aborted a run).
+    """
     if cmd.status in FINAL_STATUSES:
         return False
     now = utcnow()
-    cmd.status, cmd.reason, cmd.updated_at = status, reason[:2000], now
+    values: dict[str, Any] = {"status": status, "reason": reason[:2000], "updated_at": now}
     if result is not None:
-        cmd.result = result
+        values["result"] = result
+    stmt = (
+        update(AssetCommand)
+        .where(AssetCommand.id == cmd.id, AssetCommand.status.not_in(list(FINAL_STATUSES)))
+        .values(**values)
+        .execution_options(synchronize_session=False)
+    )
+    changed = (await db.execute(stmt)).rowcount == 1  # type: ignore[attr-defined]
+    await db.refresh(cmd)
+    if not changed:
+        return False
     db.add(
         CommandStatusChange(
             command_id=cmd.id, status=status, reason=reason[:2000], progress=progress, at=now
