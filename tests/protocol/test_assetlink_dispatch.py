@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import asyncio
-import time
 import uuid
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from pathlib import Path
 
 import pytest
@@ -15,15 +14,7 @@ from assetlink.outbox import AsyncOutbox
 from protocol import messages as m
 from protocol.codec import decode
 from protocol.vocabulary import StartCharging, UploadMission
-
-
-async def wait_for(predicate: Callable[[], bool], timeout: float = 5.0) -> None:  # noqa: ASYNC109
-    """Poll `predicate` until it holds; fail the test at the deadline."""
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not reached before the deadline")
-        await asyncio.sleep(0.005)
+from tests.polling import eventually
 
 
 def command(
@@ -76,7 +67,7 @@ async def test_plain_handler_runs_once_and_redelivery_gets_the_first_result(box)
     dispatcher.register(StartCharging, counter.plain)
     cmd = command("start_charging", current_limit_ma=1500)
     await dispatcher.handle(cmd)
-    await wait_for(lambda: not dispatcher.running)
+    await eventually(lambda: not dispatcher.running)
     await dispatcher.handle(cmd)
     assert len(counter.calls) == 1
     assert counter.calls[0].command == StartCharging(current_limit_ma=1500)
@@ -96,10 +87,10 @@ async def test_progress_then_exactly_one_final_result(box) -> None:
     dispatcher.register("open", counter.steps)
     cmd = command("open")
     await dispatcher.handle(cmd)
-    await wait_for(lambda: len(counter.calls) == 1 and len(box.sync) == 1)
+    await eventually(lambda: len(counter.calls) == 1 and len(box.sync) == 1)
     await dispatcher.handle(cmd)  # redelivered while running: answered, not run again
     counter.release.set()
-    await wait_for(lambda: not dispatcher.running)
+    await eventually(lambda: not dispatcher.running)
     got = await results(box)
     assert [r.payload.status for r in got] == [
         "in_progress",
@@ -121,7 +112,7 @@ async def test_redelivery_after_restart_is_not_executed(tmp_path: Path) -> None:
     dispatcher = CommandDispatcher(box)
     dispatcher.register("open", counter.plain)
     await dispatcher.handle(cmd)
-    await wait_for(lambda: not dispatcher.running)
+    await eventually(lambda: not dispatcher.running)
     first = (await results(box))[0]
     await box.close()
 
@@ -146,7 +137,7 @@ async def test_command_interrupted_by_a_restart_fails_and_never_reruns(tmp_path:
     dispatcher = CommandDispatcher(box)
     dispatcher.register("open", counter.steps)
     await dispatcher.handle(cmd)
-    await wait_for(lambda: len(box.sync) == 1)
+    await eventually(lambda: len(box.sync) == 1)
     # The process dies: no cancellation runs, the ledger still says "running".
     await box.close()
     for task in asyncio.all_tasks():
@@ -200,7 +191,7 @@ async def test_exceptions_and_bad_outputs_become_failed(box) -> None:
     dispatcher.register("lift_up", not_final)
     for name in ("stop", "close", "lift_up"):
         await dispatcher.handle(command(name))
-        await wait_for(lambda: not dispatcher.running)
+        await eventually(lambda: not dispatcher.running)
     got = [(r.payload.status, r.payload.reason) for r in await results(box)]
     assert got[0] == ("failed", "RuntimeError: lift jammed")
     assert got[1][0] == "failed" and "dict" in got[1][1]
@@ -220,7 +211,7 @@ async def test_none_means_success_and_generator_without_final_succeeds(box) -> N
     dispatcher.register("resume", only_progress)
     await dispatcher.handle(command("pause"))
     await dispatcher.handle(command("resume"))
-    await wait_for(lambda: not dispatcher.running)
+    await eventually(lambda: not dispatcher.running)
     statuses = sorted(r.payload.status for r in await results(box))
     assert statuses == ["in_progress", "succeeded", "succeeded"]
 
@@ -231,7 +222,7 @@ async def test_stop_cancels_running_commands_with_a_result(box) -> None:
     dispatcher.register("open", counter.steps)
     cmd = command("open")
     await dispatcher.handle(cmd)
-    await wait_for(lambda: len(box.sync) == 1)
+    await eventually(lambda: len(box.sync) == 1)
     await dispatcher.stop()
     got = await results(box)
     assert [r.payload.status for r in got] == ["in_progress", "canceled"]
