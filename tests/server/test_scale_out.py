@@ -5,9 +5,6 @@ from __future__ import annotations
 import asyncio
 import base64
 import json
-import os
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 
@@ -19,62 +16,14 @@ from assetlink.configfile import decrypt_config
 from assetlink.dispatch import result
 from assetlink.link import Link
 from protocol.telemetry_payloads import Position, UavTelemetry
-from tests.conftest import Tenant, free_port, need_service
-
-REDIS_URL = os.environ.get("REDIS_TEST_URL", "redis://127.0.0.1:6379/0")
-
-
-def _start(database_url: str, port: int, log) -> subprocess.Popen:  # type: ignore[no-untyped-def]
-    env = {
-        **os.environ,
-        "DATABASE_URL": database_url,
-        "REDIS_URL": REDIS_URL,
-        "AEROBASE_PORT": str(port),
-        "AEROBASE_ARGON2_MEMORY_KIB": "8192",
-        "AEROBASE_ARGON2_TIME_COST": "1",
-        "AEROBASE_ARGON2_PARALLELISM": "1",
-        "AEROBASE_CONFIG_SCRYPT_LOG_N": "12",
-        "AEROBASE_LOGIN_MAX_FAILURES_ADDRESS": "10000",
-        "AEROBASE_LOG_FORMAT": "json",
-    }
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "aerobase.cli", "server", "--port", str(port)],
-        env=env,
-        stdout=log,
-        stderr=subprocess.STDOUT,
-    )
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            raise AssertionError(f"server on {port} exited with {proc.returncode}")
-        try:
-            if httpx.get(f"http://127.0.0.1:{port}/api/health", timeout=1).status_code == 200:
-                return proc
-        except httpx.HTTPError:
-            pass
-        time.sleep(0.1)
-    proc.kill()
-    raise AssertionError(f"server on {port} did not start")
+from tests.conftest import Tenant
+from tests.replicas import replicas
 
 
 @pytest.fixture
 def two_servers(database_url: str, tmp_path) -> Iterator[tuple[str, str]]:  # type: ignore[no-untyped-def]
-    need_service("Redis", "127.0.0.1", 6379)
-    ports = free_port(), free_port()
-    procs = []
-    with open(tmp_path / "servers.log", "wb") as log:
-        try:
-            for port in ports:
-                procs.append(_start(database_url, port, log))
-            yield f"http://127.0.0.1:{ports[0]}", f"http://127.0.0.1:{ports[1]}"
-        finally:
-            for p in procs:
-                p.terminate()
-            for p in procs:
-                try:
-                    p.wait(15)
-                except subprocess.TimeoutExpired:
-                    p.kill()
+    with replicas(database_url, tmp_path) as started:
+        yield tuple(f"http://127.0.0.1:{port}" for port, _ in started)  # type: ignore[misc]
 
 
 @pytest.mark.slow

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# System packages the tests run as real programs: nginx (the reverse proxy of the deployment
+# topology) and docker-compose (validates docker-compose.yml; no image is pulled). Idempotent.
+set -euo pipefail
+need=()
+command -v nginx >/dev/null 2>&1 || [ -x /usr/sbin/nginx ] || need+=(nginx)
+command -v docker-compose >/dev/null 2>&1 || need+=(docker-compose)
+if [ ${#need[@]} -eq 0 ]; then
+    echo "system packages already installed"
+    exit 0
+fi
+export DEBIAN_FRONTEND=noninteractive
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+$SUDO apt-get update
+$SUDO apt-get install -y "${need[@]}"
+# the package's own nginx service would hold port 80 for nothing: the tests start their own
+if command -v systemctl >/dev/null 2>&1 && [ -d /run/systemd/system ]; then
+    $SUDO systemctl disable --now nginx >/dev/null 2>&1 || true
+elif command -v service >/dev/null 2>&1; then
+    $SUDO service nginx stop >/dev/null 2>&1 || true
+fi
+echo "installed: ${need[*]}"

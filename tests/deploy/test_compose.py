@@ -1,0 +1,118 @@
+"""docker-compose.yml is valid, passes only settings the server has, and documents its secrets.
+
+Images cannot be pulled on these machines, so the stack is not started here; the same topology
+runs natively in test_proxy.py (nginx with the very server block the compose file mounts).
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from server.config import Settings
+from tests.conftest import IN_CI
+
+ROOT = Path(__file__).resolve().parents[2]
+COMPOSE = ROOT / "docker-compose.yml"
+ENV_EXAMPLE = ROOT / ".env.example"
+# read by other programs in the image, not by server/config.py
+NOT_OURS = {"FORWARDED_ALLOW_IPS"}  # uvicorn: whose X-Forwarded-For to believe
+
+
+def compose() -> dict[str, Any]:
+    return yaml.safe_load(COMPOSE.read_text())  # type: ignore[no-any-return]
+
+
+def example_env() -> dict[str, str]:
+    pairs = (
+        line.split("=", 1)
+        for line in ENV_EXAMPLE.read_text().splitlines()
+        if line.strip() and not line.startswith("#")
+    )
+    return {k.strip(): v.strip() for k, v in pairs}
+
+
+def docker_compose() -> str:
+    found = shutil.which("docker-compose")
+    if found is None:
+        message = "docker-compose is not installed (Debian's docker-compose package)"
+        if IN_CI:
+            pytest.fail(f"{message}; CI=true: .ci/run installs it")
+        pytest.skip(f"{message}; in CI this fails instead")
+    return found
+
+
+def run_config(env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [docker_compose(), "--project-directory", str(ROOT), "-f", str(COMPOSE), "config", "-q"],
+        env={"PATH": "/usr/bin:/bin", **env},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+
+
+def filled(env: dict[str, str]) -> dict[str, str]:
+    """.env.example with every empty (required) value set, as an operator would."""
+    return {k: v or f"not-a-real-{k.lower()}" for k, v in env.items()}
+
+
+def test_docker_compose_accepts_the_file_with_the_example_env_filled_in():
+    r = run_config(filled(example_env()))
+    assert r.returncode == 0, r.stderr
+
+
+def test_docker_compose_refuses_to_start_without_a_database_password():
+    env = filled(example_env())
+    del env["POSTGRES_PASSWORD"]
+    r = run_config(env)
+    assert r.returncode != 0 and "set POSTGRES_PASSWORD in .env" in r.stderr
+
+
+def test_every_variable_the_compose_file_reads_is_documented_in_env_example_and_back():
+    used = set(re.findall(r"\$\{([A-Z0-9_]+)", COMPOSE.read_text()))
+    assert used == set(example_env())
+
+
+def _settings_names() -> set[str]:
+    names = set()
+    prefix = Settings.model_config.get("env_prefix", "")
+    for name, field in Settings.model_fields.items():
+        names.add(f"{prefix}{name}".upper())
+        choices = getattr(field.validation_alias, "choices", None) or []
+        names.update(str(c).upper() for c in choices)
+    return names
+
+
+def test_every_setting_passed_to_a_server_exists_in_the_settings_class():
+    services = compose()["services"]
+    ours = {n: s for n, s in services.items() if s.get("image", "").startswith("aerobase")}
+    assert {"server-1", "server-2", "migrate"} <= set(ours)
+    known = _settings_names()
+    for name, service in ours.items():
+        unknown = set(service.get("environment", {})) - known - NOT_OURS
+        assert not unknown, f"{name} passes settings server/config.py does not have: {unknown}"
+
+
+def test_the_proxy_mounts_the_server_block_the_native_topology_runs_and_points_at_both_replicas():
+    proxy = compose()["services"]["proxy"]
+    mounts = {m.split(":")[0]: m.split(":")[1] for m in proxy["volumes"]}
+    assert mounts["./deploy/nginx/aerobase.conf"].startswith("/etc/nginx/conf.d/")
+    assert mounts["./deploy/nginx/compose"] == "/etc/nginx/aerobase"
+    upstream = (ROOT / "deploy" / "nginx" / "compose" / "upstream.conf").read_text()
+    assert re.findall(r"^server (\S+):8000", upstream, re.M) == ["server-1", "server-2"]
+
+
+def test_the_replicas_wait_for_the_migration_and_do_not_migrate_themselves():
+    services = compose()["services"]
+    for name in ("server-1", "server-2"):
+        s = services[name]
+        assert s["depends_on"]["migrate"]["condition"] == "service_completed_successfully"
+        assert s["environment"]["AEROBASE_MIGRATE_ON_START"] == "false"
+    assert services["migrate"]["command"] == ["admin", "migrate"]
