@@ -1,30 +1,74 @@
-"""`/api/health`: is the server up, and can it reach its database."""
+"""`/api/health` (liveness: the process serves and reaches its database) and `/api/ready`
+(readiness: every dependency this replica uses answers — database, broker, telemetry store), for
+the proxy's and the orchestrator's checks."""
 
 from __future__ import annotations
+
+import asyncio
+from collections.abc import Awaitable, Callable
 
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 from sqlalchemy import text
 
 from server.deps import ServicesDep
+from server.services import Services
+from server.telemetry.influx import InfluxTelemetryStore
 
 router = APIRouter(tags=["health"])
+
+CHECK_TIMEOUT_S = 2.0
+
+
+async def _database(services: Services) -> None:
+    async with services.engine.connect() as conn:
+        await conn.execute(text("SELECT 1"))
+
+
+async def _check(probe: Callable[[], Awaitable[None]]) -> str:
+    """'ok', or 'unreachable: <why>' when the probe fails or takes over CHECK_TIMEOUT_S."""
+    try:
+        async with asyncio.timeout(CHECK_TIMEOUT_S):
+            await probe()
+    except TimeoutError:
+        return f"unreachable: no answer within {CHECK_TIMEOUT_S:g} s"
+    except Exception as err:  # any driver or network error means unreachable
+        return f"unreachable: {type(err).__name__}: {err}"[:200]
+    return "ok"
 
 
 @router.get("/api/health")
 async def health(request: Request, services: ServicesDep) -> JSONResponse:
     """200 with the database reachable, 503 when it is not."""
-    database = "ok"
-    try:
-        async with services.engine.connect() as conn:
-            await conn.execute(text("SELECT 1"))
-    except Exception as err:  # any driver error means unreachable
-        database = f"unreachable: {type(err).__name__}"
+    database = await _check(lambda: _database(services))
     ok = database == "ok"
     return JSONResponse(
         {
             "status": "ok" if ok else "degraded",
             "database": database,
+            "version": request.app.version,
+        },
+        status_code=200 if ok else 503,
+    )
+
+
+@router.get("/api/ready")
+async def ready(request: Request, services: ServicesDep) -> JSONResponse:
+    """200 when the database, the broker and (when configured) InfluxDB all answer; 503 naming
+    the one that does not, so a proxy sends no traffic to a replica that cannot serve it."""
+    probes: dict[str, Callable[[], Awaitable[None]]] = {
+        "database": lambda: _database(services),
+        "broker": services.broker.ping,
+    }
+    if isinstance(services.telemetry, InfluxTelemetryStore):
+        probes["influxdb"] = services.telemetry.ping
+    results = await asyncio.gather(*(_check(p) for p in probes.values()))
+    checks = dict(zip(probes, results, strict=True))
+    ok = all(v == "ok" for v in checks.values())
+    return JSONResponse(
+        {
+            "status": "ready" if ok else "not_ready",
+            "checks": checks,
             "version": request.app.version,
         },
         status_code=200 if ok else 503,

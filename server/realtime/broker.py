@@ -31,6 +31,9 @@ class Broker(Protocol):
     async def close(self) -> None:
         """Disconnect."""
 
+    async def ping(self) -> None:
+        """Return when the broker answers; raise when it cannot be reached."""
+
     async def publish(self, channel: str, message: dict[str, Any]) -> None:
         """Send to every subscriber of `channel`, in every process."""
 
@@ -88,6 +91,9 @@ class InProcessBroker:
 
     async def close(self) -> None:
         """Nothing to disconnect."""
+
+    async def ping(self) -> None:
+        """Always reachable: it lives in this process."""
 
     async def publish(self, channel: str, message: dict[str, Any]) -> None:
         """Deliver in this process."""
@@ -151,6 +157,12 @@ class RedisBroker:
         self._pubsub = self._redis.pubsub(ignore_subscribe_messages=True)
         await self._pubsub.subscribe(f"{self.prefix}__keepalive")
         self._reader = asyncio.create_task(self._read(), name="redis-broker")
+
+    async def ping(self) -> None:
+        """Redis PING over the broker's own connection pool."""
+        if self._redis is None:
+            raise ConnectionError("the Redis broker is not started")
+        await self._redis.ping()
 
     async def close(self) -> None:
         """Stop the reader and disconnect."""

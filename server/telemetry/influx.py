@@ -165,6 +165,14 @@ class InfluxTelemetryStore:
             await asyncio.to_thread(self._client.close)
             self._client = None
 
+    async def ping(self) -> None:
+        """InfluxDB's /ping (204 on every major version); raises when unreachable."""
+        if self._http is None:
+            raise InfluxStoreError("the InfluxDB store is not started")
+        r = await self._http.get("/ping")
+        if r.status_code >= 400:
+            raise InfluxStoreError(f"InfluxDB /ping answered {r.status_code}")
+
     # -- the TelemetryStore operations
 
     async def write(self, samples: Sequence[Sample]) -> None:

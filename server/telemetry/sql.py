@@ -29,6 +29,9 @@ class SqlTelemetryStore:
     async def close(self) -> None:
         """Nothing to flush: writes are synchronous."""
 
+    async def ping(self) -> None:
+        """The table is in the main database, which readiness checks on its own."""
+
     async def write(self, samples: Sequence[Sample]) -> None:
         """Insert a batch in one transaction; a sample already stored (a replay) is skipped."""
         if not samples:

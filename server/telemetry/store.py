@@ -46,6 +46,9 @@ class TelemetryStore(Protocol):
     async def start(self) -> None:
         """Connect and prepare (create buckets/retention policies where needed)."""
 
+    async def ping(self) -> None:
+        """Return when the store answers; raise when it cannot be reached."""
+
     async def close(self) -> None:
         """Flush and disconnect."""
 

@@ -16,7 +16,12 @@ import pytest
 
 from tests.conftest import Tenant
 
-PUBLIC = {("POST", "/api/v1/auth/login"), ("POST", "/api/v1/assets/login"), ("GET", "/api/health")}
+PUBLIC = {
+    ("POST", "/api/v1/auth/login"),
+    ("POST", "/api/v1/assets/login"),
+    ("GET", "/api/health"),
+    ("GET", "/api/ready"),
+}
 # Routes every role may call on its own session (not organisation data).
 SELF = {("POST", "/api/v1/auth/logout"), ("POST", "/api/v1/auth/renew"), ("GET", "/api/v1/auth/me")}
 # Management of users and of assets' credentials: admins only.
