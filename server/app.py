@@ -19,6 +19,7 @@ from server.commands.endpoints import router as commands_router
 from server.config import Settings
 from server.deps import services_of, set_services
 from server.health import router as health_router
+from server.kit import metrics
 from server.kit.db import make_engine, make_sessionmaker
 from server.kit.errors import RejectNulBytes, install_error_handlers
 from server.kit.security import Passwords
@@ -78,6 +79,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         ingest.start()
         hub = Hub(broker, sessionmaker)
         await hub.start()
+        metrics.watch_hub(hub)
         services = Services(
             settings=settings,
             passwords=passwords,
@@ -124,6 +126,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.add_middleware(GZipMiddleware, minimum_size=2048)
     app.add_middleware(RejectNulBytes)
+    app.add_middleware(metrics.HttpMetrics)
     install_error_handlers(app)
     for router in (
         health_router,

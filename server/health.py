@@ -1,6 +1,6 @@
-"""`/api/health` (liveness: the process serves and reaches its database) and `/api/ready`
-(readiness: every dependency this replica uses answers — database, broker, telemetry store), for
-the proxy's and the orchestrator's checks."""
+"""What operations tools read: `/api/health` (liveness: the process serves and reaches its
+database), `/api/ready` (readiness: every dependency this replica uses answers — database, broker,
+telemetry store) and `/metrics` (Prometheus, this process; see `server/kit/metrics.py`)."""
 
 from __future__ import annotations
 
@@ -8,10 +8,12 @@ import asyncio
 from collections.abc import Awaitable, Callable
 
 from fastapi import APIRouter, Request
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
+from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
 from sqlalchemy import text
 
 from server.deps import ServicesDep
+from server.kit.metrics import REGISTRY
 from server.services import Services
 from server.telemetry.influx import InfluxTelemetryStore
 
@@ -73,3 +75,10 @@ async def ready(request: Request, services: ServicesDep) -> JSONResponse:
         },
         status_code=200 if ok else 503,
     )
+
+
+@router.get("/metrics", include_in_schema=False)
+async def prometheus() -> Response:
+    """Prometheus text exposition of this process's metrics (scraped on the internal network; the
+    proxy does not pass it)."""
+    return Response(generate_latest(REGISTRY), media_type=CONTENT_TYPE_LATEST)

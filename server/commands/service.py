@@ -14,6 +14,7 @@ from sqlalchemy.ext.asyncio import AsyncSession
 from protocol import vocabulary
 from protocol.vocabulary import FINAL_STATUSES, CommandParams
 from server.commands.models import AssetCommand, CommandStatusChange
+from server.kit import metrics
 from server.kit.errors import Unprocessable
 from server.kit.time import utcnow
 
@@ -97,6 +98,11 @@ async def set_status(
         )
     )
     await db.flush()
+    if status in FINAL_STATUSES:
+        metrics.COMMANDS.labels(cmd.name, status).inc()
+        metrics.COMMAND_LATENCY.labels(cmd.name, status).observe(
+            (now - cmd.created_at).total_seconds()
+        )
     return True
 
 

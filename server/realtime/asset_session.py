@@ -82,7 +82,7 @@ class AssetSession:
         if await broker.claim(self.presence, self.owner, PRESENCE_TTL_S) is not None:
             await self.ws.close(4409, "another connection of this asset is live")
             return
-        hub.register_closer(self.principal.session_id, self.sender.close)
+        hub.register_closer(self.principal.session_id, self.sender.close, kind="asset")
         broker.subscribe(command_channel(self.asset_id), self._nudge)
         # a UAV bound to a landing base receives that base's RTK corrections
         async with self.services.sessionmaker() as db:
@@ -114,7 +114,7 @@ class AssetSession:
             broker.unsubscribe(command_channel(self.asset_id), self._nudge)
             if corrections:
                 broker.unsubscribe(corrections, self._forward_rtcm)
-            hub.unregister_closer(self.principal.session_id, self.sender.close)
+            hub.unregister_closer(self.principal.session_id, self.sender.close, kind="asset")
             with contextlib.suppress(Exception):
                 await broker.release(self.presence, self.owner)
             if (

@@ -5,6 +5,7 @@ The channels it uses are named in `server.realtime.channels`.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import logging
 import uuid
@@ -33,6 +34,7 @@ class Counters:
     rate_limited: int = 0
     operator_dropped: int = 0
     rtcm_forwarded: int = 0
+    sent_to_operators: int = 0
 
 
 class Hub:
@@ -44,6 +46,7 @@ class Hub:
         self.node = uuid.uuid4().hex[:12]
         self.counters = Counters()
         self.closers: dict[uuid.UUID, list[Callable[[int, str], None]]] = {}
+        self.connected: collections.Counter[str] = collections.Counter()  # live sockets by kind
         self._sweeper = Periodic("command-sweeper", self.expire_commands, 1.0)
 
     async def start(self) -> None:
@@ -66,12 +69,18 @@ class Hub:
                 for close in self.closers.pop(uuid.UUID(raw), []):
                     close(4001, "session ended: another login took it over or it was logged out")
 
-    def register_closer(self, session_id: uuid.UUID, close: Callable[[int, str], None]) -> None:
-        """Remember how to close a socket of this session."""
+    def register_closer(
+        self, session_id: uuid.UUID, close: Callable[[int, str], None], kind: str = "operator"
+    ) -> None:
+        """Remember how to close a socket of this session (an `asset` or `operator` socket)."""
         self.closers.setdefault(session_id, []).append(close)
+        self.connected[kind] += 1
 
-    def unregister_closer(self, session_id: uuid.UUID, close: Callable[[int, str], None]) -> None:
+    def unregister_closer(
+        self, session_id: uuid.UUID, close: Callable[[int, str], None], kind: str = "operator"
+    ) -> None:
         """Forget a closed socket."""
+        self.connected[kind] -= 1
         with contextlib.suppress(KeyError, ValueError):
             self.closers[session_id].remove(close)
             if not self.closers[session_id]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import time
 import uuid
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -19,6 +20,7 @@ from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
 from asynckit.tasks import cancel_and_wait
 from server.commands import service as commands
+from server.kit import metrics
 from server.telemetry import service as telemetry
 from server.telemetry.store import Sample, TelemetryStore, flatten
 
@@ -40,6 +42,7 @@ class Item:
     done: asyncio.Future[None] = field(
         default_factory=lambda: asyncio.get_running_loop().create_future()
     )
+    arrived: float = field(default_factory=time.monotonic)
 
 
 def _ts(ms: int) -> datetime:
@@ -129,3 +132,16 @@ class Ingest:
                     await commands.apply_result(db, item.re, item.asset_id, item.payload)
             await telemetry.advance_streams(db, highest)
             await db.commit()
+        observe_stored(batch)
+
+
+def observe_stored(batch: list[Item]) -> None:
+    """Ingest lag per message, and what landing bases said of their PLC link and RTK."""
+    now = time.monotonic()
+    for item in batch:
+        metrics.INGEST_LAG.observe(now - item.arrived)
+        if item.kind == "telemetry" and "plc_link" in item.payload:
+            asset = str(item.asset_id)
+            metrics.BASE_PLC_LINK.labels(asset).set(item.payload["plc_link"] == "up")
+            rtk = item.payload.get("rtk") or {}
+            metrics.BASE_RTK_RATE.labels(asset).set(float(rtk.get("corrections_rate", 0.0)))

@@ -44,7 +44,9 @@ class OperatorSession:
         text = message.get("text")
         if not isinstance(text, str):
             text = json.dumps(message, separators=(",", ":"))
-        if not self.sender.send_text(text):
+        if self.sender.send_text(text):
+            self.services.hub.counters.sent_to_operators += 1
+        else:
             self.services.hub.counters.operator_dropped += 1
 
     async def serve(self) -> None:

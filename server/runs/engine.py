@@ -25,6 +25,7 @@ from protocol.vocabulary import (
 )
 from server.assets.models import Asset
 from server.commands import service as commands
+from server.kit import metrics
 from server.kit.periodic import Periodic
 from server.kit.time import utcnow
 from server.realtime.channels import asset_channel, command_channel
@@ -123,10 +124,11 @@ class RunEngine:
             transition = advance(State(run.state), obs, aborting=run.aborting)
             if transition is None:
                 return
-            previous = run.state
+            previous, entered = run.state, run.step_started_at
             # written first: a server that dies right after this resumes in the new step
             await self._record(db, run, transition)
             await db.commit()
+            observe_transition(previous, entered, run)
             log.info(
                 "run %s: %s -> %s: %s", run.id, previous, transition.to.value, transition.reason
             )
@@ -247,6 +249,14 @@ class RunEngine:
             abort_reason=run.abort_reason,
             took_off="took_off" in uav_events or "armed" in uav_events,
         )
+
+
+def observe_transition(left: str, entered: datetime | None, run: Run) -> None:
+    """The time spent in the step just left; a run that ended counted by outcome and cause."""
+    if entered is not None:
+        metrics.RUN_STEP.labels(left).observe((utcnow() - entered).total_seconds())
+    if run.outcome is not None and State(run.state) in FINAL:
+        metrics.RUNS.labels(run.outcome, run.cause or "").inc()
 
 
 def _after(ts: str | None, since: datetime) -> bool:

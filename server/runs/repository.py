@@ -10,6 +10,7 @@ from sqlalchemy import delete, or_, select
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.commands.models import AssetCommand
+from server.kit import metrics
 from server.kit.scope import ScopedRepository
 from server.runs.machine import FINAL, Action
 from server.runs.models import Run, RunStepCommand, RunTransition
@@ -80,6 +81,8 @@ async def claim(
     )
     runs = list((await db.execute(stmt)).scalars())
     for run in runs:
+        if run.lease_owner not in (None, owner):
+            metrics.LEASE_TAKEOVERS.inc()
         run.lease_owner, run.lease_until = owner, until
     return [r.id for r in runs]
 

@@ -6,6 +6,7 @@ import pytest
 
 from tests.conftest import Tenant
 from tests.e2e.harness import FINAL, platform
+from tests.metrics import value
 from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
@@ -17,10 +18,19 @@ WHOLE_SEQUENCE = [
 
 async def test_a_run_walks_the_whole_sequence_and_completes(live_server, tenant: Tenant, tmp_path):
     async with platform(live_server.url, tenant, tmp_path) as p:
+        before = (await p.api.get("/metrics")).text
         run_id = await p.start_run()
         body = await p.wait_state(run_id, FINAL, 150)
         assert body["state"] == "completed", (body["reason"], body["timeline"])
         assert [t["to_state"] for t in body["timeline"]] == [*WHOLE_SEQUENCE, "completed"]
+        # the run moved the run counters operators alert on
+        after = (await p.api.get("/metrics")).text
+        done = {"outcome": "completed", "cause": ""}
+        assert value(after, "aerobase_runs_total", **done) > value(
+            before, "aerobase_runs_total", **done
+        )
+        flown = "aerobase_run_step_duration_seconds_count"
+        assert value(after, flown, step="flying") > value(before, flown, step="flying")
         assert not body["alert"], (
             body["reason"],
             _on_the_pad(p),
