@@ -49,6 +49,7 @@ async def health(request: Request, services: ServicesDep) -> JSONResponse:
             "status": "ok" if ok else "degraded",
             "database": database,
             "version": request.app.version,
+            "node": services.hub.node,
         },
         status_code=200 if ok else 503,
     )

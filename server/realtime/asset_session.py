@@ -43,7 +43,11 @@ from server.telemetry.service import StreamOfAnotherAsset
 
 log = logging.getLogger(__name__)
 HEARTBEAT_S = 15.0  # the asset session idles out after 60 s without one
-PRESENCE_TTL_S = 30.0
+# An asset is live on one replica at a time (a key in the broker). A replica killed outright
+# cannot give the key back: it lapses after PRESENCE_TTL_S, and only then does a surviving
+# replica admit the asset's reconnect, so it is short and refreshed every PRESENCE_REFRESH_S.
+PRESENCE_TTL_S = 10.0
+PRESENCE_REFRESH_S = 3.0
 HELLO_TIMEOUT_S = 15.0
 DURABLE = ("telemetry", "event", "command_result")
 
@@ -232,17 +236,20 @@ class AssetSession:
         from server.auth.service import SessionService
 
         rng = random.Random()
+        touched = time.monotonic()
         while True:
             # jittered so that a thousand sockets opened together do not all write at once
-            await asyncio.sleep(HEARTBEAT_S * rng.uniform(0.8, 1.2))
-            async with self.services.sessionmaker() as db:
-                alive = await SessionService(db, self.services.settings).touch(
-                    self.principal.session_id
-                )
-                await db.commit()
-            if not alive:
-                self.sender.close(4001, "session ended")
-                return
+            await asyncio.sleep(PRESENCE_REFRESH_S * rng.uniform(0.8, 1.2))
+            if time.monotonic() - touched >= HEARTBEAT_S:
+                touched = time.monotonic()
+                async with self.services.sessionmaker() as db:
+                    alive = await SessionService(db, self.services.settings).touch(
+                        self.principal.session_id
+                    )
+                    await db.commit()
+                if not alive:
+                    self.sender.close(4001, "session ended")
+                    return
             if not await self.services.broker.refresh(self.presence, self.owner, PRESENCE_TTL_S):
                 self.sender.close(4409, "another connection of this asset took over")
                 return

@@ -85,8 +85,15 @@ class RunEngine:
         self._periodic.start()
 
     async def stop(self) -> None:
-        """Stop the loop (leases expire on their own)."""
+        """Stop the loop and hand the leases back, so another replica drives these runs at once
+        (a process that dies without stopping leaves them to expire after LEASE_S)."""
         await self._periodic.stop()
+        try:
+            async with self.services.sessionmaker() as db:
+                await repo.release(db, self.node, utcnow())
+                await db.commit()
+        except Exception:  # the database may be what is going away
+            log.warning("could not hand back the run leases of %s", self.node, exc_info=True)
 
     def timeout_s(self, state: State) -> float:
         """The configured time budget of a step."""

@@ -6,7 +6,7 @@ import uuid
 from collections.abc import Sequence
 from datetime import datetime
 
-from sqlalchemy import delete, or_, select
+from sqlalchemy import delete, or_, select, update
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.commands.models import AssetCommand
@@ -82,9 +82,32 @@ async def claim(
     runs = list((await db.execute(stmt)).scalars())
     for run in runs:
         if run.lease_owner not in (None, owner):
+            # the holder died (a clean stop hands its leases back): say so in the run's timeline
             metrics.LEASE_TAKEOVERS.inc()
+            db.add(
+                RunTransition(
+                    run_id=run.id,
+                    at=now,
+                    from_state=run.state,
+                    to_state=run.state,
+                    reason=f"replica {owner} took the run over from {run.lease_owner}, whose "
+                    "lease ran out",
+                    cause="lease_takeover",
+                )
+            )
         run.lease_owner, run.lease_until = owner, until
     return [r.id for r in runs]
+
+
+async def release(db: AsyncSession, owner: str, now: datetime) -> None:
+    """Hand back every lease `owner` holds (a clean stop), so another replica takes over at once."""
+    stmt = (
+        update(Run)
+        .where(Run.lease_owner == owner)
+        .values(lease_owner=None, lease_until=now)
+        .execution_options(synchronize_session=False)
+    )
+    await db.execute(stmt)
 
 
 async def lock(db: AsyncSession, run_id: uuid.UUID) -> Run | None:
