@@ -23,6 +23,7 @@ from assetlink.link import Link
 from protocol.telemetry_payloads import Position, UavTelemetry
 from server.realtime.asset_session import PRESENCE_TTL_S
 from tests.conftest import Tenant
+from tests.metrics import value
 from tests.polling import eventually
 from tests.replicas import proxy, replicas
 
@@ -109,5 +110,45 @@ async def test_http_and_both_sockets_pass_the_proxy_and_survive_a_replica_kill(
                 assert await _stored_seqs(url, tenant, asset["id"]) == [
                     float(i) for i in range(total)
                 ]
+            finally:
+                await link.stop()
+
+
+async def test_sigterm_closes_sockets_for_an_immediate_reconnect_and_exits_within_10_s(
+    database_url, api, superuser_email, tmp_path
+):
+    """A replica stopped cleanly (SIGTERM, as an orchestrator does) tells its sockets to come back
+    at once (1012), gives up its assets' presence and exits: the link is on the other replica
+    well before a killed replica's presence key would have lapsed."""
+    tenant = Tenant(api, superuser_email, "sigterm")
+    asset = tenant.create_asset("uav")
+    cfg = decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
+    with replicas(database_url, tmp_path) as servers:
+        with proxy([port for port, _ in servers], tmp_path) as url:
+            link = Link(url, cfg.name, cfg.secret, tmp_path / "link.db", seed=4)
+            await link.start()
+            try:
+                await link.wait_connected(20)
+                async with httpx.AsyncClient() as c:
+                    counts = [
+                        value(
+                            (await c.get(f"http://127.0.0.1:{port}/metrics")).text,
+                            "aerobase_connected_assets",
+                        )
+                        for port, _ in servers
+                    ]
+                holder = servers[counts.index(1.0)][1]
+                reconnects = link.stats.reconnects
+                holder.send_signal(signal.SIGTERM)
+                await asyncio.to_thread(holder.wait, 10)
+                # uvicorn shuts down, then re-raises the signal: 143 to the orchestrator
+                assert holder.returncode == -signal.SIGTERM
+                log = (tmp_path / "servers.log").read_text()
+                assert f"Finished server process [{holder.pid}]" in log
+                await eventually(
+                    lambda: link.connected and link.stats.reconnects > reconnects,
+                    PRESENCE_TTL_S,
+                    "the link back on the surviving replica before a lapsed presence would allow",
+                )
             finally:
                 await link.stop()
