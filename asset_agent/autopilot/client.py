@@ -40,7 +40,7 @@ log = logging.getLogger(__name__)
 
 CMD_SET_MESSAGE_INTERVAL, CMD_REQUEST_MESSAGE = 511, 512
 MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS = 0, 5
-REBOOT_BACKSTEP_MS = 1000  # time_boot_ms going back more than this: the autopilot rebooted
+REBOOT_SHIFT_S = 1.0  # the boot instant (arrival - time_boot_ms) moving later: a reboot
 
 # what the agent asks the autopilot to stream, message id -> Hz
 DEFAULT_STREAMS: dict[int, float] = {
@@ -102,7 +102,7 @@ class Autopilot(ActionsMixin, SetpointsMixin):
         self.mission_watch = MissionWatch()
         self.thresholds = Thresholds()
         self.extended_state_seen = False  # EXTENDED_SYS_STATE arrived: no landed-state inference
-        self._boot_ms: int | None = None
+        self._booted_at: float | None = None  # monotonic time the autopilot booted
         self.reboots = 0
 
     # --- life cycle ------------------------------------------------------------------------
@@ -169,7 +169,7 @@ class Autopilot(ActionsMixin, SetpointsMixin):
             self._last_heartbeat = now
             if not self.state.link_up:
                 self._link_changed(True)
-        self._check_reboot(getattr(msg, "time_boot_ms", None))
+        self._check_reboot(getattr(msg, "time_boot_ms", None), now)
         prev = self.state
         self.state = self._flight_state(prev, translate.apply(prev, msg), msg, now)
         if kind == "STATUSTEXT":
@@ -201,14 +201,19 @@ class Autopilot(ActionsMixin, SetpointsMixin):
             cur = replace(cur, landed_state=landed)
         return self.mission_watch.on_change(prev, cur, now)
 
-    def _check_reboot(self, boot_ms: int | None) -> None:
-        """time_boot_ms (SYSTEM_TIME, ATTITUDE, GLOBAL_POSITION_INT) going back: a reboot."""
+    def _check_reboot(self, boot_ms: int | None, now: float) -> None:
+        """A reboot: the boot instant implied by time_boot_ms (SYSTEM_TIME, ATTITUDE,
+        GLOBAL_POSITION_INT) moves later by more than REBOOT_SHIFT_S; on a running autopilot it
+        stays put (arrival jitter aside), whatever its uptime."""
         if boot_ms is None:
             return
-        last, self._boot_ms = self._boot_ms, boot_ms
-        if last is not None and boot_ms + REBOOT_BACKSTEP_MS < last:
+        booted = now - boot_ms / 1000.0
+        last = self._booted_at
+        self._booted_at = booted if last is None else min(booted, last)
+        if last is not None and booted - last > REBOOT_SHIFT_S:
+            self._booted_at = booted
             self.reboots += 1
-            log.warning("the autopilot rebooted (time_boot_ms %d -> %d)", last, boot_ms)
+            log.warning("the autopilot rebooted (its boot moved %.1f s later)", booted - last)
             self.extended_state_seen = False
             self._notify(Notification("statustext", "autopilot rebooted", 4))
             self._renegotiate()

@@ -28,7 +28,7 @@ MAV_MISSION_RESULT_NAMES = {
 
 # every MAV_MISSION_RESULT as a sentence a person can act on
 MISSION_RESULT_TEXT = {
-    0: "accepted",
+    0: "the mission was accepted",
     1: "the autopilot reported a generic mission error",
     2: "the coordinate frame of the item is not supported by the autopilot",
     3: "the command of the item is not supported by the autopilot",

@@ -21,6 +21,7 @@ class BootMixin:
     config: Any
     t: float
     t_boot: float
+    wall_boot: float | None
     wall: float
     armed: bool
     mode: int
@@ -41,6 +42,7 @@ class BootMixin:
     def init_boot(self) -> None:
         """Power-up: booted at t = 0, no reboot under way."""
         self.t_boot = 0.0  # simulated time of the last (re)boot
+        self.wall_boot: float | None = None  # wall time of the last (re)boot (first tick)
         self.rebooting_until = 0.0  # wall time: silent until then
         self.reboot_pending = False
         self.boots = 0  # completed reboots; the server resets its links' streams on each
@@ -57,8 +59,12 @@ class BootMixin:
 
     @property
     def time_boot_ms(self) -> int:
-        """Milliseconds since the autopilot (re)booted, as its messages' time_boot_ms."""
-        return round((self.t - self.t_boot) * 1000) & 0xFFFFFFFF
+        """Wall milliseconds since the autopilot (re)booted, as its messages' time_boot_ms.
+
+        Wall time, as a real autopilot's clock, whatever the simulation's speed factor."""
+        if self.wall_boot is None:
+            return 0
+        return round((self.wall - self.wall_boot) * 1000) & 0xFFFFFFFF
 
     def rebooting(self, wall: float) -> bool:
         """True while the autopilot is restarting (silent)."""
@@ -74,6 +80,8 @@ class BootMixin:
 
     def _boot_tick(self, wall: float) -> None:
         """Start a requested reboot, finish one that is over, announce pre-arm failures."""
+        if self.wall_boot is None:
+            self.wall_boot = wall
         if self.reboot_pending:
             self.reboot_pending = False
             self.rebooting_until = wall + self.config.habits.reboot_s
@@ -84,6 +92,7 @@ class BootMixin:
     def _finish_reboot(self) -> None:
         self.rebooting_until = 0.0
         self.t_boot = self.t
+        self.wall_boot = self.wall
         self.boots += 1
         self.mode = STABILIZE
         self.failsafe = False
