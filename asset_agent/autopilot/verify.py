@@ -5,8 +5,10 @@ record (`AP_Mission::mavlink_int_to_mission_cmd`, read back by `mission_cmd_to_m
 a param it has no room for comes back 0, a param kept in an integer field comes back truncated
 (NaN as 0), the altitude is kept in whole centimetres, a position only for commands that have
 one, the frame as GLOBAL / GLOBAL_RELATIVE_ALT (never the _INT spelling), autocontinue as 1.
-PX4 keeps float params (NaN included) in `mission_item_s` and the position as double degrees,
-truncated to 1e-7 on the way back (`MavlinkMissionManager::format_mavlink_mission_item`).
+PX4 keeps the params each command uses as floats (NaN included; yaw converted to radians and
+back) in `mission_item_s`, drops the others (TAKEOFF keeps only its yaw, LAND its precision mode
+and yaw), and the position as double degrees, truncated (older releases) or rounded to 1e-7 on the
+way back, in the _INT frame spelling (`MavlinkMissionManager::format_mavlink_mission_item`).
 
 So a read-back item matches when (see README.md, "Mission verification"):
 - the command is the same;
@@ -17,7 +19,7 @@ So a read-back item matches when (see README.md, "Mission verification"):
 - each param: where we sent NaN ("the autopilot's default") any value is accepted; a param
   ArduPilot does not keep for that command is accepted whatever comes back (it is 0 there, as
   sent on PX4); a param kept in an integer field matches its truncation or its float32 value;
-  every other param matches as float32;
+  every other param matches as float32 (relative 1e-5);
 - autocontinue is not compared (ArduPilot always answers 1).
 """
 
@@ -42,8 +44,8 @@ PARAM_RULES: dict[int, tuple[Kind, Kind, Kind, Kind]] = {
     18: (N, X, N, N),  # NAV_LOITER_TURNS: turns (low byte), radius (high byte), xtrack flag
     19: (N, X, X, N),  # NAV_LOITER_TIME: seconds in cmd.p1; param3 back as the direction +-1
     20: (X, X, X, X),  # NAV_RETURN_TO_LAUNCH: nothing kept
-    21: (N, X, X, X),  # NAV_LAND: abort altitude in cmd.p1; param4 back as a direction +-1
-    22: (N, X, X, X),  # NAV_TAKEOFF: minimum pitch in cmd.p1; yaw dropped
+    21: (X, X, X, X),  # NAV_LAND: abort alt (plane only; PX4 drops it), param4 back as +-1
+    22: (X, X, X, X),  # NAV_TAKEOFF: pitch (plane only; PX4 drops it); ArduPilot drops the yaw
     82: (N, X, X, X),  # NAV_SPLINE_WAYPOINT: hold time in cmd.p1
     93: (F, N, N, N),  # NAV_DELAY: seconds (float), hour / minute / second (int8)
     112: (F, X, X, X),  # CONDITION_DELAY: seconds
@@ -56,6 +58,7 @@ POSITIONAL = frozenset((16, 17, 18, 19, 21, 22, 30, 31, 82, 84, 85, 92, 94, 179,
 # MAV_FRAME spellings that mean the same frame
 SAME_FRAME = {5: 0, 6: 3, 11: 10, 2: 0}
 ALT_TOLERANCE_M = 0.01  # ArduPilot keeps whole centimetres
+FLOAT_TOLERANCE = 1e-5  # float32, and PX4's yaw kept in radians (degrees -> radians -> degrees)
 
 
 def _f32(v: float) -> float:
@@ -72,7 +75,7 @@ def param_matches(kind: Kind, sent: float, got: float) -> bool:
         return True
     if math.isnan(got):
         return False
-    if _f32(sent) == _f32(got):
+    if abs(_f32(sent) - _f32(got)) <= FLOAT_TOLERANCE * max(1.0, abs(sent)):
         return True
     return kind == "int" and math.isfinite(sent) and float(math.trunc(sent)) == got
 
