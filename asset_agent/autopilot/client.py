@@ -86,6 +86,7 @@ class Autopilot(ActionsMixin, SetpointsMixin):
             source_system=self.config.source_system,
             source_component=self.config.source_component,
         )
+        self._link.on_reconnect = self._reconnected
         self._last_heartbeat: float | None = None
         self._taps: list[tuple[Callable[[Any], bool], asyncio.Queue[Any]]] = []
         self._subscribers: list[asyncio.Queue[Notification]] = []
@@ -217,6 +218,11 @@ class Autopilot(ActionsMixin, SetpointsMixin):
             self.extended_state_seen = False
             self._notify(Notification("statustext", "autopilot rebooted", 4))
             self._renegotiate()
+
+    def _reconnected(self) -> None:
+        """A new TCP connection is a new channel to the autopilot: ask for every stream again."""
+        log.info("autopilot link reconnected: asking for the streams again")
+        self._renegotiate()
 
     def _renegotiate(self) -> None:
         if self._negotiation is not None:

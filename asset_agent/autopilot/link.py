@@ -56,6 +56,7 @@ class MavlinkLink:
         self._send_lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._reconnecting = False
+        self.on_reconnect: Callable[[], None] | None = None  # in the loop, after a TCP reconnect
 
     async def open(self) -> None:
         """Open the connection (in a thread: TCP connect and serial open block) and start reading."""
@@ -100,6 +101,8 @@ class MavlinkLink:
             finally:
                 with self._send_lock:
                     self._reconnecting = False
+            if self.on_reconnect is not None and self._loop is not None:
+                self._loop.call_soon_threadsafe(self.on_reconnect)
 
         conn.reconnect = guarded
 

@@ -91,8 +91,6 @@ class StreamKeeper:
         self.method = None
         self.by_group = set()
         self._backoff.clear()
-        for msg_id in self.stopped:  # best effort: streams asked off
-            await self._try_interval(msg_id, -1.0)
         for msg_id, hz in self.wanted.items():
             if self.method == "data_stream":
                 self.by_group.add(msg_id)
@@ -107,6 +105,9 @@ class StreamKeeper:
             else:  # this one message refused, or silence on a link that took others
                 self.by_group.add(msg_id)
         self._request_groups(self.by_group)
+        if self.method == "interval":  # best effort, last: streams asked off
+            for msg_id in self.stopped:
+                await self._try_interval(msg_id, -1.0)
         now = time.monotonic()
         for msg_id in self.wanted:
             self._asked[msg_id] = now

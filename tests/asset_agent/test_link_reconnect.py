@@ -11,6 +11,8 @@ import time
 import pytest
 
 from asset_agent.autopilot import Autopilot
+from sim.vehicle.copter import CopterConfig
+from sim.vehicle.habits import profile
 from sim.vehicle.server import run_vehicle
 from sim.vehicle.standalone import OpenPad
 from tests.asset_agent.conftest import fast_config
@@ -66,3 +68,24 @@ async def test_rtcm_keeps_flowing_across_an_autopilot_restart_without_errno_106(
     texts = [r.getMessage() for r in caplog.records]
     assert not [t for t in texts if "Errno 106" in t or "already connected" in t], texts
     assert lag < 0.5, f"the event loop stalled {lag:.2f} s while the link reconnected"
+
+
+async def test_streams_are_asked_for_again_on_a_new_tcp_connection():
+    """The autopilot did not restart, but the TCP connection is new: a fresh channel that streams
+    nothing until asked (a companion port's SRn_ rates are 0)."""
+    config = CopterConfig(seed=3, habits=profile("ardupilot-4", boot_s=0.0))
+    async with run_vehicle(speed=5, base=OpenPad(), config=config) as vehicle:
+        ap = Autopilot(fast_config(f"tcp:127.0.0.1:{vehicle.tcp_port}", link_timeout_s=5.0))
+        await ap.start()
+        try:
+            await ap.wait_link(10)
+            await eventually(lambda: ap.state.lat is not None, 5, "position")
+            negotiations = ap.streams.negotiations
+            for writer in list(vehicle._writers):  # the connection drops; the autopilot runs on
+                writer.close()
+            await eventually(lambda: ap.streams.negotiations > negotiations, 10, "renegotiated")
+            with ap.tap(lambda m: m.get_type() == "GLOBAL_POSITION_INT") as q:
+                await asyncio.wait_for(q.get(), 3)
+            assert ap.reboots == 0 and vehicle.copter.boots == 0
+        finally:
+            await ap.close()
