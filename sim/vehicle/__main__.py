@@ -3,7 +3,8 @@
     python -m sim.vehicle [--speed 1] [--seed 0] [--tcp-port 5760] [--udp-port 14550]
                           [--control-port 8091] [--host 127.0.0.1]
                           [--autopilot-profile ardupilot-4|ardupilot-3.7] [--boot-s S]
-                          [--no-message-interval] [--no-extended-sys-state]
+                          [--no-message-interval] [--silent-message-interval]
+                          [--no-extended-sys-state]
                           [--keep-params] [--streams-at-boot all|heartbeat]
 
 Without a profile it keeps the simulator's defaults (ArduPilot 4.x habits, every stream on, no
@@ -46,6 +47,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     ap.add_argument(
         "--no-message-interval", action="store_true", help="refuse SET_MESSAGE_INTERVAL"
     )
+    ap.add_argument("--silent-message-interval", action="store_true", help="never answer it")
     ap.add_argument("--no-extended-sys-state", action="store_true")
     ap.add_argument("--keep-params", action="store_true", help="store params as sent (not packed)")
     ap.add_argument("--streams-at-boot", choices=("all", "heartbeat"), default=None)
@@ -59,6 +61,8 @@ def habits_of(args: argparse.Namespace) -> Habits:
         over["boot_s"] = args.boot_s
     if args.no_message_interval:
         over["message_interval"] = False
+    if args.silent_message_interval:
+        over["message_interval_silent"] = True
     if args.no_extended_sys_state:
         over["extended_sys_state"] = False
     if args.keep_params:

@@ -26,6 +26,7 @@ DO_SET_MODE, DO_CHANGE_SPEED, MISSION_START, COMPONENT_ARM_DISARM = 176, 178, 30
 GET_HOME_POSITION, SET_MESSAGE_INTERVAL, REQUEST_MESSAGE = 410, 511, 512
 CONDITION_YAW = 115
 PREFLIGHT_REBOOT_SHUTDOWN = 246
+NO_ANSWER = -1  # not a MAV_RESULT: send no COMMAND_ACK at all
 
 
 def _arm_disarm(c: Copter, p: Params, link: Any) -> int:
@@ -77,6 +78,8 @@ def _condition_yaw(c: Copter, p: Params, link: Any) -> int:
 
 
 def _message_interval(c: Copter, p: Params, link: Any) -> int:
+    if c.config.habits.message_interval_silent:
+        return NO_ANSWER  # dropped on the way (a router, a firmware that ignores it)
     if not c.config.habits.message_interval:
         return UNSUPPORTED  # ArduPilot 3.7: no MAV_CMD_SET_MESSAGE_INTERVAL
     streams = c.streams_for(link)

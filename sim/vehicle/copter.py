@@ -19,7 +19,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from protocol.rtcm import MavlinkReassembler, Reframer, frame_ok
 from sim.vehicle import mission as ms
 from sim.vehicle.boot import BootMixin
-from sim.vehicle.commands import run_command
+from sim.vehicle.commands import NO_ANSWER, run_command
 from sim.vehicle.constants import (
     ACCEPTED,
     AUTO,
@@ -339,12 +339,14 @@ class Copter(MissionProtocolMixin, BootMixin):
     def _on_command_long(self, msg: Any, link: Any) -> None:
         p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
         result = run_command(self, msg.command, p, link)
-        self.send(_ack(msg, msg.command, result), link)
+        if result != NO_ANSWER:
+            self.send(_ack(msg, msg.command, result), link)
 
     def _on_command_int(self, msg: Any, link: Any) -> None:
         p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x / 1e7, msg.y / 1e7, msg.z)
         result = run_command(self, msg.command, p, link)
-        self.send(_ack(msg, msg.command, result), link)
+        if result != NO_ANSWER:
+            self.send(_ack(msg, msg.command, result), link)
 
     def _on_set_mode(self, msg: Any, link: Any) -> None:
         ok = self.set_mode(msg.custom_mode)

@@ -6,6 +6,7 @@ did when an agent flew them (issue 13: ArduCopter 3.7-dev and 4.7.0-dev SITL):
 | habit | ArduPilot 4.x | ArduPilot 3.7 | source |
 |---|---|---|---|
 | `message_interval` | honoured | `MAV_RESULT_UNSUPPORTED` | 3.7 SITL answered UNSUPPORTED to every SET_MESSAGE_INTERVAL |
+| `message_interval_silent` | off | off | no release; a link that drops the command (tests the no-answer path) |
 | REQUEST_DATA_STREAM | honoured (groups below) | honoured | `ArduCopter/GCS_Mavlink.cpp` `STREAM_*_msgs` |
 | `extended_sys_state` | sent when asked | never | 3.7 SITL sent none; in Copter's stream groups it is in none |
 | `mission_current_extensions` | MISSION_CURRENT.total / mission_state | seq only | MAVLink fields added in 2023 (4.4+) |
@@ -38,6 +39,7 @@ class Habits:
 
     name: str = "sim"
     message_interval: bool = True  # False: SET_MESSAGE_INTERVAL -> MAV_RESULT_UNSUPPORTED
+    message_interval_silent: bool = False  # True: SET_MESSAGE_INTERVAL gets no answer at all
     extended_sys_state: bool = True  # False: EXTENDED_SYS_STATE is never sent
     mission_current_extensions: bool = True  # False: MISSION_CURRENT carries seq only
     ardupilot_storage: bool = True  # pack mission params as AP_Mission stores them

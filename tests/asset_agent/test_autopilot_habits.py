@@ -154,3 +154,12 @@ async def test_a_flight_reports_take_off_finish_and_landing_either_way(name: str
             assert events.count(kind) == 1, (kind, events)
         assert events.index("took_off") < events.index("landed") <= events.index("disarmed")
         assert ap.extended_state_seen == (name == "ardupilot-4")
+
+
+async def test_no_answer_to_set_message_interval_falls_back_within_5_s():
+    async with flying("ardupilot-4", message_interval_silent=True) as (_, ap):
+        t0 = time.monotonic()
+        await ap.wait_link(5)
+        await eventually(lambda: complete(ap), 5 - (time.monotonic() - t0), "complete telemetry")
+        assert ap.streams.method == "data_stream"
+        print(f"no answer: telemetry complete {time.monotonic() - t0:.2f} s after connecting")
