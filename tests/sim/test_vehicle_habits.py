@@ -12,6 +12,7 @@ from sim.vehicle.__main__ import habits_of, parse_args
 from sim.vehicle.copter import CopterConfig
 from sim.vehicle.habits import PROFILES, Habits, profile, stored
 from sim.vehicle.server import run_vehicle
+from sim.vehicle.standalone import OpenPad
 from tests.sim.test_vehicle_mavlink import Peer
 
 NAN = math.nan
@@ -87,3 +88,29 @@ async def test_a_quiet_companion_port_sends_only_heartbeats_until_asked():
             await peer.recv("ATTITUDE")
         finally:
             peer.conn.close()
+
+
+def test_missions_fly_their_speed_and_rtl_flies_wpnav_speed():
+    from sim.vehicle.copter import Copter
+
+    c = Copter(OpenPad(), CopterConfig(seed=2))
+    lat, lon = round(41.1780 * 1e7), round(-8.5960 * 1e7)
+    c.items = [
+        c.home_item(),
+        ms.Item(1, 3, ms.NAV_TAKEOFF, z=5),
+        ms.Item(2, 2, ms.DO_CHANGE_SPEED, param1=1, param2=4.0, param3=-1),
+        ms.Item(3, 3, ms.NAV_WAYPOINT, x=lat + 9000, y=lon, z=5),  # 100 m north
+        ms.Item(4, 2, ms.NAV_RETURN_TO_LAUNCH),
+    ]
+    assert c.set_mode(4) and c.arm() == 0 and c.set_mode(3)
+    top: dict[str, float] = {}
+    for _ in range(8000):
+        c.tick(0.05, 0.0)
+        c.outbox.clear()
+        v = math.hypot(*c.dyn.state.velocity[:2])
+        phase = "rtl" if c.guidance.rtl_phase or c.mission_current >= 4 else "mission"
+        top[phase] = max(top.get(phase, 0.0), v)
+        if not c.armed:
+            break
+    assert top["mission"] == pytest.approx(4.0, abs=0.3)  # the DO_CHANGE_SPEED
+    assert top["rtl"] == pytest.approx(c.config.wp_speed, abs=0.5)  # WPNAV_SPEED, 10 m/s
