@@ -205,12 +205,13 @@ class Autopilot(ActionsMixin, SetpointsMixin):
     def _check_reboot(self, boot_ms: int | None, now: float) -> None:
         """A reboot: the boot instant implied by time_boot_ms (SYSTEM_TIME, ATTITUDE,
         GLOBAL_POSITION_INT) moves later by more than REBOOT_SHIFT_S; on a running autopilot it
-        stays put (arrival jitter aside), whatever its uptime."""
+        stays put whatever its uptime (kept as the least-delayed estimate, creeping 1 ms a
+        message for clock drift)."""
         if boot_ms is None:
             return
         booted = now - boot_ms / 1000.0
         last = self._booted_at
-        self._booted_at = booted if last is None else min(booted, last)
+        self._booted_at = booted if last is None else min(booted, last + 0.001)
         if last is not None and booted - last > REBOOT_SHIFT_S:
             self._booted_at = booted
             self.reboots += 1
@@ -221,7 +222,6 @@ class Autopilot(ActionsMixin, SetpointsMixin):
 
     def _reconnected(self) -> None:
         """A new TCP connection is a new channel to the autopilot: ask for every stream again."""
-        log.info("autopilot link reconnected: asking for the streams again")
         self._renegotiate()
 
     def _renegotiate(self) -> None:

@@ -197,5 +197,7 @@ async def keep(keeper: StreamKeeper, period_s: float = 0.5) -> None:
         await asyncio.sleep(period_s)
         try:
             await keeper.watch()
-        except AutopilotError as err:
+        except (AutopilotError, OSError) as err:  # link down or reconnecting: next pass
             log.info("stream watchdog: %s", err)
+        except Exception:  # never let the watchdog die
+            log.exception("stream watchdog pass failed")
