@@ -64,7 +64,7 @@ class Handlers:
     async def upload_mission(
         self, request: CommandRequest[UploadMission]
     ) -> AsyncIterator[CommandProgress | CommandResultPayload]:
-        """Upload the items, read them back and compare."""
+        """Upload the items, read them back and compare what the autopilot keeps (autopilot/verify.py)."""
         try:
             items = items_from_dicts([i.model_dump() for i in request.command.items])
         except InvalidMissionItem as err:
@@ -78,7 +78,12 @@ class Handlers:
         except AutopilotError as err:
             yield _failure(err)
             return
-        yield CommandProgress(step="verify", index=2, total=2, message="read back and identical")
+        yield CommandProgress(
+            step="verify",
+            index=2,
+            total=2,
+            message="read back: as sent, as far as the autopilot keeps it",
+        )
         yield result(
             "succeeded", f"{len(items)} items uploaded and verified", {"count": len(items)}
         )

@@ -26,25 +26,26 @@ from functools import partial
 from typing import Any
 
 from asset_agent.autopilot import mission, translate
+from asset_agent.autopilot.actions import ActionsMixin
 from asset_agent.autopilot.errors import AutopilotTimeout, CommandRejected, LinkLost
+from asset_agent.autopilot.flight_state import MissionWatch, Thresholds, infer_landed_state
 from asset_agent.autopilot.items import MissionItem
 from asset_agent.autopilot.link import MavlinkLink
 from asset_agent.autopilot.setpoints import SetpointsMixin
-from asset_agent.autopilot.state import MODE_NUMBERS, Notification, UavState
+from asset_agent.autopilot.state import Notification, UavState
+from asset_agent.autopilot.streams import StreamKeeper, keep
 from asynckit.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
 
-# MAV_CMD numbers
-CMD_NAV_RETURN_TO_LAUNCH, CMD_NAV_LAND, CMD_NAV_TAKEOFF = 20, 21, 22
-CMD_DO_SET_MODE, CMD_MISSION_START, CMD_COMPONENT_ARM_DISARM = 176, 300, 400
 CMD_SET_MESSAGE_INTERVAL, CMD_REQUEST_MESSAGE = 511, 512
 MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS = 0, 5
-FORCE_MAGIC = 21196
+REBOOT_SHIFT_S = 1.0  # the boot instant (arrival - time_boot_ms) moving later: a reboot
 
 # what the agent asks the autopilot to stream, message id -> Hz
 DEFAULT_STREAMS: dict[int, float] = {
     1: 2.0,  # SYS_STATUS
+    2: 1.0,  # SYSTEM_TIME: time_boot_ms tells a reboot
     24: 2.0,  # GPS_RAW_INT
     30: 5.0,  # ATTITUDE
     33: 5.0,  # GLOBAL_POSITION_INT
@@ -72,7 +73,7 @@ class AutopilotConfig:
     streams: dict[int, float] = field(default_factory=lambda: dict(DEFAULT_STREAMS))
 
 
-class Autopilot(SetpointsMixin):
+class Autopilot(ActionsMixin, SetpointsMixin):
     """One autopilot over MAVLink, as seen from the companion computer."""
 
     def __init__(self, config: AutopilotConfig | None = None) -> None:
@@ -85,6 +86,7 @@ class Autopilot(SetpointsMixin):
             source_system=self.config.source_system,
             source_component=self.config.source_component,
         )
+        self._link.on_reconnect = self._reconnected
         self._last_heartbeat: float | None = None
         self._taps: list[tuple[Callable[[Any], bool], asyncio.Queue[Any]]] = []
         self._subscribers: list[asyncio.Queue[Notification]] = []
@@ -96,6 +98,13 @@ class Autopilot(SetpointsMixin):
         self._rtcm_seq = 0
         self.statustexts: list[str] = []  # the latest 200
         self._texts_seen = 0  # every STATUSTEXT ever received, to tell which came after a command
+        self.streams = StreamKeeper(self, self.config.streams)
+        self._negotiation: asyncio.Task[None] | None = None
+        self.mission_watch = MissionWatch()
+        self.thresholds = Thresholds()
+        self.extended_state_seen = False  # EXTENDED_SYS_STATE arrived: no landed-state inference
+        self._booted_at: float | None = None  # monotonic time the autopilot booted
+        self.reboots = 0
 
     # --- life cycle ------------------------------------------------------------------------
     async def start(self) -> None:
@@ -109,11 +118,17 @@ class Autopilot(SetpointsMixin):
             asyncio.create_task(self._dispatch(), name="autopilot-dispatch"),
             asyncio.create_task(self._heartbeat_loop(), name="autopilot-heartbeat"),
             asyncio.create_task(self._watchdog(), name="autopilot-watchdog"),
+            asyncio.create_task(keep(self.streams), name="autopilot-stream-watchdog"),
         ]
+
+    def spawn(self, coro: Any, name: str) -> None:
+        """Run `coro` as a task the adapter cancels on close."""
+        self._tasks = [t for t in self._tasks if not t.done()]
+        self._tasks.append(asyncio.create_task(coro, name=name))
 
     async def close(self) -> None:
         """Stop every task and close the link."""
-        await cancel_and_wait(self._tasks)
+        await cancel_and_wait([*self._tasks, self._negotiation])
         await self._link.close()
 
     async def wait_link(self, within_s: float) -> None:
@@ -149,11 +164,15 @@ class Autopilot(SetpointsMixin):
         ):
             return
         kind = msg.get_type()
+        now = time.monotonic()
+        self.streams.seen(msg.get_msgId(), now)
         if kind == "HEARTBEAT":
-            self._last_heartbeat = time.monotonic()
+            self._last_heartbeat = now
             if not self.state.link_up:
                 self._link_changed(True)
-        self.state = translate.apply(self.state, msg)
+        self._check_reboot(getattr(msg, "time_boot_ms", None), now)
+        prev = self.state
+        self.state = self._flight_state(prev, translate.apply(prev, msg), msg, now)
         if kind == "STATUSTEXT":
             text = msg.text if isinstance(msg.text, str) else msg.text.decode(errors="replace")
             text = text.rstrip("\x00")
@@ -163,6 +182,7 @@ class Autopilot(SetpointsMixin):
             self._notify(Notification("statustext", text, msg.severity))
         elif kind == "MISSION_ITEM_REACHED":
             self._notify(Notification("item_reached", index=msg.seq - 1))
+            self.state = self.mission_watch.on_reached(self.state, msg.seq)
         for predicate, queue in list(self._taps):
             try:
                 if predicate(msg):
@@ -170,14 +190,52 @@ class Autopilot(SetpointsMixin):
             except Exception:
                 log.exception("message tap failed")
 
+    def _flight_state(self, prev: UavState, cur: UavState, msg: Any, now: float) -> UavState:
+        """Landed state and mission progress for autopilots that do not say them (flight_state.py)."""
+        kind = msg.get_type()
+        if kind == "EXTENDED_SYS_STATE":
+            self.extended_state_seen = True
+        elif kind == "MISSION_CURRENT" and getattr(msg, "mission_state", 0):
+            self.mission_watch.reported = True
+        if not self.extended_state_seen and kind in ("HEARTBEAT", "GLOBAL_POSITION_INT"):
+            landed = infer_landed_state(prev.landed_state, cur, self.thresholds)
+            cur = replace(cur, landed_state=landed)
+        return self.mission_watch.on_change(prev, cur, now)
+
+    def _check_reboot(self, boot_ms: int | None, now: float) -> None:
+        """A reboot: the boot instant implied by time_boot_ms (SYSTEM_TIME, ATTITUDE,
+        GLOBAL_POSITION_INT) moves later by more than REBOOT_SHIFT_S; on a running autopilot it
+        stays put whatever its uptime (kept as the least-delayed estimate, creeping 1 ms a
+        message for clock drift)."""
+        if boot_ms is None:
+            return
+        booted = now - boot_ms / 1000.0
+        last = self._booted_at
+        self._booted_at = booted if last is None else min(booted, last + 0.001)
+        if last is not None and booted - last > REBOOT_SHIFT_S:
+            self._booted_at = booted
+            self.reboots += 1
+            log.warning("the autopilot rebooted (its boot moved %.1f s later)", booted - last)
+            self.extended_state_seen = False
+            self._notify(Notification("statustext", "autopilot rebooted", 4))
+            self._renegotiate()
+
+    def _reconnected(self) -> None:
+        """A new TCP connection is a new channel to the autopilot: ask for every stream again."""
+        self._renegotiate()
+
+    def _renegotiate(self) -> None:
+        if self._negotiation is not None:
+            self._negotiation.cancel()
+        self._negotiation = asyncio.create_task(self.request_streams(), name="autopilot-streams")
+
     def _link_changed(self, up: bool) -> None:
         self.state = replace(self.state, link_up=up)
         if up:
             self._link_event.set()
             log.info("autopilot link up")
             self._notify(Notification("link_recovered"))
-            task = asyncio.create_task(self.request_streams(), name="autopilot-streams")
-            self._tasks.append(task)
+            self._renegotiate()
         else:
             self._link_event.clear()
             log.warning("autopilot link lost")
@@ -299,71 +357,25 @@ class Autopilot(SetpointsMixin):
         return ""
 
     async def request_streams(self) -> None:
-        """Ask for every configured stream with SET_MESSAGE_INTERVAL (failures are logged)."""
+        """Ask for every configured stream: SET_MESSAGE_INTERVAL, else REQUEST_DATA_STREAM (streams.py)."""
         self.streams_requested.clear()
-        for msg_id, hz in self.config.streams.items():
-            try:
-                await self.set_message_interval(msg_id, hz)
-            except Exception as err:
-                log.warning("stream %s at %s Hz not set: %s", msg_id, hz, err)
+        try:
+            await self.streams.negotiate()
+        except Exception:  # a failed negotiation leaves the watchdog to try again
+            log.warning("stream negotiation failed", exc_info=True)
         self.streams_requested.set()
+
+    def mission_uploaded(self, count: int) -> None:
+        """A mission of `count` items is on the autopilot: mission progress starts afresh."""
+        self.mission_watch.uploaded(count)
+        if not self.mission_watch.reported:
+            self.state = replace(self.state, mission_total=count, mission_state="NOT_STARTED")
 
     async def set_message_interval(self, msg_id: int, hz: float) -> None:
         """MAV_CMD_SET_MESSAGE_INTERVAL: `hz` > 0 sets the rate, 0 stops the message."""
         interval_us = 1e6 / hz if hz > 0 else -1
+        self.streams.want(msg_id, hz)  # the watchdog keeps the new rate, or leaves it stopped
         await self.command(CMD_SET_MESSAGE_INTERVAL, msg_id, interval_us)
-
-    # --- actions ---------------------------------------------------------------------------
-    async def set_mode(self, mode: str | int) -> None:
-        """Change the flight mode by Copter name ("GUIDED") or number."""
-        number = MODE_NUMBERS[mode.upper()] if isinstance(mode, str) else int(mode)
-        await self.command(CMD_DO_SET_MODE, 1, number)  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
-
-    async def arm(self) -> None:
-        """Arm (pre-arm checks apply: a failure raises CommandRejected with the PreArm text)."""
-        await self.command(CMD_COMPONENT_ARM_DISARM, 1)
-
-    async def disarm(self, force: bool = False) -> None:
-        """Disarm; the autopilot refuses in flight unless forced."""
-        await self.command(CMD_COMPONENT_ARM_DISARM, 0, FORCE_MAGIC if force else 0)
-
-    async def takeoff(self, alt_m: float) -> None:
-        """GUIDED takeoff to `alt_m` above home (the vehicle must be armed in GUIDED)."""
-        await self.command(CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, alt_m)
-
-    async def start_mission(self) -> None:
-        """Start the uploaded mission: from the ground GUIDED + arm + MISSION_START; in the air AUTO."""
-        if self.state.armed and self.state.in_air:
-            await self.set_mode("AUTO")
-            return
-        if not self.state.armed:
-            await self.set_mode("GUIDED")
-            await self.arm()
-        await self.command(CMD_MISSION_START, 0, 0)
-
-    async def pause(self, mode: str = "BRAKE") -> None:
-        """Stop and hold position (BRAKE, or LOITER)."""
-        await self.set_mode(mode)
-
-    async def resume(self) -> None:
-        """Resume the mission where it stopped (AUTO)."""
-        await self.set_mode("AUTO")
-
-    async def return_to_base(self) -> None:
-        """Return to launch (the base) and land there."""
-        await self.command(CMD_NAV_RETURN_TO_LAUNCH)
-
-    async def land(self) -> None:
-        """Land where the vehicle is (LAND mode)."""
-        await self.command(CMD_NAV_LAND)
-
-    async def abort(self) -> str:
-        """RTL when flying, disarm when on the ground; returns what was done."""
-        if self.state.armed and self.state.landed_state != "ON_GROUND":
-            await self.return_to_base()
-            return "rtl"
-        await self.disarm()
-        return "disarmed"
 
     # --- missions (see mission.py) ---------------------------------------------------------
     async def upload_mission(

@@ -26,6 +26,32 @@ MAV_MISSION_RESULT_NAMES = {
     14: "MAV_MISSION_DENIED", 15: "MAV_MISSION_OPERATION_CANCELLED",
 }  # fmt: skip
 
+# every MAV_MISSION_RESULT as a sentence a person can act on
+MISSION_RESULT_TEXT = {
+    0: "the mission was accepted",
+    1: "the autopilot reported a generic mission error",
+    2: "the coordinate frame of the item is not supported by the autopilot",
+    3: "the command of the item is not supported by the autopilot",
+    4: "the mission has more items than the autopilot can store",
+    5: "one of the item's parameters is invalid",
+    6: "param1 of the item is out of range for the autopilot",
+    7: "param2 of the item is out of range for the autopilot",
+    8: "param3 of the item is out of range for the autopilot",
+    9: "param4 of the item is out of range for the autopilot",
+    10: "the item's latitude (x) is out of range for the autopilot",
+    11: "the item's longitude (y) is out of range for the autopilot",
+    12: "the item's altitude (param7 / z) is out of range for the autopilot",
+    13: "the item arrived out of sequence",
+    14: "the autopilot is not accepting missions now (busy with another transfer, or armed)",
+    15: "the autopilot cancelled the transfer (it waited too long for an item)",
+}
+
+
+def mission_result_text(code: int) -> str:
+    """MAV_MISSION_RESULT -> "MAV_MISSION_INVALID_PARAM4: param4 of the item is ..."."""
+    name = MAV_MISSION_RESULT_NAMES.get(code, f"MAV_MISSION_RESULT {code}")
+    return f"{name}: {MISSION_RESULT_TEXT.get(code, 'a result this agent does not know')}"
+
 
 class AutopilotError(Exception):
     """Base of every error the autopilot adapter raises."""

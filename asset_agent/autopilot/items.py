@@ -9,7 +9,6 @@ as ArduPilot expects.
 from __future__ import annotations
 
 import math
-import struct
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -42,22 +41,6 @@ class MissionItem:
     y: int = 0
     z: float = 0.0
     autocontinue: int = 1
-
-    def same_as(self, other: MissionItem) -> str | None:
-        """None when `other` carries the same item (floats compared as float32), else the field."""
-        for name in ("command", "frame", "x", "y", "autocontinue"):
-            if getattr(self, name) != getattr(other, name):
-                return name
-        for name in ("param1", "param2", "param3", "param4", "z"):
-            if _f32(getattr(self, name)) != _f32(getattr(other, name)):
-                return name
-        return None
-
-
-def _f32(v: float) -> float:
-    if math.isnan(v):
-        return math.inf  # NaN never equals itself; ArduPilot stores NaN params as-is
-    return struct.unpack("<f", struct.pack("<f", v))[0]
 
 
 def _number(index: int, d: Mapping[str, Any], key: str, default: float | None = None) -> float:

@@ -55,6 +55,8 @@ class MavlinkLink:
         self._stop = threading.Event()
         self._send_lock = threading.Lock()
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._reconnecting = False
+        self.on_reconnect: Callable[[], None] | None = None  # in the loop, after a TCP reconnect
 
     async def open(self) -> None:
         """Open the connection (in a thread: TCP connect and serial open block) and start reading."""
@@ -70,10 +72,39 @@ class MavlinkLink:
             kwargs["baud"] = baud
         self._conn = await asyncio.to_thread(mavutil.mavlink_connection, device, **kwargs)
         self._conn.mav.robust_parsing = True
+        if isinstance(self._conn, mavutil.mavtcp):
+            self._guard_reconnect(self._conn)
         self._thread = threading.Thread(
             target=self._read, name=f"mavlink-reader {self.url}", daemon=True
         )
         self._thread.start()
+
+    def _guard_reconnect(self, conn: Any) -> None:
+        """Only the reader thread reconnects a TCP link; a send meanwhile is dropped.
+
+        pymavlink's TCP link reconnects from whichever thread meets the closed socket. With a
+        sender (RTCM corrections, heartbeats) and the reader both doing so, one thread's
+        connect() lands on the socket the other has just connected, and the send fails with
+        "[Errno 106] Transport endpoint is already connected". Here the reader alone
+        reconnects, and a send finding the link down raises ConnectionError ("reconnecting").
+        """
+        reconnect = conn.reconnect
+        self._reconnecting = False
+
+        def guarded() -> None:
+            if threading.current_thread() is not self._thread:
+                raise ConnectionError(f"{self.url}: link down, reconnecting")
+            with self._send_lock:
+                self._reconnecting = True
+            try:
+                reconnect()
+            finally:
+                with self._send_lock:
+                    self._reconnecting = False
+            if self.on_reconnect is not None and self._loop is not None:
+                self._loop.call_soon_threadsafe(self.on_reconnect)
+
+        conn.reconnect = guarded
 
     def _read(self) -> None:
         loop, conn = self._loop, self._conn
@@ -99,6 +130,8 @@ class MavlinkLink:
         if self._conn is None:
             raise RuntimeError("link not open")
         with self._send_lock:
+            if self._reconnecting or getattr(self._conn, "port", True) is None:
+                raise ConnectionError(f"{self.url}: link down, reconnecting")
             build(self._conn.mav)
 
     async def close(self) -> None:

@@ -14,12 +14,10 @@ import logging
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from asset_agent.autopilot.errors import (
-    MAV_MISSION_RESULT_NAMES,
-    MissionError,
-)
+from asset_agent.autopilot.errors import MissionError, mission_result_text
 from asset_agent.autopilot.items import FRAME_GLOBAL, MissionItem
 from asset_agent.autopilot.state import UavState
+from asset_agent.autopilot.verify import compare
 
 if TYPE_CHECKING:
     from asset_agent.autopilot.client import Autopilot
@@ -45,7 +43,7 @@ def home_item(state: UavState) -> MissionItem:
 
 
 def _result_name(code: int) -> str:
-    return MAV_MISSION_RESULT_NAMES.get(code, f"MAV_MISSION_RESULT {code}")
+    return mission_result_text(code)
 
 
 def _index(seq: int | None) -> int | None:
@@ -136,6 +134,7 @@ async def upload(
                     progress("upload", seq, len(items))
                 highest = max(highest, seq)
     log.info("mission uploaded: %d items", len(items))
+    ap.mission_uploaded(len(items))
     if progress is not None:
         progress("upload", len(items), len(items))
     if verify:
@@ -145,9 +144,9 @@ async def upload(
                 None, f"verification failed: sent {len(items)} items, read back {len(back)}"
             )
         for i, (sent, got) in enumerate(zip(items, back, strict=True)):
-            field = sent.same_as(got)
-            if field:
-                raise MissionError(i, f"verification failed: {field} differs after read-back")
+            mismatch = compare(sent, got)
+            if mismatch is not None:
+                raise MissionError(i, f"verification failed: {mismatch}")
 
 
 async def download(

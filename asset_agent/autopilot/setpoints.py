@@ -50,6 +50,8 @@ class SetpointsMixin:
                     padded = chunk + bytes(180 - len(chunk))
                     self.send(partial(_rtcm, flags, len(chunk), padded))
                     sent += 1
+        except ConnectionError as err:  # the link is reconnecting: corrections resume after
+            log.info("RTCM data not injected: %s", err)
         except (OSError, RuntimeError) as err:
             log.warning("RTCM data not injected: %s", err)
         return sent

@@ -103,7 +103,8 @@ def _mission_current(s: UavState, m: Any) -> UavState:
         s,
         mission_current=max(m.seq - 1, 0),
         mission_total=mission_total,
-        mission_state=MISSION_STATES.get(state, "UNKNOWN"),
+        # 0: not reported (ArduPilot before 4.4): keep what flight_state.MissionWatch inferred
+        mission_state=MISSION_STATES.get(state, "UNKNOWN") if state else s.mission_state,
     )
 
 

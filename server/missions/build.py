@@ -21,6 +21,40 @@ class Built:
     survey_plan: dict[str, Any] | None = None
 
 
+DO_CHANGE_SPEED, NAV_TAKEOFF = 178, 22
+SPEED_TYPE_GROUND, THROTTLE_UNCHANGED = 1.0, -1.0
+MAV_CMD_FIRST_NON_NAV = 100  # MAV_CMD_NAV_* are below 100; CONDITION_* and DO_* above
+
+
+def flight_items(items: list[dict[str, Any]], speed_mps: float | None) -> list[dict[str, Any]]:
+    """The items the UAV is sent: the mission's, with its speed as a DO_CHANGE_SPEED item.
+
+    Without the item an autopilot flies its own default (ArduPilot's WPNAV_SPEED, 10 m/s), not
+    the plan's cruise/hover speed. The item goes right after a leading take-off (ArduPilot runs
+    the DO commands that follow a NAV command while that one flies, so the speed holds from
+    the first waypoint on), else first. A mission that sets its speed before its first
+    waypoint already, or that has no speed, is sent as it is.
+    """
+    if not speed_mps or speed_mps <= 0:
+        return list(items)
+    start = 1 if items and items[0].get("command") == NAV_TAKEOFF else 0
+    for item in items[start:]:
+        if item.get("command") == DO_CHANGE_SPEED:
+            return list(items)
+        if int(item.get("command") or 0) < MAV_CMD_FIRST_NON_NAV:  # a NAV command: flying
+            break
+    speed = {
+        "command": DO_CHANGE_SPEED,
+        "frame": 2,  # MAV_FRAME_MISSION: no position
+        "params": [SPEED_TYPE_GROUND, float(speed_mps), THROTTLE_UNCHANGED, 0.0],
+        "lat": 0.0,
+        "lon": 0.0,
+        "alt": 0.0,
+        "autocontinue": True,
+    }
+    return [*items[:start], speed, *items[start:]]
+
+
 def home_of(home: HomeIn | dict[str, Any] | None) -> Home | None:
     """The domain value of a home position."""
     if home is None:

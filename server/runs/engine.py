@@ -208,10 +208,12 @@ class RunEngine:
     async def _command(self, db: Any, run: Run, action: Action) -> CommandParams:
         """The typed command of an action, its params filled in from the run."""
         if action.command is UploadMission:
+            from server.missions.build import flight_items
             from server.missions.models import Mission
 
             mission = await db.get(Mission, run.mission_id)
-            items = [MissionItem.model_validate(i) for i in (mission.items if mission else [])]
+            dicts = flight_items(mission.items, mission.speed_mps) if mission else []
+            items = [MissionItem.model_validate(i) for i in dicts]
             return UploadMission(mission_id=run.mission_id, items=tuple(items))
         if action.target == "base" and action.command is CheckAvailability:
             uav = await db.get(Asset, run.uav_id)

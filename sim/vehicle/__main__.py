@@ -2,6 +2,14 @@
 
     python -m sim.vehicle [--speed 1] [--seed 0] [--tcp-port 5760] [--udp-port 14550]
                           [--control-port 8091] [--host 127.0.0.1]
+                          [--autopilot-profile ardupilot-4|ardupilot-3.7] [--boot-s S]
+                          [--no-message-interval] [--silent-message-interval]
+                          [--no-extended-sys-state]
+                          [--keep-params] [--streams-at-boot all|heartbeat]
+
+Without a profile it keeps the simulator's defaults (ArduPilot 4.x habits, every stream on, no
+boot delay); a profile brings that release's habits (sim/vehicle/habits.py), 35-40 s of booting
+included; each option after it overrides one habit.
 
 Connect with ``tcp:127.0.0.1:5760`` or ``udpout:127.0.0.1:14550`` (send first). The control
 routes (truth, faults) are served on --control-port under /vehicle; 0 disables them.
@@ -18,6 +26,7 @@ from collections.abc import Sequence
 from sim.clock import SimClock
 from sim.vehicle.control import vehicle_router
 from sim.vehicle.copter import Copter, CopterConfig
+from sim.vehicle.habits import PROFILES, Habits, profile
 from sim.vehicle.server import VehicleServer
 from sim.vehicle.standalone import OpenPad
 
@@ -33,12 +42,41 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     ap.add_argument("--tcp-port", type=int, default=5760)
     ap.add_argument("--udp-port", type=int, default=14550)
     ap.add_argument("--control-port", type=int, default=8091)
+    ap.add_argument("--autopilot-profile", choices=sorted(PROFILES), default=None)
+    ap.add_argument("--boot-s", type=float, default=None, help="simulated seconds to armable")
+    ap.add_argument(
+        "--no-message-interval", action="store_true", help="refuse SET_MESSAGE_INTERVAL"
+    )
+    ap.add_argument("--silent-message-interval", action="store_true", help="never answer it")
+    ap.add_argument("--no-extended-sys-state", action="store_true")
+    ap.add_argument("--keep-params", action="store_true", help="store params as sent (not packed)")
+    ap.add_argument("--streams-at-boot", choices=("all", "heartbeat"), default=None)
     return ap.parse_args(argv)
+
+
+def habits_of(args: argparse.Namespace) -> Habits:
+    """The habits the command line asks for: a profile (or the defaults), then each override."""
+    over: dict[str, object] = {}
+    if args.boot_s is not None:
+        over["boot_s"] = args.boot_s
+    if args.no_message_interval:
+        over["message_interval"] = False
+    if args.silent_message_interval:
+        over["message_interval_silent"] = True
+    if args.no_extended_sys_state:
+        over["extended_sys_state"] = False
+    if args.keep_params:
+        over["ardupilot_storage"] = False
+    if args.streams_at_boot:
+        over["streams_at_boot"] = args.streams_at_boot
+    if args.autopilot_profile:
+        return profile(args.autopilot_profile, **over)
+    return Habits(**over)  # type: ignore[arg-type]
 
 
 def setup(args: argparse.Namespace) -> VehicleServer:
     """Build the vehicle server (nothing bound yet)."""
-    copter = Copter(OpenPad(), CopterConfig(seed=args.seed))
+    copter = Copter(OpenPad(), CopterConfig(seed=args.seed, habits=habits_of(args)))
     return VehicleServer(
         copter, SimClock(args.speed), host=args.host, tcp_port=args.tcp_port, udp_port=args.udp_port
     )
@@ -47,6 +85,7 @@ def setup(args: argparse.Namespace) -> VehicleServer:
 async def run(server: VehicleServer, control_port: int) -> None:
     """Serve until cancelled."""
     await server.start()
+    log.info("autopilot habits: %s", server.copter.config.habits)
     print(
         f"simulated autopilot: MAVLink tcp:{server.host}:{server.tcp_port} udp:{server.udp_port}",
         flush=True,

@@ -25,6 +25,8 @@ NAV_RETURN_TO_LAUNCH, NAV_LAND, NAV_TAKEOFF = 20, 21, 22
 DO_SET_MODE, DO_CHANGE_SPEED, MISSION_START, COMPONENT_ARM_DISARM = 176, 178, 300, 400
 GET_HOME_POSITION, SET_MESSAGE_INTERVAL, REQUEST_MESSAGE = 410, 511, 512
 CONDITION_YAW = 115
+PREFLIGHT_REBOOT_SHUTDOWN = 246
+NO_ANSWER = -1  # not a MAV_RESULT: send no COMMAND_ACK at all
 
 
 def _arm_disarm(c: Copter, p: Params, link: Any) -> int:
@@ -76,6 +78,10 @@ def _condition_yaw(c: Copter, p: Params, link: Any) -> int:
 
 
 def _message_interval(c: Copter, p: Params, link: Any) -> int:
+    if c.config.habits.message_interval_silent:
+        return NO_ANSWER  # dropped on the way (a router, a firmware that ignores it)
+    if not c.config.habits.message_interval:
+        return UNSUPPORTED  # ArduPilot 3.7: no MAV_CMD_SET_MESSAGE_INTERVAL
     streams = c.streams_for(link)
     if streams is None:
         return FAILED
@@ -93,6 +99,12 @@ def _home(c: Copter, p: Params, link: Any) -> int:
     return _request_message(c, (242, 0, 0, 0, 0, 0, 0), link)
 
 
+def _reboot(c: Copter, p: Params, link: Any) -> int:
+    if round(p[0]) != 1:  # 1: reboot the autopilot; shutdown and the companion's are not ours
+        return UNSUPPORTED
+    return c.reboot()
+
+
 COMMANDS: dict[int, Callable[[Copter, Params, Any], int]] = {
     COMPONENT_ARM_DISARM: _arm_disarm,
     NAV_TAKEOFF: _takeoff,
@@ -105,6 +117,7 @@ COMMANDS: dict[int, Callable[[Copter, Params, Any], int]] = {
     SET_MESSAGE_INTERVAL: _message_interval,
     REQUEST_MESSAGE: _request_message,
     GET_HOME_POSITION: _home,
+    PREFLIGHT_REBOOT_SHUTDOWN: _reboot,
 }
 
 

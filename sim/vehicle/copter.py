@@ -18,7 +18,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from protocol.rtcm import MavlinkReassembler, Reframer, frame_ok
 from sim.vehicle import mission as ms
-from sim.vehicle.commands import run_command
+from sim.vehicle.boot import BootMixin
+from sim.vehicle.commands import NO_ANSWER, run_command
 from sim.vehicle.constants import (
     ACCEPTED,
     AUTO,
@@ -40,6 +41,7 @@ from sim.vehicle.dynamics import Dynamics, DynamicsParams
 from sim.vehicle.geo import GeoOrigin
 from sim.vehicle.gnss import FIX_3D, GnssModel, GnssParams, GnssReading
 from sim.vehicle.guidance import Guidance
+from sim.vehicle.habits import Habits
 from sim.vehicle.mission_link import MissionProtocolMixin
 from sim.vehicle.precland import PrecisionLanding, TargetReading
 
@@ -85,6 +87,7 @@ class CopterConfig:
     contacts_tolerance_m: float = 0.05  # charging contacts seat inside this radius
     dynamics: DynamicsParams = field(default_factory=DynamicsParams)
     gnss: GnssParams = field(default_factory=GnssParams)
+    habits: Habits = field(default_factory=Habits)  # which ArduPilot release it behaves as
 
 
 @dataclass
@@ -107,7 +110,7 @@ def _ack(request: Any, command: int, result: int) -> Any:
     )
 
 
-class Copter(MissionProtocolMixin):
+class Copter(MissionProtocolMixin, BootMixin):
     """One ArduPilot-Copter-like vehicle on its base."""
 
     def __init__(self, base: Base, config: CopterConfig | None = None) -> None:
@@ -119,8 +122,9 @@ class Copter(MissionProtocolMixin):
         self.precland = PrecisionLanding()
         self.guidance = Guidance(self)
         self.faults = Faults()
-        self.t = 0.0  # simulated seconds since boot
+        self.t = 0.0  # simulated seconds since the simulation started
         self.wall = 0.0
+        self.init_boot()
         self.mode = STABILIZE
         self.armed = False
         self.failsafe = False
@@ -189,6 +193,9 @@ class Copter(MissionProtocolMixin):
         """Why the vehicle may not arm now, or None; `arming=False` leaves out base and mode (health)."""
         if self.faults.prearm_failure:
             return self.faults.prearm_failure
+        booting = self.booting_text()
+        if booting:
+            return booting
         if self.reading.fix_type < FIX_3D:
             return "GPS 1: Bad fix"
         if self.dyn.state.battery_pct < self.config.arm_min_battery_pct:
@@ -253,6 +260,7 @@ class Copter(MissionProtocolMixin):
         """Advance simulated time by `dt` seconds (wall time `wall` for protocol timers)."""
         self.wall = wall
         self.t += dt
+        self._boot_tick(wall)
         self.reading = self.gnss.step(dt, wall)
         if self.upload is not None and not self.faults.drop_mission:
             action = self.upload.update(wall)
@@ -316,6 +324,8 @@ class Copter(MissionProtocolMixin):
     def handle(self, msg: Any, link: Any, wall: float) -> None:
         """Act on one decoded MAVLink message received on `link`."""
         self.wall = wall
+        if self.rebooting(wall):
+            return
         kind = msg.get_type()
         target = getattr(msg, "target_system", 0)
         if target not in (0, 1):
@@ -329,12 +339,14 @@ class Copter(MissionProtocolMixin):
     def _on_command_long(self, msg: Any, link: Any) -> None:
         p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
         result = run_command(self, msg.command, p, link)
-        self.send(_ack(msg, msg.command, result), link)
+        if result != NO_ANSWER:
+            self.send(_ack(msg, msg.command, result), link)
 
     def _on_command_int(self, msg: Any, link: Any) -> None:
         p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x / 1e7, msg.y / 1e7, msg.z)
         result = run_command(self, msg.command, p, link)
-        self.send(_ack(msg, msg.command, result), link)
+        if result != NO_ANSWER:
+            self.send(_ack(msg, msg.command, result), link)
 
     def _on_set_mode(self, msg: Any, link: Any) -> None:
         ok = self.set_mode(msg.custom_mode)

@@ -319,7 +319,8 @@ class Guidance:
         c = self.c
         if self.rtl_phase == "climb" and c.dyn.state.altitude >= self._rtl_alt - 0.5:
             self.rtl_phase = "return"
-            self.goal = Goal("goto", 0.0, 0.0, -self._rtl_alt, self.speed)
+            # RTL flies RTL_SPEED, 0 meaning WPNAV_SPEED (ModeRTL::init), not a mission's speed
+            self.goal = Goal("goto", 0.0, 0.0, -self._rtl_alt, c.config.wp_speed)
         elif self.rtl_phase == "return" and self._arrived(0.5):
             self.rtl_phase = "loiter"
             self._arrived_at = c.t

@@ -8,6 +8,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sim.vehicle import mission as ms
 from sim.vehicle.constants import AUTO, INFO
+from sim.vehicle.habits import stored
 
 
 def mission_total(items: list[ms.Item]) -> int:
@@ -87,7 +88,10 @@ class MissionProtocolMixin:
             return
         self.send(mavlink.MAVLink_mission_ack_message(255, 0, value), self.upload_link)
         if value == ms.ACCEPTED and self.upload is not None:
-            self.items = [self.home_item(), *self.upload.items[1:]]
+            items = self.upload.items[1:]
+            if self.config.habits.ardupilot_storage:  # as AP_Mission packs them into storage
+                items = [stored(it) for it in items]
+            self.items = [self.home_item(), *items]
             self.mission_current = min(self.mission_current, len(self.items) - 1)
             self.text(INFO, f"Flight plan received ({len(self.items)} items)")
 

@@ -30,7 +30,7 @@ from asynckit.tasks import cancel_and_wait
 from sim.clock import SimClock
 from sim.vehicle.copter import Base, Copter, CopterConfig
 from sim.vehicle.standalone import OpenPad
-from sim.vehicle.streams import StreamScheduler, build
+from sim.vehicle.streams import EXTENDED_SYS_STATE, StreamScheduler, build
 
 log = logging.getLogger(__name__)
 
@@ -113,6 +113,12 @@ class VehicleServer:
         self._task: asyncio.Task[None] | None = None
         self._writers: set[asyncio.StreamWriter] = set()
         self.received = 0
+        self._boots_seen = copter.boots
+
+    def fresh_streams(self) -> StreamScheduler:
+        """A link's stream rates at boot: every default, or HEARTBEAT only (habit `streams_at_boot`)."""
+        quiet = self.copter.config.habits.streams_at_boot == "heartbeat"
+        return StreamScheduler(time.monotonic(), quiet=quiet)
 
     @property
     def udp_link(self) -> Link | None:
@@ -120,8 +126,9 @@ class VehicleServer:
         return self._udp.link if self._udp else None
 
     def muted(self) -> bool:
-        """True while the fault 'stop answering MAVLink' is active."""
-        return self.copter.faults.muted(time.monotonic())
+        """True while the fault 'stop answering MAVLink' is active, or the autopilot reboots."""
+        now = time.monotonic()
+        return self.copter.faults.muted(now) or self.copter.rebooting(now)
 
     async def start(self) -> None:
         """Bind the sockets and start the simulation loop."""
@@ -130,6 +137,7 @@ class VehicleServer:
             lambda: _Udp(self), local_addr=(self.host, self._want_udp)
         )
         self._udp = proto
+        proto.link.streams = self.fresh_streams()
         self._links.add(proto.link)
         self.udp_port = transport.get_extra_info("sockname")[1]
         self._tcp_server = await asyncio.start_server(self._tcp_client, self.host, self._want_tcp)
@@ -157,6 +165,7 @@ class VehicleServer:
                 writer.write(data)
 
         link = Link(f"tcp:{writer.get_extra_info('peername')}", send)
+        link.streams = self.fresh_streams()
         self._links.add(link)
         self._writers.add(writer)
         try:
@@ -217,12 +226,19 @@ class VehicleServer:
         for _ in range(n):
             t = self.copter.t + dt_sim / n
             self.copter.tick(dt_sim / n, wall, self.wind_ne(t))
+        if self.copter.boots != self._boots_seen:  # rebooted: every rate back to its boot value
+            self._boots_seen = self.copter.boots
+            for link in self._links:
+                link.streams = self.fresh_streams()
         self._flush()
         if self.muted():
             return
         built: dict[int, Any] = {}
+        silent = () if self.copter.config.habits.extended_sys_state else (EXTENDED_SYS_STATE,)
         for link in list(self._links):
             for msg_id in link.streams.due(wall):
+                if msg_id in silent:
+                    continue
                 if msg_id not in built:
                     built[msg_id] = build(self.copter, msg_id)
                 try:

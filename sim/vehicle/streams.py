@@ -14,7 +14,7 @@ from sim.vehicle.mission_link import mission_total
 if TYPE_CHECKING:
     from sim.vehicle.copter import Copter
 
-HEARTBEAT, SYS_STATUS, GPS_RAW_INT, ATTITUDE = 0, 1, 24, 30
+HEARTBEAT, SYS_STATUS, SYSTEM_TIME, GPS_RAW_INT, ATTITUDE = 0, 1, 2, 24, 30
 LOCAL_POSITION_NED, GLOBAL_POSITION_INT, MISSION_CURRENT, VFR_HUD = 32, 33, 42, 74
 BATTERY_STATUS, HOME_POSITION, EXTENDED_SYS_STATE = 147, 242, 245
 
@@ -69,7 +69,7 @@ def _global_position(c: Copter) -> Any:
     hdg = round(math.degrees(s.yaw) % 360 * 100)
     vn, ve, vd = (round(v * 100) for v in s.velocity)
     return mavlink.MAVLink_global_position_int_message(
-        round(c.t * 1000) & 0xFFFFFFFF, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
+        c.time_boot_ms, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
         round(s.altitude * 1000), vn, ve, vd, hdg,
     )  # fmt: skip
 
@@ -77,17 +77,13 @@ def _global_position(c: Copter) -> Any:
 def _local_position(c: Copter) -> Any:
     n, e, d = c.estimated_position()
     v = c.dyn.state.velocity
-    return mavlink.MAVLink_local_position_ned_message(
-        round(c.t * 1000) & 0xFFFFFFFF, n, e, d, v[0], v[1], v[2]
-    )
+    return mavlink.MAVLink_local_position_ned_message(c.time_boot_ms, n, e, d, v[0], v[1], v[2])
 
 
 def _attitude(c: Copter) -> Any:
     s = c.dyn.state
     yaw = (s.yaw + math.pi) % (2 * math.pi) - math.pi
-    return mavlink.MAVLink_attitude_message(
-        round(c.t * 1000) & 0xFFFFFFFF, s.roll, s.pitch, yaw, 0, 0, 0
-    )
+    return mavlink.MAVLink_attitude_message(c.time_boot_ms, s.roll, s.pitch, yaw, 0, 0, 0)
 
 
 def _gps_raw(c: Copter) -> Any:
@@ -104,7 +100,13 @@ def _gps_raw(c: Copter) -> Any:
     )  # fmt: skip
 
 
+def _system_time(c: Copter) -> Any:
+    return mavlink.MAVLink_system_time_message(0, c.time_boot_ms)
+
+
 def _mission_current(c: Copter) -> Any:
+    if not c.config.habits.mission_current_extensions:
+        return mavlink.MAVLink_mission_current_message(c.mission_current)
     return mavlink.MAVLink_mission_current_message(
         c.mission_current,
         mission_total(c.items),
@@ -137,6 +139,7 @@ def _extended_sys_state(c: Copter) -> Any:
 BUILDERS: dict[int, Callable[[Copter], Any]] = {
     HEARTBEAT: _heartbeat,
     SYS_STATUS: _sys_status,
+    SYSTEM_TIME: _system_time,
     GPS_RAW_INT: _gps_raw,
     ATTITUDE: _attitude,
     LOCAL_POSITION_NED: _local_position,
@@ -151,6 +154,7 @@ BUILDERS: dict[int, Callable[[Copter], Any]] = {
 DEFAULT_INTERVALS: dict[int, float | None] = {
     HEARTBEAT: 1.0,
     SYS_STATUS: 0.5,
+    SYSTEM_TIME: 1.0,
     GPS_RAW_INT: 0.2,
     ATTITUDE: 0.1,
     LOCAL_POSITION_NED: 0.2,
@@ -162,23 +166,27 @@ DEFAULT_INTERVALS: dict[int, float | None] = {
     EXTENDED_SYS_STATE: 1.0,
 }
 
-# REQUEST_DATA_STREAM groups, as ArduPilot files its messages
+# REQUEST_DATA_STREAM groups, as ArduCopter files its messages (GCS_Mavlink.cpp STREAM_*_msgs);
+# EXTENDED_SYS_STATE and HOME_POSITION are in no group: only SET_MESSAGE_INTERVAL or a request
 DATA_STREAMS: dict[int, tuple[int, ...]] = {
     1: (),  # RAW_SENSORS: IMU messages, not simulated
-    2: (SYS_STATUS, GPS_RAW_INT, MISSION_CURRENT, EXTENDED_SYS_STATE),  # EXTENDED_STATUS
+    2: (SYS_STATUS, GPS_RAW_INT, MISSION_CURRENT),  # EXTENDED_STATUS
     3: (),  # RC_CHANNELS
     6: (GLOBAL_POSITION_INT, LOCAL_POSITION_NED),  # POSITION
     10: (ATTITUDE,),  # EXTRA1
     11: (VFR_HUD,),  # EXTRA2
-    12: (BATTERY_STATUS,),  # EXTRA3
+    12: (SYSTEM_TIME, BATTERY_STATUS),  # EXTRA3
 }
 
 
 class StreamScheduler:
     """Which telemetry message is due when (wall seconds); SET_MESSAGE_INTERVAL edits it."""
 
-    def __init__(self, now: float = 0.0) -> None:
+    def __init__(self, now: float = 0.0, quiet: bool = False) -> None:
+        # quiet: only HEARTBEAT until asked (a companion port whose SRn_ rates are 0)
         self.intervals: dict[int, float | None] = dict(DEFAULT_INTERVALS)
+        if quiet:
+            self.intervals = {k: (v if k == HEARTBEAT else None) for k, v in self.intervals.items()}
         self._next: dict[int, float] = dict.fromkeys(self.intervals, now)
         self._once: list[int] = []
 

@@ -14,6 +14,7 @@ from asset_agent.autopilot import (
     MissionItem,
     items_from_dicts,
 )
+from asset_agent.autopilot.verify import compare
 from sim.vehicle.server import VehicleServer
 from tests.asset_agent.conftest import wait_for
 
@@ -43,7 +44,7 @@ async def test_upload_and_read_back_200_items(autopilot: Autopilot, vehicle: Veh
     assert len(steps) > 20
     back = await autopilot.download_mission()
     assert len(back) == 200
-    assert all(a.same_as(b) is None for a, b in zip(items, back, strict=True))
+    assert all(compare(a, b) is None for a, b in zip(items, back, strict=True))
     assert len(vehicle.copter.items) == 201  # home + 200
     await wait_for(lambda: autopilot.state.mission_total == 200, 5, "MISSION_CURRENT total")
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import base64
 import contextlib
+import json
 import time
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
@@ -22,6 +23,9 @@ from base_station.main import run as run_base
 from base_station.main import setup as setup_base
 from base_station.server_link import link_runner, make_link
 from sim.assemble import full_world
+from sim.plc.model import BaseParams
+from sim.vehicle.copter import CopterConfig
+from sim.vehicle.habits import Habits
 from sim.world import World, WorldConfig
 from tests.base_station.bs_helpers import station_config
 from tests.conftest import Tenant
@@ -126,23 +130,39 @@ async def platform(
     speed: float = SPEED,
     agent_server_url: str | None = None,
     precland: dict[str, Any] | None = None,
+    habits: Habits | None = None,
+    pad: tuple[float, float, float] | None = None,
+    plan: dict[str, Any] | None = None,
 ) -> AsyncIterator[Platform]:
     """World + daemons connected to the server at `server_url`, assets registered in `tenant`.
 
     `precland`: the agent's [precland] section (the world's camera and IR ports are filled in);
-    None leaves precision landing off (the UAV lands on RTK GNSS alone)."""
-    world = full_world(WorldConfig.for_tests(speed=speed, seed=seed))
+    None leaves precision landing off (the UAV lands on RTK GNSS alone). `habits`: the simulated
+    autopilot's (sim/vehicle/habits.py); `pad`: where the base stands (lat, lon, alt); `plan`: a
+    QGroundControl plan imported as the run's mission instead of the pad square."""
+    extra = {"base": BaseParams(pad_geodetic=pad)} if pad else {}
+    world = full_world(WorldConfig.for_tests(speed=speed, seed=seed, **extra))
+    if habits is not None:
+        vehicle = next(part for part in world.parts if part.name == "vehicle")
+        vehicle.config = CopterConfig(seed=seed, habits=habits)  # type: ignore[attr-defined]
     async with world:
         world.weather.force(wind_mps=2.0, gust_mps=3.0, rain_mm_h=0.0, temperature_c=15.0)
         lat, lon, _ = world.base.pad_geodetic
         base = tenant.create_asset("landing_base", attributes={"latitude": lat, "longitude": lon})
         uav = tenant.create_asset("uav", base_id=base["id"], attributes={"mass_g": 1450})
         async with httpx.AsyncClient(base_url=server_url, timeout=30) as api:
-            r = await api.post(
-                "/api/v1/missions",
-                headers=tenant.h("operator"),
-                json={"name": "pad square", "items": mission_items(lat, lon)},
-            )
+            if plan is not None:
+                r = await api.post(
+                    "/api/v1/missions/import",
+                    headers={**tenant.h("operator"), "content-type": "application/json"},
+                    content=json.dumps(plan).encode(),
+                )
+            else:
+                r = await api.post(
+                    "/api/v1/missions",
+                    headers=tenant.h("operator"),
+                    json={"name": "pad square", "items": mission_items(lat, lon)},
+                )
             assert r.status_code == 201, r.text
             ids = {"mission_id": r.json()["id"], "uav_id": uav["id"], "base_id": base["id"]}
             bcfg = decrypt_config(base64.b64decode(base["config_file"]), "asset-password-123")

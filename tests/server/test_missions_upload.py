@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 
 from asset_agent.autopilot import Autopilot, items_from_dicts
+from asset_agent.autopilot.verify import compare
 from server.missions.items import COMMANDS, MissionItem, item_dicts
 from server.missions.qgc import parse_plan
 from server.missions.survey import SurveySpec, compile_survey
@@ -25,7 +26,7 @@ async def _round_trip(ap: Autopilot, dicts: list[dict]) -> None:
     await ap.upload_mission(items)  # the adapter reads it back and compares
     back = await ap.download_mission()
     assert len(back) == len(items)
-    assert all(a.same_as(b) is None for a, b in zip(items, back, strict=True))
+    assert all(compare(a, b) is None for a, b in zip(items, back, strict=True))
 
 
 async def test_an_imported_qgroundcontrol_plan_uploads(

@@ -1,0 +1,87 @@
+"""The flight actions of the autopilot adapter: modes, arming, take-off, mission start, RTL, land, abort."""
+
+from __future__ import annotations
+
+import time
+
+from asset_agent.autopilot.flight_state import MissionWatch
+from asset_agent.autopilot.state import MODE_NUMBERS, UavState
+
+# MAV_CMD numbers
+CMD_NAV_RETURN_TO_LAUNCH, CMD_NAV_LAND, CMD_NAV_TAKEOFF = 20, 21, 22
+CMD_DO_SET_MODE, CMD_MISSION_START, CMD_COMPONENT_ARM_DISARM = 176, 300, 400
+CMD_PREFLIGHT_REBOOT_SHUTDOWN = 246
+FORCE_MAGIC = 21196
+
+
+class ActionsMixin:
+    """Actions of `Autopilot`; the host provides `state`, `mission_watch` and `command`."""
+
+    state: UavState
+    mission_watch: MissionWatch
+
+    async def command(
+        self,
+        command: int,
+        *params: float,
+        ack_timeout_s: float | None = None,
+        retries: int | None = None,
+    ) -> int:
+        """COMMAND_LONG awaiting its ACK (implemented by Autopilot)."""
+        raise NotImplementedError
+
+    async def set_mode(self, mode: str | int) -> None:
+        """Change the flight mode by Copter name ("GUIDED") or number."""
+        number = MODE_NUMBERS[mode.upper()] if isinstance(mode, str) else int(mode)
+        self.mission_watch.asked_mode(time.monotonic())
+        await self.command(CMD_DO_SET_MODE, 1, number)  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+
+    async def arm(self) -> None:
+        """Arm (pre-arm checks apply: a failure raises CommandRejected with the PreArm text)."""
+        await self.command(CMD_COMPONENT_ARM_DISARM, 1)
+
+    async def disarm(self, force: bool = False) -> None:
+        """Disarm; the autopilot refuses in flight unless forced."""
+        await self.command(CMD_COMPONENT_ARM_DISARM, 0, FORCE_MAGIC if force else 0)
+
+    async def takeoff(self, alt_m: float) -> None:
+        """GUIDED takeoff to `alt_m` above home (the vehicle must be armed in GUIDED)."""
+        await self.command(CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, alt_m)
+
+    async def start_mission(self) -> None:
+        """Start the uploaded mission: from the ground GUIDED + arm + MISSION_START; in the air AUTO."""
+        if self.state.armed and self.state.in_air:
+            await self.set_mode("AUTO")
+            return
+        if not self.state.armed:
+            await self.set_mode("GUIDED")
+            await self.arm()
+        await self.command(CMD_MISSION_START, 0, 0)
+
+    async def pause(self, mode: str = "BRAKE") -> None:
+        """Stop and hold position (BRAKE, or LOITER)."""
+        await self.set_mode(mode)
+
+    async def resume(self) -> None:
+        """Resume the mission where it stopped (AUTO)."""
+        await self.set_mode("AUTO")
+
+    async def return_to_base(self) -> None:
+        """Return to launch (the base) and land there."""
+        await self.command(CMD_NAV_RETURN_TO_LAUNCH)
+
+    async def land(self) -> None:
+        """Land where the vehicle is (LAND mode)."""
+        await self.command(CMD_NAV_LAND)
+
+    async def abort(self) -> str:
+        """RTL when flying, disarm when on the ground; returns what was done."""
+        if self.state.armed and self.state.landed_state != "ON_GROUND":
+            await self.return_to_base()
+            return "rtl"
+        await self.disarm()
+        return "disarmed"
+
+    async def reboot(self) -> None:
+        """MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN: restart the autopilot (refused while armed)."""
+        await self.command(CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1)

@@ -1,0 +1,116 @@
+"""The simulated autopilot's ArduPilot habits (sim/vehicle/habits.py), seen by a raw MAVLink peer,
+and its storage model checked against AP_Mission's packing."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from sim.vehicle import mission as ms
+from sim.vehicle.__main__ import habits_of, parse_args
+from sim.vehicle.copter import CopterConfig
+from sim.vehicle.habits import PROFILES, Habits, profile, stored
+from sim.vehicle.server import run_vehicle
+from sim.vehicle.standalone import OpenPad
+from tests.sim.test_vehicle_mavlink import Peer
+
+NAN = math.nan
+
+
+def test_storage_packs_params_as_ap_mission_does():
+    wp = stored(ms.Item(1, 6, 16, 2.7, 3.0, 1.0, NAN, 411780000, -85960000, 20.129))
+    assert (wp.param1, wp.param2, wp.param3, wp.param4) == (2.0, 0.0, 0.0, 0.0)
+    assert (wp.frame, wp.x, wp.y, wp.z, wp.autocontinue) == (3, 411780000, -85960000, 20.12, 1)
+    takeoff = stored(ms.Item(1, 3, 22, 0, 0, 0, NAN, 1, 2, 20))
+    assert takeoff.param4 == 0.0  # issue 13: the QGC plan's null yaw came back 0
+    land = stored(ms.Item(1, 3, 21, 0, 0, 0, 0, 1, 2, 0))
+    assert land.param4 == 1.0  # the loiter direction: issue 13's "item 1 param4"
+    speed = stored(ms.Item(1, 2, 178, 1, 5.5, -1, 7))
+    assert (speed.param1, speed.param2, speed.param3, speed.param4, speed.frame) == (
+        1,
+        5.5,
+        -1,
+        0,
+        0,
+    )
+    rtl = stored(ms.Item(1, 3, 20, 1, 2, 3, 4, 5, 6, 7.0))
+    assert (rtl.param1, rtl.x, rtl.y, rtl.z) == (0.0, 0, 0, 0.0)
+    jump = stored(ms.Item(1, 2, 177, 3.9, -1, 0, 0))
+    assert (jump.param1, jump.param2) == (3.0, -1.0)
+
+
+def test_profiles_and_the_command_line():
+    assert not PROFILES["ardupilot-3.7"].message_interval
+    assert not PROFILES["ardupilot-3.7"].extended_sys_state
+    assert PROFILES["ardupilot-4"].message_interval and PROFILES["ardupilot-4"].boot_s >= 30
+    assert habits_of(parse_args([])) == Habits()  # no profile: the historic defaults
+    h = habits_of(parse_args(["--autopilot-profile", "ardupilot-3.7", "--boot-s", "3"]))
+    assert h.name == "ardupilot-3.7" and h.boot_s == 3.0 and not h.message_interval
+    h = habits_of(parse_args(["--no-message-interval", "--keep-params"]))
+    assert not h.message_interval and not h.ardupilot_storage and h.extended_sys_state
+    with pytest.raises(ValueError, match="unknown autopilot profile"):
+        profile("px4")
+
+
+@pytest.mark.slow  # waits 2 s to show a message never comes
+async def test_ardupilot_37_refuses_message_intervals_but_honours_data_streams():
+    config = CopterConfig(seed=1, habits=profile("ardupilot-3.7", boot_s=0.0))
+    async with run_vehicle(speed=10, config=config) as v:
+        peer = Peer(f"tcp:127.0.0.1:{v.tcp_port}")
+        try:
+            await peer.recv("HEARTBEAT")
+            peer.conn.mav.command_long_send(1, 1, 511, 0, 33, 200000, 0, 0, 0, 0, 0)
+            ack = await peer.recv("COMMAND_ACK", command=511)
+            assert ack.result == 3  # MAV_RESULT_UNSUPPORTED
+            peer.conn.mav.request_data_stream_send(1, 1, 6, 5, 1)  # POSITION at 5 Hz
+            await peer.recv("GLOBAL_POSITION_INT")
+            peer.conn.mav.request_data_stream_send(1, 1, 0, 2, 1)  # every group
+            await peer.recv("SYS_STATUS")
+            await peer.recv("MISSION_CURRENT")
+            with pytest.raises(AssertionError):
+                await peer.recv("EXTENDED_SYS_STATE", within=2.0)
+        finally:
+            peer.conn.close()
+
+
+@pytest.mark.slow
+async def test_a_quiet_companion_port_sends_only_heartbeats_until_asked():
+    config = CopterConfig(seed=1, habits=profile("ardupilot-4", boot_s=0.0))
+    async with run_vehicle(speed=10, config=config) as v:
+        peer = Peer(f"tcp:127.0.0.1:{v.tcp_port}")
+        try:
+            await peer.recv("HEARTBEAT")
+            with pytest.raises(AssertionError):
+                await peer.recv("ATTITUDE", within=1.5)
+            peer.conn.mav.command_long_send(1, 1, 511, 0, 30, 100000, 0, 0, 0, 0, 0)
+            assert (await peer.recv("COMMAND_ACK", command=511)).result == 0
+            await peer.recv("ATTITUDE")
+        finally:
+            peer.conn.close()
+
+
+def test_missions_fly_their_speed_and_rtl_flies_wpnav_speed():
+    from sim.vehicle.copter import Copter
+
+    c = Copter(OpenPad(), CopterConfig(seed=2))
+    lat, lon = round(41.1780 * 1e7), round(-8.5960 * 1e7)
+    c.items = [
+        c.home_item(),
+        ms.Item(1, 3, ms.NAV_TAKEOFF, z=5),
+        ms.Item(2, 2, ms.DO_CHANGE_SPEED, param1=1, param2=4.0, param3=-1),
+        ms.Item(3, 3, ms.NAV_WAYPOINT, x=lat + 9000, y=lon, z=5),  # 100 m north
+        ms.Item(4, 2, ms.NAV_RETURN_TO_LAUNCH),
+    ]
+    assert c.set_mode(4) and c.arm() == 0 and c.set_mode(3)
+    top: dict[str, float] = {}
+    for _ in range(8000):
+        c.tick(0.05, 0.0)
+        c.outbox.clear()
+        v = math.hypot(*c.dyn.state.velocity[:2])
+        phase = "rtl" if c.guidance.rtl_phase or c.mission_current >= 4 else "mission"
+        top[phase] = max(top.get(phase, 0.0), v)
+        if not c.armed:
+            break
+    assert top["mission"] == pytest.approx(4.0, abs=0.3)  # the DO_CHANGE_SPEED
+    assert top["rtl"] == pytest.approx(c.config.wp_speed, abs=0.5)  # WPNAV_SPEED, 10 m/s
