@@ -126,7 +126,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.add_middleware(GZipMiddleware, minimum_size=2048)
     app.add_middleware(RejectNulBytes)
-    app.add_middleware(metrics.HttpMetrics)
+    app.add_middleware(metrics.ObserveRequests)
     install_error_handlers(app)
     for router in (
         health_router,

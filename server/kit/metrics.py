@@ -8,17 +8,21 @@ replicas in Prometheus. Run and command figures are counted by the replica that 
 
 from __future__ import annotations
 
+import logging
 import time
+import uuid
 import weakref
 from collections.abc import Iterator
 from typing import Any, Protocol
 
+import structlog
 from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 REGISTRY = CollectorRegistry()
+access = logging.getLogger("aerobase.access")
 
 HTTP_LATENCY = Histogram(
     "aerobase_http_request_duration_seconds",
@@ -129,8 +133,10 @@ def watch_hub(hub: HubView) -> None:
     HUBS.hubs.add(hub)
 
 
-class HttpMetrics:
-    """ASGI middleware: HTTP latency by route template (`/api/v1/runs/{run_id}`, never the id)."""
+class ObserveRequests:
+    """ASGI middleware for every HTTP request: a request id (the proxy's `X-Request-Id`, else a new
+    one) bound to every log line written while it is served and echoed in the response; one
+    access-log line; latency by route template (`/api/v1/runs/{run_id}`, never the id)."""
 
     def __init__(self, app: ASGIApp) -> None:
         self.app = app
@@ -139,6 +145,7 @@ class HttpMetrics:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
+        request_id = _request_id(scope)
         status = 500
         start = time.perf_counter()
 
@@ -146,12 +153,36 @@ class HttpMetrics:
             nonlocal status
             if message["type"] == "http.response.start":
                 status = int(message["status"])
+                message = {
+                    **message,
+                    "headers": [
+                        *message.get("headers", []),
+                        (b"x-request-id", request_id.encode()),
+                    ],
+                }
             await send(message)
 
-        try:
-            await self.app(scope, receive, sending)
-        finally:
-            route = getattr(scope.get("route"), "path", None) or "unmatched"
-            HTTP_LATENCY.labels(scope["method"], route, str(status)).observe(
-                time.perf_counter() - start
-            )
+        with structlog.contextvars.bound_contextvars(request_id=request_id):
+            try:
+                await self.app(scope, receive, sending)
+            finally:
+                elapsed = time.perf_counter() - start
+                route = getattr(scope.get("route"), "path", None) or "unmatched"
+                HTTP_LATENCY.labels(scope["method"], route, str(status)).observe(elapsed)
+                access.info(
+                    "%s %s %d",
+                    scope["method"],
+                    route,
+                    status,
+                    extra={"duration_ms": round(elapsed * 1000, 1)},
+                )
+
+
+def _request_id(scope: Scope) -> str:
+    """The caller's (the proxy's) request id when it is a sane token, else a new one."""
+    for name, value in scope.get("headers", ()):
+        if name == b"x-request-id":
+            text = value.decode("latin-1")
+            if 0 < len(text) <= 64 and all(c.isalnum() or c in "-_." for c in text):
+                return text
+    return uuid.uuid4().hex

@@ -19,6 +19,7 @@ import uuid
 from collections import deque
 from typing import Any
 
+import structlog
 from fastapi import WebSocket, WebSocketDisconnect
 from starlette.websockets import WebSocketState
 
@@ -83,6 +84,8 @@ class AssetSession:
     async def serve(self) -> None:
         """Claim presence, exchange hello/welcome, then serve until the socket or a task ends."""
         hub, broker = self.services.hub, self.services.broker
+        # this connection's task (and the tasks it starts) log with the asset's id
+        structlog.contextvars.bind_contextvars(asset_id=str(self.asset_id))
         if await broker.claim(self.presence, self.owner, PRESENCE_TTL_S) is not None:
             await self.ws.close(4409, "another connection of this asset is live")
             return

@@ -12,6 +12,7 @@ import uuid
 from datetime import datetime, timedelta
 from typing import Any
 
+import structlog
 from pydantic import ValidationError
 
 from protocol.messages import RunProgress
@@ -113,6 +114,10 @@ class RunEngine:
 
     async def drive(self, run_id: uuid.UUID) -> None:
         """Issue the current step's commands if not yet out, else look and maybe transition."""
+        with structlog.contextvars.bound_contextvars(run_id=str(run_id)):
+            await self._drive(run_id)
+
+    async def _drive(self, run_id: uuid.UUID) -> None:
         async with self.services.sessionmaker() as db:
             run = await repo.lock(db, run_id)
             if run is None or run.lease_owner != self.node:

@@ -9,6 +9,8 @@ both daemons connect through the proxy, as they would in a deployment.
 from __future__ import annotations
 
 import asyncio
+import json
+import re
 import signal
 import sqlite3
 import uuid
@@ -27,6 +29,7 @@ from server.kit.security import Passwords
 from server.organizations.service import create_user
 from tests.conftest import PG_URL_DEFAULT, SUPERUSER_PASSWORD, Tenant, need_service
 from tests.e2e.harness import FINAL, platform
+from tests.e2e.test_autonomous_run import WHOLE_SEQUENCE
 from tests.polling import eventually
 from tests.replicas import proxy, replicas
 
@@ -126,6 +129,18 @@ async def test_killing_the_lease_holder_mid_flight_the_run_completes_on_the_othe
                     uav_link = p.agent.link
                     assert await uav_link.flush(60)
                     assert uav_link.stats.dropped == 0
+                # every log line of a run carries its id, every request line the proxy's request id
+                lines = [
+                    json.loads(line)
+                    for line in (tmp_path / "servers.log").read_text().splitlines()
+                    if line.startswith("{")
+                ]
+                moves = [x for x in lines if x.get("run_id") == run_id and "->" in x["event"]]
+                assert len(moves) >= len(WHOLE_SEQUENCE), moves
+                served = [x for x in lines if x.get("logger") == "aerobase.access"]
+                assert served and all(
+                    re.fullmatch(r"[0-9a-f]{32}", x["request_id"]) for x in served
+                )
                 # each motion command ran once on its daemon, whichever replica delivered it
                 for ledger in (_ledger(tmp_path / "base.db"), _ledger(tmp_path / "agent.db")):
                     twice = {n: c for n, c in ledger.items() if n in MOTION and c > 1}
