@@ -46,7 +46,7 @@ HOME_POSITION, EXTENDED_SYS_STATE = 242, 245
 POSE_HZ = 25.0
 # REQUEST_DATA_STREAM groups (ArduPilot): EXTENDED_STATUS, POSITION, EXTRA1 (attitude)
 DATA_STREAMS = ((2, 2), (6, int(POSE_HZ)), (10, int(POSE_HZ)))
-INTERVALS_HZ = {GLOBAL_POSITION_INT: POSE_HZ, ATTITUDE: POSE_HZ, EXTENDED_SYS_STATE: 2.0}
+INTERVALS_HZ = {GLOBAL_POSITION_INT: POSE_HZ, ATTITUDE: POSE_HZ, EXTENDED_SYS_STATE: 5.0}
 SILENT_S = 2.0  # wall seconds without a pose before asking for the streams again
 HOME_ASK_S = 1.0  # wall seconds between requests for HOME_POSITION until it comes
 MAX_EXTRAPOLATION_S = 0.3
@@ -75,7 +75,7 @@ class Follower:
 
     def __init__(self, url: str) -> None:
         """`url`: a `sim.mavlink_link` URL (BadUrl if it is not one)."""
-        self.link = MavlinkLink(url, self._on_message, self._on_connect)
+        self.link = MavlinkLink(url, self.handle, self._on_connect)
         self.home: tuple[float, float, float] | None = (
             None  # first HOME_POSITION: lat, lon, alt MSL
         )
@@ -152,7 +152,8 @@ class Follower:
             await asyncio.sleep(HOME_ASK_S)
 
     # --- input -------------------------------------------------------------------------------
-    def _on_message(self, msg: Any) -> None:
+    def handle(self, msg: Any) -> None:
+        """Take in one message from the vehicle."""
         kind = msg.get_type()
         if kind == "HEARTBEAT":
             if msg.type != 6 and msg.autopilot != 8:  # a vehicle, not a GCS or a companion
