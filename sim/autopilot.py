@@ -1,16 +1,19 @@
-"""`aerobase sim autopilot`: the simulated autopilot alone, served like ArduPilot SITL serves its
-serial ports — MAVLink over TCP on two ports — to stand in for an external autopilot.
+"""`aerobase sim autopilot`: the simulated autopilot alone on two MAVLink TCP ports, as SITL serves.
 
-    aerobase sim autopilot [--port 5760] [--port2 5762] [--speed 1] [--seed 0] [--host 127.0.0.1]
-                           [--home LAT,LON,ALT] [--control-port 0]
+It stands in for an external autopilot: ArduPilot SITL serves SERIAL0 and SERIAL1 as TCP ports
+5760 and 5762, and so does this.
+
+    aerobase sim autopilot [--tcp-port 5760] [--tcp-port2 5762] [--home LAT,LON,ALT]
+                           [every other flag of python -m sim.vehicle: --speed, --seed, --host,
+                            --udp-port, --control-port, the autopilot's habits]
 
 Both ports take any number of clients, each with its own stream rates (a link per connection, as
 ArduPilot keeps rates per channel): the agent flies it on the first (``tcp:HOST:5760``) and the
 world follows it read-only on the second (``aerobase sim world --follow tcp:HOST:5762``). The
-vehicle starts landed at `--home` on an always-open pad (`sim.vehicle.standalone.OpenPad`): the
-base it lands on is the one the following world builds at its home. `--control-port` serves the
-vehicle's control routes (truth, faults) under /vehicle; 0 serves none. Prints one line,
-``simulated autopilot: MAVLink tcp:HOST:PORT tcp:HOST:PORT2``, once both ports listen.
+vehicle is built as ``python -m sim.vehicle`` builds it and starts landed at `--home` on an
+always-open pad (`sim.vehicle.standalone.OpenPad`): the base it lands on is the one the following
+world builds at its home. Prints ``simulated autopilot: MAVLink tcp:HOST:PORT tcp:HOST:PORT2``
+once both ports listen.
 """
 
 from __future__ import annotations
@@ -22,8 +25,9 @@ import logging
 from collections.abc import Sequence
 from typing import Any
 
-from sim.clock import SimClock
-from sim.vehicle.copter import Copter, CopterConfig
+from sim.vehicle.__main__ import parse_args as vehicle_args
+from sim.vehicle.__main__ import setup as vehicle_setup
+from sim.vehicle.copter import Copter
 from sim.vehicle.server import VehicleServer
 from sim.vehicle.standalone import DEFAULT_PAD, OpenPad
 
@@ -63,26 +67,36 @@ def _home(text: str) -> tuple[float, float, float]:
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
-    """The command line."""
-    ap = argparse.ArgumentParser(prog="aerobase sim autopilot", description=__doc__.splitlines()[0])
-    ap.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall second")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--host", default="127.0.0.1")
-    ap.add_argument("--port", type=int, default=5760, help="first MAVLink TCP port (the agent's)")
-    ap.add_argument("--port2", type=int, default=5762, help="second MAVLink TCP port (a watcher's)")
+    """`--tcp-port2` and `--home` here; every other flag is `python -m sim.vehicle`'s."""
+    ap = argparse.ArgumentParser(
+        prog="aerobase sim autopilot",
+        allow_abbrev=False,  # --tcp-port is sim.vehicle's, not an abbreviation of --tcp-port2
+        description=__doc__.splitlines()[0],
+        epilog="Every other flag is python -m sim.vehicle's (--speed, --seed, --host, --tcp-port, "
+        "--udp-port, --control-port and the autopilot's habits); see python -m sim.vehicle -h.",
+    )
+    ap.add_argument("--tcp-port2", type=int, default=5762, help="second MAVLink TCP port")
     ap.add_argument("--home", type=_home, default=DEFAULT_PAD, help="LAT,LON,ALT (m MSL)")
-    ap.add_argument("--control-port", type=int, default=0, help="HTTP control routes; 0: none")
-    a = ap.parse_args(argv)
-    if a.speed <= 0:
+    ours, rest = ap.parse_known_args(argv)
+    args = vehicle_args(rest)
+    if args.speed <= 0:
         ap.error("--speed must be positive")
-    return a
+    args.tcp_port2, args.home = ours.tcp_port2, ours.home
+    return args
 
 
 def setup(args: argparse.Namespace) -> TwoPortServer:
-    """The vehicle server, nothing bound yet."""
-    copter = Copter(OpenPad(pad_geodetic=args.home), CopterConfig(seed=args.seed))
+    """The vehicle server as `python -m sim.vehicle` builds it (habits included), at `args.home`,
+    listening on a second TCP port too; nothing bound yet."""
+    single = vehicle_setup(args)
+    copter = Copter(OpenPad(pad_geodetic=args.home), single.copter.config)
     return TwoPortServer(
-        copter, SimClock(args.speed), host=args.host, tcp_port=args.port, tcp_port2=args.port2
+        copter,
+        single.clock,
+        host=args.host,
+        tcp_port=args.tcp_port,
+        udp_port=args.udp_port,
+        tcp_port2=args.tcp_port2,
     )
 
 

@@ -25,7 +25,8 @@ def external_autopilot(tmp_path):
     proc = subprocess.Popen(
         [
             *(sys.executable, "-m", "aerobase.cli", "sim", "autopilot", "--speed", SPEED),
-            *("--port", str(port), "--port2", str(port2)),
+            *("--tcp-port", str(port), "--tcp-port2", str(port2)),
+            *("--udp-port", "0", "--control-port", "0"),
         ],
         stdout=log,
         stderr=subprocess.STDOUT,

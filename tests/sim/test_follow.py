@@ -16,6 +16,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from aerobase.demo.run import main as demo_main
 from sim.assemble import SEAT_HEIGHT, build
 from sim.assemble import main as world_main
+from sim.autopilot import parse_args as autopilot_args
+from sim.autopilot import setup as autopilot_setup
 from sim.follow import Follower
 from sim.mavlink_link import BadUrl, parse_url
 from sim.vehicle.copter import CopterConfig
@@ -187,3 +189,32 @@ def test_demo_wants_both_autopilot_urls(capsys):
     with pytest.raises(SystemExit):
         demo_main(["--autopilot", "tcp:127.0.0.1:5760", "--autopilot-watch", "5762"])
     assert "--autopilot-watch: MAVLink URL '5762'" in capsys.readouterr().err
+
+
+async def test_sim_autopilot_serves_one_vehicle_on_two_tcp_ports_at_its_home():
+    args = autopilot_args(
+        ["--tcp-port", "0", "--tcp-port2", "0", "--udp-port", "0", "--home", "41.5,-8.25,80"]
+    )
+    server = autopilot_setup(args)
+    await server.start()
+    try:
+        first = Peer(f"tcp:127.0.0.1:{server.tcp_port}")
+        second = Peer(f"tcp:127.0.0.1:{server.tcp_port2}")
+        for peer in (first, second):
+            peer.conn.mav.command_long_send(1, 1, 512, 0, 242, 0, 0, 0, 0, 0, 0)
+            home = await peer.recv("HOME_POSITION")
+            assert (home.latitude, home.longitude, home.altitude) == (415000000, -82500000, 80000)
+        # one vehicle: a command on the first port is seen on the second
+        first.conn.mav.set_mode_send(1, 1, GUIDED)
+        await second.recv("HEARTBEAT", custom_mode=GUIDED)
+    finally:
+        await server.close()
+
+
+def test_sim_autopilot_flags_its_own_and_sim_vehicles():
+    args = autopilot_args(["--tcp-port", "5999", "--tcp-port2", "6001", "--speed", "3"])
+    assert (args.tcp_port, args.tcp_port2, args.speed) == (5999, 6001, 3.0)
+    with pytest.raises(SystemExit):
+        autopilot_args(["--home", "91,0,0"])
+    with pytest.raises(SystemExit):
+        autopilot_args(["--speed", "0"])
