@@ -1,6 +1,7 @@
 """`aerobase demo --once --autopilot URL --autopilot-watch URL2` against an autopilot the demo did
 not start: our simulated one, served alone by `aerobase sim autopilot` as its own process on its
-own two TCP ports, as ArduPilot SITL serves SERIAL0 and SERIAL1."""
+own two TCP ports, as ArduPilot SITL serves SERIAL0 and SERIAL1, with ArduPilot 4.x's habits (35 s
+from boot to armable, only HEARTBEAT until streams are asked for on each port)."""
 
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ def external_autopilot(tmp_path):
         [
             *(sys.executable, "-m", "aerobase.cli", "sim", "autopilot", "--speed", SPEED),
             *("--tcp-port", str(port), "--tcp-port2", str(port2)),
-            *("--udp-port", "0", "--control-port", "0"),
+            *("--udp-port", "0", "--control-port", "0", "--autopilot-profile", "ardupilot-4"),
         ],
         stdout=log,
         stderr=subprocess.STDOUT,

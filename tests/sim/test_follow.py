@@ -22,6 +22,7 @@ from sim.follow import Follower
 from sim.mavlink_link import BadUrl, parse_url
 from sim.vehicle.copter import CopterConfig
 from sim.vehicle.gnss import GnssParams
+from sim.vehicle.habits import profile
 from sim.vehicle.server import run_vehicle
 from sim.world import World, WorldConfig
 from tests.conftest import free_port
@@ -75,11 +76,10 @@ async def test_the_world_builds_the_base_at_home_and_sees_the_vehicle_where_it_r
         assert abs(up - SEAT_HEIGHT - c.dyn.state.altitude) < 0.1
         assert abs(yaw - c.dyn.state.yaw) < 0.05  # ATTITUDE
 
-        await eventually(lambda: follower.follower.armed, 5, "a HEARTBEAT since arming (1 Hz)")
         async with httpx.AsyncClient() as http:
             r = await http.get(f"http://127.0.0.1:{world.ports['control']}/follower")
         body = r.json()
-        assert body["connected"] and body["armed"] and not body["landed"]
+        assert body["connected"] and not body["landed"] and not body["on_pad"]
         assert body["home"] == list(world.base.pad_geodetic)
 
 
@@ -218,3 +218,31 @@ def test_sim_autopilot_flags_its_own_and_sim_vehicles():
         autopilot_args(["--home", "91,0,0"])
     with pytest.raises(SystemExit):
         autopilot_args(["--speed", "0"])
+
+
+@pytest.mark.slow  # a 2 s reboot and the 2 s silence before streams are asked again: ~5 s
+async def test_the_world_follows_an_ardupilot_3_7_through_a_reboot():
+    """No SET_MESSAGE_INTERVAL, no EXTENDED_SYS_STATE, quiet streams at boot, and a reboot."""
+    habits = profile("ardupilot-3.7", boot_s=0.0)
+    config = CopterConfig(seed=3, gnss=GnssParams(sigma_3d_m=0.005), habits=habits)
+    async with run_vehicle(speed=SPEED, config=config) as sim:
+        world = await build(_config(sim, SPEED))
+        async with world:
+            part = next(p for p in world.parts if p.name == "follower")
+            follower = part.follower
+            await eventually(lambda: follower.sample is not None, 5, "a pose (REQUEST_DATA_STREAM)")
+            assert follower.landed_state is None  # never sent: landed from altitude and climb
+            await eventually(lambda: world.base.pad_mass_g == MASS_G, 5, "the UAV on the scale")
+
+            peer = Peer(f"tcp:127.0.0.1:{sim.tcp_port}")
+            peer.conn.mav.command_long_send(1, 1, 246, 0, 1, 0, 0, 0, 0, 0, 0)  # reboot
+            await peer.recv("COMMAND_ACK", command=246, result=0)
+            rebooted = sim.copter.boots
+            await eventually(
+                lambda: sim.copter.boots > rebooted and not sim.muted(), 10, "rebooted"
+            )
+            follower.sample = None  # streams reset at boot: only a new request brings the pose
+            await eventually(lambda: follower.sample is not None, 10, "the pose after the reboot")
+            await _take_off(peer, 5.0)
+            await eventually(lambda: world.base.pad_mass_g == 0.0, 10, "the scale empty")
+            assert follower.landed() is False
