@@ -18,9 +18,10 @@ from sim.assemble import SEAT_HEIGHT, build
 from sim.assemble import main as world_main
 from sim.autopilot import parse_args as autopilot_args
 from sim.autopilot import setup as autopilot_setup
-from sim.follow import Follower
+from sim.follow import Follower, FollowerPart
 from sim.mavlink_link import BadUrl, parse_url
 from sim.vehicle.copter import CopterConfig
+from sim.vehicle.geo import GeoOrigin
 from sim.vehicle.gnss import GnssParams
 from sim.vehicle.habits import profile
 from sim.vehicle.server import run_vehicle
@@ -246,3 +247,29 @@ async def test_the_world_follows_an_ardupilot_3_7_through_a_reboot():
             await _take_off(peer, 5.0)
             await eventually(lambda: world.base.pad_mass_g == 0.0, 10, "the scale empty")
             assert follower.landed() is False
+
+
+def test_the_pad_load_is_judged_at_touchdown_and_held_while_landed():
+    world = World(WorldConfig.for_tests(control=False))  # not started: the base model alone
+    world.base.pad_geodetic = (41.178, -8.596, 120.0)
+    follower = Follower("tcp:127.0.0.1:5760")
+    part = FollowerPart(follower, SEAT_HEIGHT)
+    part.base, part.pad = world.base, GeoOrigin(*world.base.pad_geodetic)
+
+    def report(north_cm: float, rel_alt_m: float, battery: int = 80) -> tuple[float, bool]:
+        lat = 411780000 + round(north_cm / 100 / 111_319.49 * 1e7)
+        follower.handle(_msg("global_position_int", 0, lat, -85960000, 0, round(rel_alt_m * 1e3), 0, 0, 0, 0))  # fmt: skip
+        follower.handle(_msg("sys_status", 0, 0, 0, 0, 16000, 0, battery, 0, 0, 0, 0, 0, 0))
+        part.step(0.02)
+        return world.base.pad_mass_g, world.base.contacts_seated
+
+    assert report(140, 0.0) == (MASS_G, True)  # before any flight: at home, which is the pad
+    assert world.base.charger.uav_soc == 0.8  # the charger takes the battery it reports
+    assert report(140, 5.0) == (0.0, False)
+    assert report(2, 0.0) == (MASS_G, True)  # touched down 2 cm from the centre
+    assert report(30, 0.0) == (MASS_G, True)  # the estimate drifts, the vehicle does not
+    assert report(30, 5.0) == (0.0, False)
+    assert report(30, 0.0) == (MASS_G, False)  # on the pad, off the contacts
+    assert world.base.charger.uav_soc is None
+    report(30, 5.0)
+    assert report(100, 0.0) == (0.0, False)  # beside the pad
