@@ -19,7 +19,8 @@ commands:
   asset decrypt FILE        print a decrypted asset configuration file
   base-station --config F   run the landing-base daemon
   agent --config F          run the companion-computer daemon
-  sim world                 serve the simulated world
+  sim world                 serve the simulated world (--follow URL: around an external autopilot)
+  sim autopilot             serve the simulated autopilot alone, on two MAVLink TCP ports
   sim precland-eval         evaluate precision landing in the simulated world (bench/precland_eval.py)
   demo                      everything on embedded defaults, one autonomous mission
 """
@@ -32,6 +33,7 @@ ROUTES: dict[tuple[str, ...], str] = {
     ("base-station",): "base_station.main:main",
     ("agent",): "asset_agent.main:main",
     ("sim", "world"): "sim.assemble:main",
+    ("sim", "autopilot"): "sim.autopilot:main",
     ("sim", "precland-eval"): "bench.precland_eval:main",
     ("demo",): "aerobase.demo.run:main",
 }

@@ -12,7 +12,8 @@ Extension points for the parts others write (vehicle, GNSS receiver, camera):
   `pad_geodetic`), `world.weather.wind_ne(t_sim)`, `world.clock`, `world.config` (ports).
 
 Command line: `aerobase sim world [--speed X] [--seed N] [--plc-port 5020] [--gnss-port 5021]
-[--mavlink-port 5760] [--control-port 8090] [--host 127.0.0.1]`.
+[--mavlink-port 5760] [--control-port 8090] [--host 127.0.0.1] [--follow URL]` (`--follow`: no
+simulated vehicle; the world follows an external autopilot, see `sim.follow`).
 """
 
 from __future__ import annotations
@@ -69,6 +70,8 @@ class WorldConfig:
     mavlink_port: int = 5760
     control_port: int = 8090
     control: bool = True
+    follow: str | None = None  # MAVLink URL of an external autopilot to follow (sim.follow)
+    follow_timeout_s: float = 120.0  # how long to wait for its HOME_POSITION
     base: BaseParams = field(default_factory=BaseParams)
     weather: WeatherParams = field(default_factory=WeatherParams)
     power: PowerParams = field(default_factory=PowerParams)
@@ -187,6 +190,19 @@ def parse_args(argv: Sequence[str] | None) -> WorldConfig:
     ap.add_argument("--gnss-port", type=int, default=5021)
     ap.add_argument("--mavlink-port", type=int, default=5760)
     ap.add_argument("--control-port", type=int, default=8090)
+    ap.add_argument(
+        "--follow",
+        metavar="URL",
+        help="simulate no vehicle: follow an external autopilot's reported pose over this read-only"
+        " MAVLink connection (tcp:HOST:PORT, udpin:HOST:PORT, udpout:HOST:PORT); the base stands"
+        " at its home",
+    )
+    ap.add_argument(
+        "--follow-timeout",
+        type=float,
+        default=120.0,
+        help="seconds to wait for the followed vehicle's HOME_POSITION",
+    )
     a = ap.parse_args(argv)
     return WorldConfig(
         speed=a.speed,
@@ -196,6 +212,8 @@ def parse_args(argv: Sequence[str] | None) -> WorldConfig:
         gnss_port=a.gnss_port,
         mavlink_port=a.mavlink_port,
         control_port=a.control_port,
+        follow=a.follow,
+        follow_timeout_s=a.follow_timeout,
     )
 
 

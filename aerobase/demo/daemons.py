@@ -20,14 +20,16 @@ def write_daemon_files(
     asset_password: str,
     base: dict[str, Any],
     uav: dict[str, Any],
+    autopilot_url: str,
 ) -> None:
     """Everything the two daemons read at start: their assets' files (as the API returned them
-    on registration), the password that opens them, and base.toml / agent.toml."""
+    on registration), the password that opens them, and base.toml / agent.toml (the agent flies
+    the autopilot at `autopilot_url`)."""
     write_secret(folder / "asset-password", asset_password)
     write_secret(folder / "base.abcf", base64.b64decode(base["config_file"]))
     write_secret(folder / "uav.abcf", base64.b64decode(uav["config_file"]))
     (folder / "base.toml").write_text(base_toml(folder, ports, speed))
-    (folder / "agent.toml").write_text(agent_toml(folder, ports))
+    (folder / "agent.toml").write_text(agent_toml(folder, ports, autopilot_url))
 
 
 def base_toml(folder: Path, ports: dict[str, int], speed: float) -> str:
@@ -61,9 +63,9 @@ tcp_port = {ports["gnss"]}
 """
 
 
-def agent_toml(folder: Path, ports: dict[str, int]) -> str:
-    """The UAV agent's configuration: the simulated autopilot, precision landing when the world
-    serves a camera and an IR sensor."""
+def agent_toml(folder: Path, ports: dict[str, int], autopilot_url: str) -> str:
+    """The UAV agent's configuration: the autopilot at `autopilot_url`, precision landing when the
+    world serves a camera and an IR sensor."""
     return f"""# written by aerobase demo
 [server]
 config_file = "{folder / "uav.abcf"}"
@@ -71,7 +73,7 @@ password_file = "{folder / "asset-password"}"
 state_file = "{folder / "agent-link.db"}"
 
 [autopilot]
-url = "tcp:127.0.0.1:{ports["mavlink"]}"
+url = "{autopilot_url}"
 
 [telemetry]
 rate_hz = 5

@@ -207,10 +207,22 @@ async def watch(server_url: str, fleet: Fleet, procs: Processes) -> str:
 
 
 async def report_run(c: httpx.AsyncClient, fleet: Fleet, outcome: str) -> None:
-    """Print the outcome of the latest run with its flight time."""
+    """Print the outcome of the latest run with its flight time, its timeline and what the UAV
+    reported meanwhile (armed, took_off, mission_finished, landed, ...)."""
     runs = await api(c, "GET", "/api/v1/runs", fleet.ops_token)
     if not runs:
         return
     report = await api(c, "GET", f"/api/v1/runs/{runs[0]['id']}/report", fleet.ops_token)
     ft = report.get("flight_time_s")
     say(f"run {runs[0]['id']}: {outcome}" + (f"; {ft:.0f} s in the air (wall clock)" if ft else ""))
+    timeline = report["run"]["timeline"]
+    say("timeline: " + " -> ".join(f"{t['to_state']} ({t['reason']})" for t in timeline))
+    if timeline:
+        events = await api(
+            c,
+            "GET",
+            f"/api/v1/assets/{fleet.uav['id']}/events",
+            fleet.ops_token,
+            params={"start": timeline[0]["at"]},
+        )
+        say("UAV events: " + ", ".join(e["name"] for e in events))

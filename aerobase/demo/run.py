@@ -5,6 +5,12 @@ processes; registers an organisation, a user and both assets through the public 
 encrypted configuration files); schedules a survey mission a few seconds ahead and prints the run's
 progress live from the operator WebSocket. `--once` exits after the run (0 if it completed);
 otherwise it keeps serving, with the URL and credentials printed, until Ctrl-C stops every process.
+
+`--autopilot URL --autopilot-watch URL2` flies an external autopilot (ArduPilot SITL, our own
+`aerobase sim autopilot`, or a real vehicle's companion link) instead of the simulated one: the
+agent flies it on URL and the world follows it read-only on URL2 (`aerobase sim world --follow`),
+building the base at its home and rendering the camera, the IR beacon and the scale's load from the
+pose it reports. `--speed` must then be the autopilot's own speed-up (1 for real time).
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ from aerobase.demo.fleet import (
     watch,
 )
 from aerobase.demo.processes import Processes, free_port, say, serve_until_stopped, wait_http
+from sim.mavlink_link import BadUrl, parse_url
 
 PASSWORD_LEN = 18
 
@@ -65,14 +72,23 @@ async def start_world_and_server(
 ) -> dict[str, int]:
     """Start the simulated world and the server; returns the world's ports once both answer."""
     ports = {k: free_port() for k in ("plc", "gnss", "mavlink", "control")}
-    say(f"starting the simulated world at {args.speed:g}x real time (ports {ports})")
     world = ["sim", "world", "--speed", str(args.speed), "--seed", str(args.seed)]
     for name in ("plc", "gnss", "mavlink", "control"):
         world += [f"--{name}-port", str(ports[name])]
+    limit_s = 60.0
+    if args.autopilot:
+        world += ["--follow", args.autopilot_watch, "--follow-timeout", str(args.follow_timeout)]
+        limit_s += args.follow_timeout
+        say(
+            f"starting the simulated world at {args.speed:g}x real time around the autopilot "
+            f"at {args.autopilot}, followed through {args.autopilot_watch} (ports {ports})"
+        )
+    else:
+        say(f"starting the simulated world at {args.speed:g}x real time (ports {ports})")
     procs.start("world", world, env)
     say(f"starting the server on {server_url}")
     procs.start("server", ["server", "--port", str(args.port)], env)
-    await wait_http(f"http://127.0.0.1:{ports['control']}/health", procs)
+    await wait_http(f"http://127.0.0.1:{ports['control']}/health", procs, limit_s)
     async with httpx.AsyncClient() as sim:  # the camera and IR sensor pick their own ports
         served = (await sim.get(f"http://127.0.0.1:{ports['control']}/health")).json()["ports"]
     ports.update({k: served[k] for k in ("camera", "ir") if k in served})
@@ -92,7 +108,10 @@ async def run_mission(
     ports = await start_world_and_server(args, procs, env, server_url)
     async with httpx.AsyncClient(base_url=server_url, timeout=30) as c:
         fleet = await register(c, passwords)
-        write_daemon_files(folder, ports, args.speed, passwords["asset"], fleet.base, fleet.uav)
+        autopilot = args.autopilot or f"tcp:127.0.0.1:{ports['mavlink']}"
+        write_daemon_files(
+            folder, ports, args.speed, passwords["asset"], fleet.base, fleet.uav, autopilot
+        )
         say("starting the landing-base daemon and the UAV agent")
         procs.start("base-station", ["base-station", "--config", str(folder / "base.toml")], env)
         procs.start("agent", ["agent", "--config", str(folder / "agent.toml")], env)
@@ -147,7 +166,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--dir", default="var/demo", help="where files, logs and the database go")
+    parser.add_argument(
+        "--autopilot",
+        metavar="URL",
+        help="fly this external autopilot (the agent's MAVLink URL, e.g. tcp:127.0.0.1:5760) "
+        "instead of the simulated one; needs --autopilot-watch",
+    )
+    parser.add_argument(
+        "--autopilot-watch",
+        metavar="URL",
+        help="a second, read-only MAVLink connection to the same autopilot (e.g. "
+        "tcp:127.0.0.1:5762) through which the world follows it",
+    )
+    parser.add_argument(
+        "--follow-timeout",
+        type=float,
+        default=120.0,
+        help="seconds to wait for the external autopilot's home (HOME_POSITION)",
+    )
     args = parser.parse_args(argv)
+    if bool(args.autopilot) != bool(args.autopilot_watch):
+        parser.error("--autopilot and --autopilot-watch go together")
+    if args.autopilot_watch:
+        try:
+            parse_url(args.autopilot_watch)
+        except BadUrl as err:
+            parser.error(f"--autopilot-watch: {err}")
     try:
         folder, env, passwords = prepare(args)
     except (OSError, RuntimeError) as err:

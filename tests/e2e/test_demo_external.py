@@ -1,0 +1,104 @@
+"""`aerobase demo --once --autopilot URL --autopilot-watch URL2` against an autopilot the demo did
+not start: our simulated one, served alone by `aerobase sim autopilot` as its own process on its
+own two TCP ports, as ArduPilot SITL serves SERIAL0 and SERIAL1, with a real release's habits:
+ArduPilot 4.x (35 s from boot to armable, only HEARTBEAT until streams are asked for on each port)
+and 3.7 (no SET_MESSAGE_INTERVAL, no EXTENDED_SYS_STATE: the world and the agent infer landed)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import free_port, reachable
+from tests.polling import wait_for
+
+pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
+
+SPEED = "5"
+
+
+def start_autopilot(folder: Path, habits: str) -> tuple[subprocess.Popen[bytes], str, str]:
+    """`aerobase sim autopilot` as its own process; (process, agent's URL, watcher's URL)."""
+    port, port2 = free_port(), free_port()
+    with open(folder / "autopilot.log", "wb") as log:
+        proc = subprocess.Popen(
+            [
+                *(sys.executable, "-m", "aerobase.cli", "sim", "autopilot", "--speed", SPEED),
+                *("--tcp-port", str(port), "--tcp-port2", str(port2)),
+                *("--udp-port", "0", "--control-port", "0", "--autopilot-profile", habits),
+            ],
+            stdout=log,
+            stderr=subprocess.STDOUT,
+        )
+    wait_for(
+        lambda: (
+            proc.poll() is None and reachable("127.0.0.1", port) and reachable("127.0.0.1", port2)
+        ),
+        within=30,
+        what="the simulated autopilot's two MAVLink ports",
+    )
+    return proc, f"tcp:127.0.0.1:{port}", f"tcp:127.0.0.1:{port2}"
+
+
+def run_demo(folder: Path, habits: str) -> tuple[str, list[str]]:
+    """The demo against a separately started autopilot: its output and the UAV's events."""
+    proc, url, watch = start_autopilot(folder, habits)
+    try:
+        r = subprocess.run(
+            [
+                *(sys.executable, "-m", "aerobase.cli", "demo", "--once", "--speed", SPEED),
+                *("--autopilot", url, "--autopilot-watch", watch),
+                *("--port", str(free_port()), "--dir", str(folder / "demo")),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+    finally:
+        proc.terminate()
+        proc.wait(10)
+    out = r.stdout + r.stderr
+    assert r.returncode == 0, out
+    for step in (
+        "[1/8] Checking",
+        "[2/8] Opening",
+        "[3/8] Uploading",
+        "[4/8] Flying",
+        "[5/8] Returning",
+        "[6/8] Confirming",
+        "[7/8] Closing",
+        "[8/8] Starting to charge",
+        "Completed: charging; the run is over",
+    ):
+        assert step in out, (step, out)
+    assert "around the autopilot at " + url in out
+    timeline = next(line for line in out.splitlines() if "timeline:" in line)
+    assert "flying (mission uploaded and verified)" in timeline, timeline
+    assert "landing (mission finished)" in timeline, timeline
+    assert "confirming (the UAV reports it has landed)" in timeline, timeline
+    assert "closing (the base's scale confirms the UAV on the lift)" in timeline, timeline
+    events = next(line for line in out.splitlines() if "UAV events:" in line)
+    names = events.split("UAV events: ")[1].split(", ")
+    assert names.index("took_off") < names.index("landed"), events
+    world = (folder / "demo" / "world.log").read_text()
+    assert "the vehicle's home (the pad) is (41.178, -8.596, 120.0)" in world, world
+    follower = [line for line in world.splitlines() if "follower:" in line]
+    assert "seated on the pad" in follower[-1], follower  # where the world saw it land
+    return out, names
+
+
+def test_demo_flies_an_external_ardupilot_4_with_precision_landing(tmp_path):
+    run_demo(tmp_path, "ardupilot-4")
+    # precision landing flew it: LANDING_TARGET from the rendered camera and IR went to the autopilot
+    agent = (tmp_path / "demo" / "agent.log").read_text()
+    assert "precland: active" in agent and "LANDING_TARGET sent" in agent, agent
+
+
+def test_demo_flies_an_external_ardupilot_3_7_that_reports_no_landed_state(tmp_path):
+    _, events = run_demo(tmp_path, "ardupilot-3.7")
+    # the landed state and the mission's end inferred (no EXTENDED_SYS_STATE, no mission_state)
+    assert events.index("took_off") < events.index("landed"), events
+    assert "mission_finished" in events, events
