@@ -273,6 +273,8 @@ ABORT_ON_THE_LIFT = Exit(
     safe=(STOP,),
 )
 CHARGING_FAILED = "the base is closed but charging did not start: {failure}"
+# said when a failure closes the base on its way out; settle.py rewrites it to what happened
+BEING_CLOSED = "the base is being closed"
 
 STEPS: dict[State, Step] = {
     s.state: s

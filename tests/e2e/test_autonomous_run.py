@@ -6,6 +6,7 @@ import pytest
 
 from tests.conftest import Tenant
 from tests.e2e.harness import FINAL, platform
+from tests.e2e.test_base_recovery import BEING_CLOSED, settled
 from tests.metrics import value
 from tests.polling import eventually
 
@@ -76,15 +77,19 @@ async def test_panel_stall_while_opening_fails_lift_never_raised_panels_driven_b
         run_id = await p.start_run()
         body = await p.wait_state(run_id, FINAL, 90)
         assert body["state"] == "failed" and body["cause"] == "opening_failed", body["reason"]
-        assert "opening the base failed" in body["reason"] and "closed" in body["reason"]
+        assert "opening the base failed" in body["reason"]
+        failing = next(t for t in body["timeline"] if t["to_state"] == "failed")
+        assert BEING_CLOSED in failing["reason"]  # said when the close is issued...
         coils = [c.coil for c in p.world.base.command_log]
         assert "LIFT_UP" not in coils  # the lift never went up on a half-open base
-        # the run then drives the panels back: its close command is issued (and answered: done, or refused
-        # with the reason while the stall fault is latched)
+        # ...then the run tries to drive the panels back: the PLC refuses while the stall is latched
+        # (a stall needs a person: the daemon does not reset it), and the run says so with an alert
         close = await _base_command(p, "close")
-        assert close["status"] in ("succeeded", "rejected", "failed"), close
-        if close["status"] != "succeeded":
-            assert close["reason"]
+        assert close["status"] == "rejected" and "PANEL_STALL" in close["reason"], close
+        body = await settled(p, run_id)
+        assert body["timeline"][-1]["cause"] == "safe_state_not_reached", body["timeline"]
+        assert body["alert"] and "could not be closed" in body["reason"], body["reason"]
+        assert BEING_CLOSED not in body["reason"] and "PANEL_STALL" in body["reason"]
 
 
 async def test_uav_landing_off_the_pad_fails_keeps_the_panels_open_and_alerts(
