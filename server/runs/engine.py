@@ -285,7 +285,13 @@ class RunEngine:
         outcomes = await self._outcomes(db, await repo.step_commands(db, run.id))
         since = run.step_started_at
         uav_events = await repo.event_names_since(db, run.uav_id, since)
-        base_events = await repo.event_names_since(db, run.base_id, since)
+        # the base's events since take-off: after a server restart or a cut the base's outbox may
+        # replay its landing_confirmed before the run has caught up to `confirming`; it is an edge
+        # (the UAV arrived on the lift), so one stored after the flight began is this landing's
+        base_since = since
+        if run.state == State.confirming.value and run.flight_started_at is not None:
+            base_since = min(since, run.flight_started_at)
+        base_events = await repo.event_names_since(db, run.base_id, base_since)
         store = self.services.telemetry
         uav = await store.latest(run.uav_id) or {}
         base = await store.latest(run.base_id) or {}

@@ -12,6 +12,7 @@ from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
+OUTAGE_SPEED = 2.0  # the landing without RTK rests on the camera: give it frames (4x is load-bound)
 WHOLE_SEQUENCE = [
     "checking", "opening", "uploading", "flying", "landing", "confirming", "closing", "charging",
 ]  # fmt: skip
@@ -192,10 +193,14 @@ async def test_operator_abort_in_flight_returns_the_uav_lands_and_closes_over_it
         assert p.world.base.contacts_seated and not p.world.base.can_vehicle_leave()
 
 
-async def test_server_killed_while_flying_resumes_and_completes(
+async def test_server_killed_while_flying_the_agent_lands_with_precision_and_the_run_resumes(
     database_url, superuser_email, tmp_path
 ):
-    """The server process dies mid-flight; a new one on the same database resumes the run."""
+    """The server process dies mid-flight and stays down through the return and the landing (RTK
+    corrections stop with it). The agent owns the landing: the mission's own return-home lands with
+    precision landing (camera + IR, as deployed). A new server on the same database resumes the run:
+    it learns the landing happened, the agent does not send the landed UAV back into RTL, and the
+    run confirms on the scale, closes and charges."""
     import asyncio
 
     import httpx
@@ -207,20 +212,79 @@ async def test_server_killed_while_flying_resumes_and_completes(
     try:
         with httpx.Client(base_url=server.url) as sync_api:
             tenant = Tenant(sync_api, superuser_email, "restart")
-            async with platform(server.url, tenant, tmp_path) as p:
+            async with platform(server.url, tenant, tmp_path, speed=OUTAGE_SPEED, precland={}) as p:
                 run_id = await p.start_run()
                 await p.wait_state(run_id, ("flying",), 60)
                 await eventually(lambda: p.world.base.pad_mass_g == 0, 60, "the UAV to take off")
                 await asyncio.to_thread(server.stop)
+                await _lands_by_itself(p)
                 restarted = await asyncio.to_thread(server.restarted)
-                body = await p.wait_state(run_id, FINAL, 150)
-                assert body["state"] == "completed", (body["reason"], body["timeline"])
-                states = [t["to_state"] for t in body["timeline"]]
-                assert (
-                    states.count("flying") == 1
-                )  # resumed where it stood, not restarted from the top
+                await _resumes_and_completes(p, run_id)
     finally:
         await asyncio.to_thread((restarted or server).stop)
+
+
+async def test_uav_link_cut_for_the_return_and_landing_lands_with_precision_and_resumes(
+    live_server, tenant: Tenant, tmp_path
+):
+    """The agent's server link is cut as the mission heads home and stays cut until the UAV has
+    landed (over 20 s); the landing is the agent's, with precision landing, and the run resumes."""
+    from tests.netproxy import TcpProxy
+
+    proxy = await TcpProxy("127.0.0.1", live_server.port).start()
+    try:
+        async with platform(
+            live_server.url,
+            tenant,
+            tmp_path,
+            speed=OUTAGE_SPEED,
+            agent_server_url=f"http://127.0.0.1:{proxy.port}",
+            precland={},
+        ) as p:
+            run_id = await p.start_run()
+            await p.wait_state(run_id, ("flying",), 60)
+            await eventually(
+                lambda: (p.agent.autopilot.state.mission_current or 0) >= 2, 90, "the second leg"
+            )
+            proxy.cut()
+            await _lands_by_itself(p)
+            proxy.restore()
+            await _resumes_and_completes(p, run_id)
+            assert await p.agent.link.flush(20) and p.agent.link.stats.dropped == 0
+    finally:
+        await proxy.stop()
+
+
+async def _lands_by_itself(p) -> None:  # type: ignore[no-untyped-def]
+    """With no server, the mission's own return-home lands on the pad with precision landing."""
+    stats = p.agent.lander.stats
+    sent = stats.targets_sent
+    await eventually(lambda: not p.copter.armed, 150, "the UAV to land with no server")
+    assert not p.agent.link.connected  # landed during the outage
+    assert stats.targets_sent > sent + 20, stats  # LANDING_TARGET fed the autopilot meanwhile
+    # GNSS alone, without the RTK corrections the server relays, lands 0.4-1.3 m off (the issue saw
+    # 1.1 and 0.36 m: off the scale). With precision landing it lands on the lift; the contacts
+    # (5 cm) are seated on a quiet machine (1.5-4.3 cm measured at 4x) but not always under heavy
+    # load without RTK (10-14 cm measured at load 8-10 on 2 cores), so the bound is the lift's.
+    print(f"landed during the outage: {_on_the_pad(p)}, {stats}")
+    assert p.copter.pad_distance() < 0.25, _on_the_pad(p)
+
+
+async def _resumes_and_completes(p, run_id: str) -> None:  # type: ignore[no-untyped-def]
+    body = await p.wait_state(run_id, FINAL, 150)
+    assert body["state"] == "completed", (body["reason"], body["timeline"])
+    states = [t["to_state"] for t in body["timeline"]]
+    assert states == [*WHOLE_SEQUENCE, "completed"], states  # resumed, not restarted
+    # the scale confirmed it on the lift and the base closed over it (charging needs the contacts)
+    assert p.world.base.pad_mass_g > 0 and not p.world.base.can_vehicle_leave()
+    if body["alert"]:  # only when the contacts are not seated: charging could not start
+        assert "charging did not start" in body["reason"], (body["reason"], _on_the_pad(p))
+    rtb = (
+        await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}/commands", headers=p.tenant.h("viewer"))
+    ).json()
+    answer = next(c for c in rtb if c["name"] == "return_to_base")
+    assert answer["status"] == "succeeded" and "already landed" in answer["reason"], answer
+    assert p.agent.autopilot.state.mode != "RTL"  # the landed UAV was not sent back to RTL
 
 
 def _on_the_pad(p) -> dict[str, object]:  # type: ignore[no-untyped-def]
