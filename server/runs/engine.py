@@ -309,6 +309,7 @@ class RunEngine:
             uav_landed=landed,
             base_mass_g=base.get("scale_mass_g"),
             base_confirms=base.get("landing_confirmed") is True and _after(base.get("ts"), since),
+            base_heard=_after(base.get("ts"), since),
             abort_requested=run.abort_requested,
             abort_reason=run.abort_reason,
             took_off="took_off" in uav_events or "armed" in uav_events,

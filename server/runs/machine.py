@@ -120,6 +120,7 @@ class Observations:
     base_confirms: bool = (
         False  # the base's latest telemetry (sent after this step began) says confirmed
     )
+    base_heard: bool = True  # the base has sent telemetry since this step began
     abort_requested: bool = False
     abort_reason: str = ""
     took_off: bool = False
@@ -211,6 +212,16 @@ def uav_landed(seen: Seen) -> bool:
 def scale_confirms(seen: Seen) -> bool:
     """The base's scale confirms the UAV on the lift."""
     return "landing_confirmed" in seen.obs.base_events or seen.obs.base_confirms
+
+
+def base_heard(seen: Seen) -> bool:
+    """The base has reported since the step began: its scale's silence means something."""
+    return seen.obs.base_heard
+
+
+def base_silent_too_long(seen: Seen) -> bool:
+    """The base has said nothing since the step began, for five times the step's budget."""
+    return not seen.obs.base_heard and seen.obs.elapsed_s > 5 * seen.obs.timeout_s
 
 
 def aborting(seen: Seen) -> bool:
@@ -366,10 +377,15 @@ STEPS: dict[State, Step] = {
                 Exit(State.closing, "the base's scale confirms the UAV on the lift",
                      when=scale_confirms),
             ),
+            # a base that has not reported since (its link is coming back after a server restart
+            # or a cut) is waited for: its scale's silence is no verdict
             timeout=(
                 Exit(State.failed, "the scale did not confirm the UAV within {timeout} s "
                      "(scale reads {mass}); the UAV may be off the pad, the panels stay open",
-                     "landing_not_confirmed", alert=True),
+                     "landing_not_confirmed", alert=True, when=base_heard),
+                Exit(State.failed, "the base has sent nothing since the UAV landed, so its "
+                     "scale cannot confirm the landing; the panels stay open",
+                     "base_silent", alert=True, when=base_silent_too_long),
             ),
         ),
         Step(

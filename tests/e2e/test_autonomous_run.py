@@ -224,37 +224,6 @@ async def test_server_killed_while_flying_the_agent_lands_with_precision_and_the
         await asyncio.to_thread((restarted or server).stop)
 
 
-async def test_uav_link_cut_for_the_return_and_landing_lands_with_precision_and_resumes(
-    live_server, tenant: Tenant, tmp_path
-):
-    """The agent's server link is cut as the mission heads home and stays cut until the UAV has
-    landed (over 20 s); the landing is the agent's, with precision landing, and the run resumes."""
-    from tests.netproxy import TcpProxy
-
-    proxy = await TcpProxy("127.0.0.1", live_server.port).start()
-    try:
-        async with platform(
-            live_server.url,
-            tenant,
-            tmp_path,
-            speed=OUTAGE_SPEED,
-            agent_server_url=f"http://127.0.0.1:{proxy.port}",
-            precland={},
-        ) as p:
-            run_id = await p.start_run()
-            await p.wait_state(run_id, ("flying",), 60)
-            await eventually(
-                lambda: (p.agent.autopilot.state.mission_current or 0) >= 2, 90, "the second leg"
-            )
-            proxy.cut()
-            await _lands_by_itself(p)
-            proxy.restore()
-            await _resumes_and_completes(p, run_id)
-            assert await p.agent.link.flush(20) and p.agent.link.stats.dropped == 0
-    finally:
-        await proxy.stop()
-
-
 async def _lands_by_itself(p) -> None:  # type: ignore[no-untyped-def]
     """With no server, the mission's own return-home lands on the pad with precision landing."""
     stats = p.agent.lander.stats
