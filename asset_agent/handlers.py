@@ -1,4 +1,11 @@
-"""The agent's commands: thin async handlers from typed protocol commands to the autopilot."""
+"""The agent's commands: thin async handlers from typed protocol commands to the autopilot.
+
+`return_to_base` knows the agent owns the landing: a server that lost the UAV mid-flight (killed,
+or the link cut) asks for it when the link returns, after the mission's own return-home has
+already brought the UAV back (precision landing runs in the agent, server or not). Re-commanding
+RTL then would climb a landing UAV back to RTL altitude for a second approach, or leave a landed
+one in RTL mode; so it answers what is already happening instead.
+"""
 
 from __future__ import annotations
 
@@ -26,6 +33,9 @@ from protocol.vocabulary import (
     UploadMission,
 )
 
+NAV_RETURN_TO_LAUNCH = 20
+RETURNING_MODES = ("RTL", "SMART_RTL")
+
 
 def _failure(err: AutopilotError) -> CommandResultPayload:
     return result("rejected" if isinstance(err, CommandRejected) else "failed", str(err))
@@ -37,6 +47,7 @@ class Handlers:
     def __init__(self, autopilot: Autopilot, limits: AvailabilityLimits) -> None:
         self.autopilot = autopilot
         self.limits = limits
+        self._mission: tuple[int, ...] = ()  # command of each item last uploaded and verified
 
     def table(self) -> dict[type[CommandParams], Handler]:
         """Command type -> handler, for `Link.on_command`."""
@@ -46,7 +57,7 @@ class Handlers:
             StartMission: self.start_mission,
             Pause: self.simple(self.autopilot.pause),
             Resume: self.simple(self.autopilot.resume),
-            ReturnToBase: self.simple(self.autopilot.return_to_base),
+            ReturnToBase: self.return_to_base,
             Land: self.simple(self.autopilot.land),
             Abort: self.abort,
         }
@@ -78,6 +89,7 @@ class Handlers:
         except AutopilotError as err:
             yield _failure(err)
             return
+        self._mission = tuple(int(i.command) for i in request.command.items)
         yield CommandProgress(
             step="verify",
             index=2,
@@ -95,6 +107,37 @@ class Handlers:
         except AutopilotError as err:
             return _failure(err)
         return result("succeeded", "mission started")
+
+    def already_home(self) -> str:
+        """Why a return to the base has nothing to do ("" when it has): the UAV has landed, or
+        is already on its way (RTL, or the mission's own return-home item in AUTO)."""
+        s = self.autopilot.state
+        if not s.armed and s.landed_state == "ON_GROUND":
+            return "already landed: nothing to return from"
+        if not s.armed:
+            return ""
+        if s.mode in RETURNING_MODES:
+            return f"already returning to the base ({s.mode})"
+        current = s.mission_current
+        if (
+            s.mode == "AUTO"
+            and current is not None
+            and current < len(self._mission)
+            and self._mission[current] == NAV_RETURN_TO_LAUNCH
+        ):
+            return "already returning to the base: the mission's own return-home"
+        return ""
+
+    async def return_to_base(self, request: CommandRequest[ReturnToBase]) -> CommandResultPayload:
+        """RTL, unless the UAV is already back or on its way (then it is left to land as it is)."""
+        why = self.already_home()
+        if why:
+            return result("succeeded", why, {"action": "none"})
+        try:
+            await self.autopilot.return_to_base()
+        except AutopilotError as err:
+            return _failure(err)
+        return result("succeeded", "return to base", {"action": "rtl"})
 
     def simple(self, method: Callable[[], Awaitable[object]]) -> Handler:
         """A handler calling one autopilot method without arguments."""

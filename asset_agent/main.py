@@ -3,7 +3,11 @@
 setup() reads the configuration and the encrypted asset file; run() keeps the autopilot link and
 the server link, reports telemetry and events, answers commands and injects RTK corrections;
 main() is the console entry point. If the server link drops, the flight goes on: the autopilot
-flies its mission and everything the agent reports waits in the link's on-disk outbox.
+flies its mission and everything the agent reports waits in the link's on-disk outbox. The
+landing is the agent's too: precision landing (precland/supervisor.py) follows the autopilot, not
+the server, so the mission's own return-home lands on the pad with it; when the link returns the
+server learns of the landing from the outbox, and its late return_to_base is answered "already
+landed" (handlers.py) instead of sending the UAV back into RTL.
 """
 
 from __future__ import annotations

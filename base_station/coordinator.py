@@ -5,6 +5,12 @@ events from successive snapshots and publishes them on its `EventBus`. It never 
 motion coil by itself: on start and on every reconnect it only reads (and feeds the
 watchdog), so a restart or a reconnect cannot start any motion.
 
+The one coil it writes unasked is FAULT_RESET, to recover the PLC from a watchdog latch its
+master's absence caused (a daemon killed or frozen, a cut cable): only when that is the only
+latched fault, the E-stop is released and the watchdog is being fed again (`recoverable_latch`,
+`WatchdogWriter.fed`), at most once every `RESET_RETRY_S`. Otherwise the latch would outlive the
+outage and refuse every later command, `close` included, until a person came.
+
 The link counts as down when a request fails or times out, and also when PLC_HEARTBEAT
 stays frozen for `plc.heartbeat_timeout_s` (the PLC answers but its CPU is not running).
 """
@@ -22,7 +28,7 @@ from base_station.devices.axis import AxisTracker
 from base_station.devices.lift import LIFT
 from base_station.devices.panels import PANELS
 from base_station.devices.scale import LandingDetector
-from base_station.events import Event, EventBus, diff_events
+from base_station.events import Event, EventBus, EventKind, diff_events
 from base_station.plc import (
     Coil,
     HoldingRegister,
@@ -31,9 +37,12 @@ from base_station.plc import (
     PlcState,
     WatchdogWriter,
 )
+from base_station.plc.watchdog import recoverable_latch
 from base_station.snapshot import Snapshot
 
 log = logging.getLogger(__name__)
+
+RESET_RETRY_S = 2.0  # a FAULT_RESET that did not clear the watchdog latch is retried after this
 
 
 class Coordinator:
@@ -56,6 +65,8 @@ class Coordinator:
         self._tasks: list[asyncio.Task[None]] = []
         self.polls = 0
         self._heartbeat: tuple[int, float] | None = None  # last value, when it last changed
+        self._reset_at: float | None = None  # when FAULT_RESET was last written for the watchdog
+        self.watchdog_recoveries = 0
 
     # --- lifecycle -----------------------------------------------------------------------
 
@@ -80,6 +91,9 @@ class Coordinator:
             started = time.monotonic()
             try:
                 await self.poll_once()
+                await self.clear_watchdog_latch()
+            except PlcLinkError as err:  # the next poll reports the link
+                log.debug("coordinator: watchdog recovery not written: %s", err)
             except Exception:  # a bug in one poll must not end polling
                 log.exception("coordinator: poll failed")
             if not self.snapshot.link_up:
@@ -163,6 +177,66 @@ class Coordinator:
         while snap.read_started < after and time.monotonic() < deadline:
             snap = await self.wait_next(snap.seq, max(0.01, deadline - time.monotonic()))
         return snap
+
+    # --- recovering the PLC from a watchdog latch ------------------------------------------
+
+    def _watchdog_recovery_due(self, now: float) -> bool:
+        snap = self.snapshot
+        return (
+            snap.link_up
+            and snap.plc is not None
+            and recoverable_latch(snap.plc)
+            and self.watchdog.fed(now)
+            and (self._reset_at is None or now - self._reset_at >= RESET_RETRY_S)
+        )
+
+    async def clear_watchdog_latch(self) -> float | None:
+        """Write FAULT_RESET when only the watchdog fault is latched and the watchdog is fed again;
+        returns when it was written (None when not due). Nothing moves: motion must be commanded."""
+        now = time.monotonic()
+        if not self._watchdog_recovery_due(now):
+            return None
+        self._reset_at = now
+        written = await self.write_coil(Coil.FAULT_RESET, True)
+        self.watchdog_recoveries += 1
+        message = (
+            "PLC watchdog fault cleared: it latched while no master fed the PLC (daemon restarted "
+            "or link lost); the daemon feeds it again and nothing else is latched, so FAULT_RESET "
+            "was written (nothing moves until commanded)"
+        )
+        self.emit(Event(EventKind.WATCHDOG_RECOVERED, message, {"faults": ["WATCHDOG"]}))
+        return written
+
+    async def before_motion(self) -> Snapshot:
+        """The snapshot a motion command is checked against: the current one, or, when a
+        recoverable watchdog latch would refuse it, the first one read after clearing it."""
+        snap = self.snapshot
+        if snap.link_up and snap.plc is not None and recoverable_latch(snap.plc):
+            return await self.recover_watchdog()
+        return snap
+
+    async def recover_watchdog(self, within: float = 2.0) -> Snapshot:
+        """For a command refused by a watchdog latch: clear it if it may be cleared, and return
+        the first snapshot read after the reset (or the current one when there is nothing to do).
+
+        Right after a (re)connect the watchdog may not be fed yet: wait for that (up to `within`).
+        """
+        deadline = time.monotonic() + within
+        snap = self.snapshot
+        while (
+            snap.link_up
+            and snap.plc is not None
+            and recoverable_latch(snap.plc)
+            and not self.watchdog.fed()
+            and time.monotonic() < deadline
+        ):
+            snap = await self.wait_next(snap.seq, max(0.01, deadline - time.monotonic()))
+        written = await self.clear_watchdog_latch()
+        if written is None and self._reset_at is not None:
+            written = self._reset_at  # the poll loop has just written it: see its effect
+        if written is None:
+            return self.snapshot
+        return await self.wait_fresh(written, max(0.5, deadline - time.monotonic()))
 
     # --- writes (used by the Station only) -----------------------------------------------
 

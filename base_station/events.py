@@ -26,6 +26,7 @@ class EventKind(StrEnum):
     PLC_INTERLOCK_REFUSED = "plc_interlock_refused"
     FAULT = "fault"
     FAULT_CLEARED = "fault_cleared"
+    WATCHDOG_RECOVERED = "watchdog_recovered"
     PLC_LINK_LOST = "plc_link_lost"
     PLC_LINK_RESTORED = "plc_link_restored"
     ESTOP = "estop"

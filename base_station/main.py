@@ -69,10 +69,15 @@ def server_link(config: StationConfig) -> LinkRunner | None:
 async def run(app: App, stop: asyncio.Event | None = None, link: LinkRunner | None = None) -> None:
     """Run until `stop` is set: poll the PLC, feed its watchdog, serve the link if any.
 
-    Starting never writes a command coil: the daemon reads the PLC's state and carries on.
+    Starting never writes a motion coil: the daemon reads the PLC's state and carries on (and
+    clears a watchdog latch its own absence left, see coordinator.py). The server link starts
+    once the PLC has been read (or could not be), so a command replayed at once is judged
+    against the base as it is, not against "not connected yet".
     """
     stop = stop or asyncio.Event()
     await app.coordinator.start()
+    plc = app.config.plc
+    await app.coordinator.wait_next(0, 2 * plc.timeout_s + 1.0)
     link_task = asyncio.ensure_future(link(app.station, app.config)) if link else None
     try:
         await stop.wait()

@@ -27,7 +27,7 @@ from protocol.vocabulary import CommandParams
 log = logging.getLogger(__name__)
 
 CRITICAL = {EventKind.ESTOP, EventKind.PLC_LINK_LOST, EventKind.FAULT, EventKind.MOTION_FAILED}
-WARNING = {EventKind.REFUSAL, EventKind.PLC_INTERLOCK_REFUSED}
+WARNING = {EventKind.REFUSAL, EventKind.PLC_INTERLOCK_REFUSED, EventKind.WATCHDOG_RECOVERED}
 
 
 def to_event(e: Event) -> EventPayload:

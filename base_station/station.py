@@ -208,7 +208,7 @@ class Station:
     async def _move(
         self, command: str, spec: AxisSpec, direction: int, check: Callable[..., Decision]
     ) -> AsyncIterator[Item]:
-        snap = self.coord.snapshot
+        snap = await self.coord.before_motion()  # a watchdog latch alone is cleared first
         decision = check(snap.plc, snap.link_up)
         if not decision.allowed:
             yield self._reject(command, decision.reason)

@@ -42,7 +42,8 @@ from server.runs.machine import (
     Transition,
     advance,
 )
-from server.runs.models import Run, RunTransition
+from server.runs.models import Run, RunStepCommand, RunTransition
+from server.runs.settle import settle
 from server.services import Services
 
 log = logging.getLogger(__name__)
@@ -131,20 +132,59 @@ class RunEngine:
                     )
                 return
             if State(run.state) in FINAL:
-                return
-            obs = await self._observe(db, run)
-            transition = advance(State(run.state), obs, aborting=run.aborting)
-            if transition is None:
-                return
-            previous, entered = run.state, run.step_started_at
-            # written first: a server that dies right after this resumes in the new step
-            await self._record(db, run, transition)
-            await db.commit()
-            observe_transition(previous, entered, run)
-            log.info(
-                "run %s: %s -> %s: %s", run.id, previous, transition.to.value, transition.reason
-            )
+                if not await self._settle(db, run):
+                    return
+                await db.commit()
+            else:
+                obs = await self._observe(db, run)
+                transition = advance(State(run.state), obs, aborting=run.aborting)
+                if transition is None:
+                    return
+                previous, entered = run.state, run.step_started_at
+                # written first: a server that dies right after this resumes in the new step
+                await self._record(db, run, transition)
+                await db.commit()
+                observe_transition(previous, entered, run)
+                log.info(
+                    "run %s: %s -> %s: %s",
+                    run.id,
+                    previous,
+                    transition.to.value,
+                    transition.reason,
+                )
         await self._publish(run)
+
+    async def _settle(self, db: Any, run: Run) -> bool:
+        """A final run's safe commands (the close on the way out) have ended: say what happened
+        (settle.py), alert when the base was not made safe, and stop watching. True if recorded."""
+        rows = await repo.step_commands(db, run.id)
+        if not rows:
+            return False
+        outcomes = await self._outcomes(db, rows)
+        settled = settle(run.reason, outcomes) if len(outcomes) == len(rows) else None
+        if settled is None:
+            return False
+        now = utcnow()
+        db.add(
+            RunTransition(
+                run_id=run.id,
+                at=now,
+                from_state=run.state,
+                to_state=run.state,
+                reason=settled.note,
+                cause=settled.cause,
+            )
+        )
+        run.reason, run.alert, run.updated_at = settled.reason, run.alert or settled.alert, now
+        await repo.replace_step_commands(db, run.id, [])
+        log.log(
+            logging.WARNING if settled.alert else logging.INFO,
+            "run %s (%s): %s",
+            run.id,
+            run.state,
+            settled.note,
+        )
+        return True
 
     async def _record(self, db: Any, run: Run, transition: Transition) -> None:
         """The transition in the timeline, the run in its new step, the step's commands pending."""
@@ -231,17 +271,27 @@ class RunEngine:
                 return CheckAvailability()
         return action.command()
 
-    async def _observe(self, db: Any, run: Run) -> Observations:
-        rows = await repo.step_commands(db, run.id)
+    async def _outcomes(
+        self, db: Any, rows: list[RunStepCommand]
+    ) -> dict[tuple[str, str], CommandOutcome]:
         found = await repo.commands_by_id(db, [r.command_id for r in rows if r.command_id])
-        outcomes = {
+        return {
             (row.target, row.command): CommandOutcome(cmd.status, cmd.reason, cmd.result)
             for row in rows
             if row.command_id and (cmd := found.get(row.command_id)) is not None
         }
+
+    async def _observe(self, db: Any, run: Run) -> Observations:
+        outcomes = await self._outcomes(db, await repo.step_commands(db, run.id))
         since = run.step_started_at
         uav_events = await repo.event_names_since(db, run.uav_id, since)
-        base_events = await repo.event_names_since(db, run.base_id, since)
+        # the base's events since take-off: after a server restart or a cut the base's outbox may
+        # replay its landing_confirmed before the run has caught up to `confirming`; it is an edge
+        # (the UAV arrived on the lift), so one stored after the flight began is this landing's
+        base_since = since
+        if run.state == State.confirming.value and run.flight_started_at is not None:
+            base_since = min(since, run.flight_started_at)
+        base_events = await repo.event_names_since(db, run.base_id, base_since)
         store = self.services.telemetry
         uav = await store.latest(run.uav_id) or {}
         base = await store.latest(run.base_id) or {}
@@ -259,6 +309,7 @@ class RunEngine:
             uav_landed=landed,
             base_mass_g=base.get("scale_mass_g"),
             base_confirms=base.get("landing_confirmed") is True and _after(base.get("ts"), since),
+            base_heard=_after(base.get("ts"), since),
             abort_requested=run.abort_requested,
             abort_reason=run.abort_reason,
             took_off="took_off" in uav_events or "armed" in uav_events,

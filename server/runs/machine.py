@@ -120,6 +120,7 @@ class Observations:
     base_confirms: bool = (
         False  # the base's latest telemetry (sent after this step began) says confirmed
     )
+    base_heard: bool = True  # the base has sent telemetry since this step began
     abort_requested: bool = False
     abort_reason: str = ""
     took_off: bool = False
@@ -213,6 +214,16 @@ def scale_confirms(seen: Seen) -> bool:
     return "landing_confirmed" in seen.obs.base_events or seen.obs.base_confirms
 
 
+def base_heard(seen: Seen) -> bool:
+    """The base has reported since the step began: its scale's silence means something."""
+    return seen.obs.base_heard
+
+
+def base_silent_too_long(seen: Seen) -> bool:
+    """The base has said nothing since the step began, for five times the step's budget."""
+    return not seen.obs.base_heard and seen.obs.elapsed_s > 5 * seen.obs.timeout_s
+
+
 def aborting(seen: Seen) -> bool:
     """An operator's abort is being carried out."""
     return seen.aborting
@@ -273,6 +284,8 @@ ABORT_ON_THE_LIFT = Exit(
     safe=(STOP,),
 )
 CHARGING_FAILED = "the base is closed but charging did not start: {failure}"
+# said when a failure closes the base on its way out; settle.py rewrites it to what happened
+BEING_CLOSED = "the base is being closed"
 
 STEPS: dict[State, Step] = {
     s.state: s
@@ -364,10 +377,15 @@ STEPS: dict[State, Step] = {
                 Exit(State.closing, "the base's scale confirms the UAV on the lift",
                      when=scale_confirms),
             ),
+            # a base that has not reported since (its link is coming back after a server restart
+            # or a cut) is waited for: its scale's silence is no verdict
             timeout=(
                 Exit(State.failed, "the scale did not confirm the UAV within {timeout} s "
                      "(scale reads {mass}); the UAV may be off the pad, the panels stay open",
-                     "landing_not_confirmed", alert=True),
+                     "landing_not_confirmed", alert=True, when=base_heard),
+                Exit(State.failed, "the base has sent nothing since the UAV landed, so its "
+                     "scale cannot confirm the landing; the panels stay open",
+                     "base_silent", alert=True, when=base_silent_too_long),
             ),
         ),
         Step(

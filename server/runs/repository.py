@@ -68,11 +68,16 @@ class RunRepository(ScopedRepository[Run]):
 async def claim(
     db: AsyncSession, owner: str, now: datetime, until: datetime, limit: int = 50
 ) -> list[uuid.UUID]:
-    """Lease the runs this process will drive: unfinished (or with actions still to issue), unleased or ours."""
+    """Lease the runs this process will drive, unleased or ours: unfinished, with actions still to
+    issue, or finished with safe commands (the close on the way out) still to be settled."""
     stmt = (
         select(Run)  # unscoped: the engine drives every organisation's runs
         .where(
-            or_(Run.state.not_in(FINAL_VALUES), Run.actions_issued.is_(False)),
+            or_(
+                Run.state.not_in(FINAL_VALUES),
+                Run.actions_issued.is_(False),
+                Run.id.in_(select(RunStepCommand.run_id)),  # unscoped: engine
+            ),
             or_(Run.lease_until < now, Run.lease_owner == owner),
         )
         .order_by(Run.created_at)

@@ -29,6 +29,7 @@ from sim.vehicle.habits import Habits
 from sim.world import World, WorldConfig
 from tests.base_station.bs_helpers import station_config
 from tests.conftest import Tenant
+from tests.e2e.base_process import BaseDaemon
 
 SPEED = 10.0
 FINAL = ("completed", "aborted", "failed")
@@ -67,6 +68,7 @@ class Platform:
     stops: dict[str, asyncio.Event]
     agent: Any
     base: Any
+    base_daemon: BaseDaemon | None = None  # when the base runs as its own process
 
     @property
     def copter(self) -> Any:
@@ -133,13 +135,16 @@ async def platform(
     habits: Habits | None = None,
     pad: tuple[float, float, float] | None = None,
     plan: dict[str, Any] | None = None,
+    base_process: bool = False,
 ) -> AsyncIterator[Platform]:
     """World + daemons connected to the server at `server_url`, assets registered in `tenant`.
 
     `precland`: the agent's [precland] section (the world's camera and IR ports are filled in);
     None leaves precision landing off (the UAV lands on RTK GNSS alone). `habits`: the simulated
     autopilot's (sim/vehicle/habits.py); `pad`: where the base stands (lat, lon, alt); `plan`: a
-    QGroundControl plan imported as the run's mission instead of the pad square."""
+    QGroundControl plan imported as the run's mission instead of the pad square. `base_process`:
+    the base daemon runs as its own `aerobase base-station` process (`Platform.base_daemon`), to
+    be killed."""
     extra = {"base": BaseParams(pad_geodetic=pad)} if pad else {}
     world = full_world(WorldConfig.for_tests(speed=speed, seed=seed, **extra))
     if habits is not None:
@@ -198,22 +203,30 @@ async def platform(
             )
             agent = setup_agent(aconf, ucfg)
             stops = {"base": asyncio.Event(), "agent": asyncio.Event()}
-            tasks = {
-                "base": asyncio.create_task(
-                    run_base(
-                        base_app,
-                        stops["base"],
-                        link=link_runner(make_link(bcfg, tmp / "base.db", server_url)),
-                    )
-                ),
-                "agent": asyncio.create_task(run_agent(agent, stops["agent"])),
-            }
-            p = Platform(world, tenant, api, ids, tasks, stops, agent, base_app)
-            await p.ready()
+            tasks = {"agent": asyncio.create_task(run_agent(agent, stops["agent"]))}
+            daemon = None
+            if base_process:
+                sconf = sconf.model_copy(
+                    update={"server": sconf.server.model_copy(update={"url": server_url})}
+                )
+                daemon = BaseDaemon(
+                    sconf,
+                    base64.b64decode(base["config_file"]),
+                    "asset-password-123",
+                    tmp / "base-process",
+                )
+                daemon.start()
+            else:
+                link = link_runner(make_link(bcfg, tmp / "base.db", server_url))
+                tasks["base"] = asyncio.create_task(run_base(base_app, stops["base"], link=link))
+            p = Platform(world, tenant, api, ids, tasks, stops, agent, base_app, daemon)
             try:
+                await p.ready()
                 yield p
             finally:
-                for name, stop in stops.items():
-                    stop.set()
+                if daemon is not None:
+                    await asyncio.to_thread(daemon.stop)
+                for name, task in tasks.items():
+                    stops[name].set()
                     with contextlib.suppress(Exception):
-                        await asyncio.wait_for(tasks[name], 20)
+                        await asyncio.wait_for(task, 20)

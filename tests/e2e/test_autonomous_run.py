@@ -6,11 +6,13 @@ import pytest
 
 from tests.conftest import Tenant
 from tests.e2e.harness import FINAL, platform
+from tests.e2e.test_base_recovery import BEING_CLOSED, settled
 from tests.metrics import value
 from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
+OUTAGE_SPEED = 2.0  # the landing without RTK rests on the camera: give it frames (4x is load-bound)
 WHOLE_SEQUENCE = [
     "checking", "opening", "uploading", "flying", "landing", "confirming", "closing", "charging",
 ]  # fmt: skip
@@ -76,15 +78,19 @@ async def test_panel_stall_while_opening_fails_lift_never_raised_panels_driven_b
         run_id = await p.start_run()
         body = await p.wait_state(run_id, FINAL, 90)
         assert body["state"] == "failed" and body["cause"] == "opening_failed", body["reason"]
-        assert "opening the base failed" in body["reason"] and "closed" in body["reason"]
+        assert "opening the base failed" in body["reason"]
+        failing = next(t for t in body["timeline"] if t["to_state"] == "failed")
+        assert BEING_CLOSED in failing["reason"]  # said when the close is issued...
         coils = [c.coil for c in p.world.base.command_log]
         assert "LIFT_UP" not in coils  # the lift never went up on a half-open base
-        # the run then drives the panels back: its close command is issued (and answered: done, or refused
-        # with the reason while the stall fault is latched)
+        # ...then the run tries to drive the panels back: the PLC refuses while the stall is latched
+        # (a stall needs a person: the daemon does not reset it), and the run says so with an alert
         close = await _base_command(p, "close")
-        assert close["status"] in ("succeeded", "rejected", "failed"), close
-        if close["status"] != "succeeded":
-            assert close["reason"]
+        assert close["status"] == "rejected" and "PANEL_STALL" in close["reason"], close
+        body = await settled(p, run_id)
+        assert body["timeline"][-1]["cause"] == "safe_state_not_reached", body["timeline"]
+        assert body["alert"] and "could not be closed" in body["reason"], body["reason"]
+        assert BEING_CLOSED not in body["reason"] and "PANEL_STALL" in body["reason"]
 
 
 async def test_uav_landing_off_the_pad_fails_keeps_the_panels_open_and_alerts(
@@ -187,10 +193,14 @@ async def test_operator_abort_in_flight_returns_the_uav_lands_and_closes_over_it
         assert p.world.base.contacts_seated and not p.world.base.can_vehicle_leave()
 
 
-async def test_server_killed_while_flying_resumes_and_completes(
+async def test_server_killed_while_flying_the_agent_lands_with_precision_and_the_run_resumes(
     database_url, superuser_email, tmp_path
 ):
-    """The server process dies mid-flight; a new one on the same database resumes the run."""
+    """The server process dies mid-flight and stays down through the return and the landing (RTK
+    corrections stop with it). The agent owns the landing: the mission's own return-home lands with
+    precision landing (camera + IR, as deployed). A new server on the same database resumes the run:
+    it learns the landing happened, the agent does not send the landed UAV back into RTL, and the
+    run confirms on the scale, closes and charges."""
     import asyncio
 
     import httpx
@@ -202,20 +212,49 @@ async def test_server_killed_while_flying_resumes_and_completes(
     try:
         with httpx.Client(base_url=server.url) as sync_api:
             tenant = Tenant(sync_api, superuser_email, "restart")
-            async with platform(server.url, tenant, tmp_path) as p:
+            async with platform(server.url, tenant, tmp_path, speed=OUTAGE_SPEED, precland={}) as p:
                 run_id = await p.start_run()
                 await p.wait_state(run_id, ("flying",), 60)
                 await eventually(lambda: p.world.base.pad_mass_g == 0, 60, "the UAV to take off")
                 await asyncio.to_thread(server.stop)
+                await _lands_by_itself(p)
                 restarted = await asyncio.to_thread(server.restarted)
-                body = await p.wait_state(run_id, FINAL, 150)
-                assert body["state"] == "completed", (body["reason"], body["timeline"])
-                states = [t["to_state"] for t in body["timeline"]]
-                assert (
-                    states.count("flying") == 1
-                )  # resumed where it stood, not restarted from the top
+                await _resumes_and_completes(p, run_id)
     finally:
         await asyncio.to_thread((restarted or server).stop)
+
+
+async def _lands_by_itself(p) -> None:  # type: ignore[no-untyped-def]
+    """With no server, the mission's own return-home lands on the pad with precision landing."""
+    stats = p.agent.lander.stats
+    sent = stats.targets_sent
+    await eventually(lambda: not p.copter.armed, 150, "the UAV to land with no server")
+    assert not p.agent.link.connected  # landed during the outage
+    assert stats.targets_sent > sent + 20, stats  # LANDING_TARGET fed the autopilot meanwhile
+    # GNSS alone, without the RTK corrections the server relays, lands 0.4-1.3 m off (the issue saw
+    # 1.1 and 0.36 m: off the scale). With precision landing it lands on the lift; the contacts
+    # (5 cm) are seated on a quiet machine (1.5-4.3 cm measured at 4x) but not always under heavy
+    # load without RTK (10-14 cm measured at load 8-10 on 2 cores), so the bound is the lift's.
+    print(f"landed during the outage: {_on_the_pad(p)}, {stats}")
+    assert p.copter.pad_distance() < 0.25, _on_the_pad(p)
+
+
+async def _resumes_and_completes(p, run_id: str) -> None:  # type: ignore[no-untyped-def]
+    body = await p.wait_state(run_id, FINAL, 150)
+    assert body["state"] == "completed", (body["reason"], body["timeline"])
+    # transitions only (a restarted server may note a lease takeover: from_state == to_state)
+    states = [t["to_state"] for t in body["timeline"] if t["from_state"] != t["to_state"]]
+    assert states == [*WHOLE_SEQUENCE, "completed"], states  # resumed, not restarted
+    # the scale confirmed it on the lift and the base closed over it (charging needs the contacts)
+    assert p.world.base.pad_mass_g > 0 and not p.world.base.can_vehicle_leave()
+    if body["alert"]:  # only when the contacts are not seated: charging could not start
+        assert "charging did not start" in body["reason"], (body["reason"], _on_the_pad(p))
+    rtb = (
+        await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}/commands", headers=p.tenant.h("viewer"))
+    ).json()
+    answer = next(c for c in rtb if c["name"] == "return_to_base")
+    assert answer["status"] == "succeeded" and "already landed" in answer["reason"], answer
+    assert p.agent.autopilot.state.mode != "RTL"  # the landed UAV was not sent back to RTL
 
 
 def _on_the_pad(p) -> dict[str, object]:  # type: ignore[no-untyped-def]

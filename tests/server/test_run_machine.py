@@ -249,3 +249,18 @@ def test_an_abort_after_take_off_lets_the_run_finish_safely_and_end_aborted(stat
     assert t is not None and t.to is to
     if to is State.aborted:
         assert t.cause == "operator_abort"
+
+
+def test_a_silent_base_is_waited_for_before_the_scale_is_judged():
+    """Issue 14 #6: after a server restart the UAV's link came back first; its landing moved the run
+    to confirming while the base was still reconnecting, and the step timed out on a scale that had
+    not reported at all ('landing_not_confirmed', panels left open). Silence is no verdict."""
+    late = dict(elapsed_s=61.0, timeout_s=60.0, commands={})
+    assert advance(State.confirming, obs(**late, base_heard=False)) is None  # waiting for the base
+    heard = advance(State.confirming, obs(**late, base_heard=True, base_mass_g=3.0))
+    assert heard is not None and heard.cause == "landing_not_confirmed" and heard.alert
+    back = advance(State.confirming, obs(**late, base_heard=True, base_confirms=True))
+    assert back is not None and back.to is State.closing
+    gone = advance(State.confirming, obs(elapsed_s=301.0, timeout_s=60.0, base_heard=False))
+    assert gone is not None and gone.cause == "base_silent" and gone.alert
+    assert "panels stay open" in gone.reason

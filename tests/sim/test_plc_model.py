@@ -137,6 +137,34 @@ def test_watchdog_arms_on_first_write_and_expires_after_2_s_unchanged() -> None:
     assert not b.panels.moving and b.fault_bits() & FAULT_WATCHDOG
 
 
+def test_watchdog_latch_outlives_a_new_master_until_fault_reset_as_the_spec_says() -> None:
+    """Spec: unchanged 2 s -> all motion stops and fault 16 LATCHES; no motion while a fault is
+    latched; FAULT_RESET clears latched faults. A master coming back does not clear it by itself,
+    and a reset while the watchdog is still starved latches it again."""
+    b = make()
+    b.write_holding(0, [7], 10.0)
+    cmd(b, PANELS_OPEN)
+    run(b, 5)
+    b.tick_wall(12.1)  # the master is gone (killed mid-open)
+    assert not b.panels.moving and b.fault_bits() & FAULT_WATCHDOG
+    stopped_at = b.panels.position
+    cmd(b, FAULT_RESET)  # reset while nobody feeds the watchdog...
+    b.tick_wall(12.2)
+    assert b.fault_bits() & FAULT_WATCHDOG  # ...latches again at once
+    for i in range(1, 9):  # a new master feeds it for 4 s
+        b.write_holding(0, [i], 12.2 + i * 0.5)
+        b.tick_wall(12.3 + i * 0.5)
+    assert b.fault_bits() & FAULT_WATCHDOG  # still latched
+    cmd(b, PANELS_CLOSE)
+    assert not b.command_log[-1].accepted and "faults latched (16)" in b.command_log[-1].reason
+    cmd(b, FAULT_RESET)
+    b.write_holding(0, [100], 17.0)
+    b.tick_wall(17.1)
+    assert b.fault_bits() == 0 and not b.panels.moving and b.panels.position == stopped_at
+    cmd(b, PANELS_CLOSE)
+    assert b.command_log[-1].accepted and b.panels.moving
+
+
 def test_watchdog_fed_by_changing_values() -> None:
     b = make()
     for i in range(40):
