@@ -98,7 +98,7 @@ async def test_killing_the_lease_holder_mid_flight_the_run_completes_on_the_othe
         with proxy([port for port, _ in servers], tmp_path) as url:
             with httpx.Client(base_url=url, timeout=30) as api:
                 tenant = Tenant(api, "root@chaos.test", "chaos")
-                async with platform(url, tenant, tmp_path, precland={}, speed=5.0) as p:
+                async with platform(url, tenant, tmp_path, precland={}, speed=2.5) as p:
                     run_id = await p.start_run()
                     await p.wait_state(run_id, ("flying",), 90)
                     await eventually(
