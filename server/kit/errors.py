@@ -197,7 +197,13 @@ def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
         log.exception("unhandled error on %s %s", request.method, request.url.path)
-        return ErrorResponse(error_body("internal_error", "internal server error"), status_code=500)
+        # the server drops the connection after an unhandled error (the exception is re-raised to
+        # it): say so, or a keep-alive client sends its next request into a closed socket
+        return ErrorResponse(
+            error_body("internal_error", "internal server error"),
+            status_code=500,
+            headers={"Connection": "close"},
+        )
 
 
 def _no_route(path: str) -> str:

@@ -203,3 +203,27 @@ def test_asset_attributes_must_be_storable_json(api: httpx.Client, tenant: Tenan
     )
     assert r.status_code == 422, r.text
     assert r.json()["error"]["message"].startswith("invalid request: body.attributes:")
+
+
+def test_after_a_500_the_client_is_told_to_reconnect(database_url: str):
+    """An unhandled error still answers the envelope, with Connection: close: the server drops the
+    connection after it, and on main a keep-alive client's next request met a closed socket."""
+    from tests.conftest import LiveServer, test_settings
+
+    server = LiveServer(test_settings(database_url))
+
+    async def broken() -> None:
+        raise RuntimeError("a bug")
+
+    server.app.add_api_route("/api/test-broken", broken)
+    server.start()
+    client = KeptAlive(server.url)
+    try:
+        status, body, r = client.request("GET", "/api/test-broken")
+        assert status == 500 and body["error"]["code"] == "internal_error"
+        assert r.getheader("connection") == "close"
+        status, _, _ = client.request("GET", "/api/health")  # http.client reconnects as told
+        assert status == 200
+    finally:
+        client.close()
+        server.stop()
