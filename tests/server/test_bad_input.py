@@ -227,3 +227,16 @@ def test_after_a_500_the_client_is_told_to_reconnect(database_url: str):
     finally:
         client.close()
         server.stop()
+
+
+@pytest.mark.parametrize("value", ["inf", "1e400", "-Infinity"])
+def test_a_waypoint_file_with_an_infinite_number_names_the_line(api, tenant: Tenant, value: str):
+    """WPL writes `nan` for "no value"; an infinite one is refused, saying what is allowed."""
+    text = f"QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t0\t0\t0\t1\n1\t0\t3\t16\t0\t0\t0\tnan\t{value}\t8.5\t20\t1\n"
+    r = api.post(
+        "/api/v1/missions/import",
+        content=text,
+        headers={**tenant.h("operator"), "Content-Type": "text/plain"},
+    )
+    assert r.status_code == 422, r.text
+    assert r.json()["error"]["message"].startswith("line 3: fields must be finite numbers"), r.text
