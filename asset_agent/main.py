@@ -102,6 +102,8 @@ async def _report(agent: Agent, stop: asyncio.Event) -> None:
                 while not notes.empty():
                     events += agent.tracker.notification(notes.get_nowait())
                 for event in events:
+                    if event.kind == "landed" and agent.lander is not None:
+                        event = agent.lander.with_touchdown(event)
                     await agent.link.send_event(to_event(event))
                 if state.link_up:
                     await agent.link.send_telemetry(to_telemetry(state))

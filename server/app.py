@@ -8,6 +8,7 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI
+from fastapi.middleware.cors import CORSMiddleware
 from fastapi.middleware.gzip import GZipMiddleware
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
@@ -20,6 +21,7 @@ from server.config import Settings
 from server.deps import services_of, set_services
 from server.health import router as health_router
 from server.kit import metrics
+from server.kit.bodylimit import LimitBody
 from server.kit.db import make_engine, make_sessionmaker
 from server.kit.errors import RejectNulBytes, install_error_handlers
 from server.kit.security import Passwords
@@ -123,10 +125,34 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         docs_url="/api/docs",
         redoc_url=None,
         description="REST API of the Aerobase drone-in-a-box platform. See frontend_api.md.",
+        # `/path/` answers 404 rather than a 307 to an absolute http:// URL (wrong behind TLS)
+        redirect_slashes=False,
     )
+    # the last added runs first: CORS headers go on every answer, refusals included
     app.add_middleware(GZipMiddleware, minimum_size=2048)
+    app.add_middleware(
+        LimitBody,
+        default=settings.max_body_bytes,
+        routes={"/api/v1/missions/import": settings.max_import_bytes},
+    )
     app.add_middleware(RejectNulBytes)
     app.add_middleware(metrics.ObserveRequests)
+    if settings.cors_origins:
+        app.add_middleware(
+            CORSMiddleware,
+            allow_origins=settings.cors_origins,
+            allow_methods=["GET", "POST", "PUT", "PATCH", "DELETE"],
+            allow_headers=["Authorization", "Content-Type", "If-Match", "If-None-Match"],
+            expose_headers=[
+                "Content-Disposition",
+                "ETag",
+                "Link",
+                "Location",
+                "Retry-After",
+                "X-Request-Id",
+            ],
+            max_age=600,
+        )
     install_error_handlers(app)
     for router in (
         health_router,

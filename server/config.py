@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from functools import cached_property
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import AliasChoices, Field, model_validator
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import AliasChoices, Field, field_validator, model_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 PLACEHOLDER_SECRETS = {"", "change-me", "changeme", "secret"}
 
@@ -35,6 +35,12 @@ class Settings(BaseSettings):
         default=None, validation_alias=AliasChoices("INFLUXDB_URL", "AEROBASE_INFLUXDB_URL")
     )
     migrate_on_start: bool = True
+    # browsers' origins allowed to call the API (CORS), e.g. "https://ops.example.com,http://localhost:5173";
+    # empty: no cross-origin browser access (same-origin front-ends and non-browser clients need none)
+    cors_origins: Annotated[list[str], NoDecode] = Field(default_factory=list)
+    # request bodies over these sizes are refused with 413 before they are read
+    max_body_bytes: int = Field(default=1024 * 1024, ge=1024)
+    max_import_bytes: int = Field(default=5 * 1024 * 1024, ge=1024)
     log_format: Literal["auto", "json", "console"] = "auto"
     log_level: str = "INFO"
 
@@ -77,6 +83,16 @@ class Settings(BaseSettings):
 
     # scrypt for asset config files (log2 of N)
     config_scrypt_log_n: int = Field(default=15, ge=10, le=20)
+
+    @field_validator("cors_origins", mode="before")
+    @classmethod
+    def _split_origins(cls, value: Any) -> Any:
+        """A comma-separated list (the environment) or a list; each origin without its slash."""
+        if isinstance(value, str):
+            value = [v for v in (part.strip() for part in value.split(",")) if v]
+        if isinstance(value, list):
+            return [v.rstrip("/") if isinstance(v, str) and v != "*" else v for v in value]
+        return value
 
     @model_validator(mode="after")
     def _check_production(self) -> Settings:

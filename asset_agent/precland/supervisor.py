@@ -20,11 +20,13 @@ import logging
 import math
 import time
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any
 
 from pydantic import ValidationError
 
 from asset_agent.config import PreclandSection
+from asset_agent.events import Event
 from asset_agent.precland.clock import SensorClock
 from asset_agent.precland.config import SOURCES, FaultConfig
 from asset_agent.precland.loop import PrecisionLandingLoop
@@ -59,6 +61,27 @@ class LandingStats:
             return None
         span = self.last_sent_t - self.first_sent_t
         return (self.targets_sent - 1) / span if span > 0 else None
+
+
+@dataclass(frozen=True)
+class PadFix:
+    """The last measured (not held) pad position relative to the vehicle, in sensor seconds."""
+
+    t: float
+    rel_ned: tuple[float, float, float]
+    sources: tuple[str, ...]
+
+    def touchdown(self, now: float) -> dict[str, Any]:
+        """The agent's measured touchdown offset, as scalars for the `landed` event's data."""
+        north, east, down = self.rel_ned
+        return {
+            "offset_m": round(math.hypot(north, east), 3),
+            "offset_north_m": round(north, 3),
+            "offset_east_m": round(east, 3),
+            "fix_height_m": round(down, 2),
+            "fix_age_s": round(max(0.0, now - self.t), 2),
+            "fix_sources": "+".join(self.sources),
+        }
 
 
 def pad_offset_ned(lat: float, lon: float, pad_lat: float, pad_lon: float) -> tuple[float, float]:
@@ -96,6 +119,7 @@ class PrecisionLander:
         self._position: tuple[float, float, float] | None = None
         self._velocity: tuple[float, float, float] | None = None
         self._attitude: tuple[float, float, float] | None = None
+        self.last_fix: PadFix | None = None  # of the current (or last) landing
         if self.config.mode != "landing_target":
             log.warning(
                 "precland: only mode landing_target is wired in the daemon; nothing is sent"
@@ -198,6 +222,7 @@ class PrecisionLander:
         for source, fault in self.faults.items():
             loop.pipeline.set_fault(source, fault, now)
         self.loop = loop
+        self.last_fix = None
         self._loop_task = asyncio.create_task(loop.run(), name="precland-loop")
         self.stats.landings += 1
         log.info("precland: active at %.1f m (pad prior %s)", state.alt_rel or 0.0, prior)
@@ -222,7 +247,20 @@ class PrecisionLander:
         dn, de = pad_offset_ned(state.lat, state.lon, *pad)
         return dn, de, state.alt_rel + self.config.control.touchdown_height
 
+    def touchdown_offset(self) -> dict[str, Any]:
+        """What the agent knows of where it touched down: its last measured fix of the pad."""
+        if self.last_fix is None:
+            return {"offset_source": "none"}  # landed on GNSS alone: nothing was measured
+        return {"offset_source": "precland", **self.last_fix.touchdown(self.clock.now())}
+
+    def with_touchdown(self, event: Event) -> Event:
+        """The `landed` event with the measured touchdown offset in its data."""
+        return Event(event.kind, MappingProxyType({**event.detail, **self.touchdown_offset()}))
+
     def _on_tick(self, tick: Tick) -> None:
+        target = tick.target
+        if target is not None and target.kind != "held" and target.sources:
+            self.last_fix = PadFix(tick.t, target.rel_ned, target.sources)
         lt = tick.landing_target
         if lt is None:
             return

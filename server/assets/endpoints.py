@@ -14,6 +14,7 @@ from server.assets.service import AssetService
 from server.audit.service import record
 from server.auth.service import SessionService
 from server.deps import DB, Admin, SettingsDep, Viewer, client_addr, get_services
+from server.kit.download import attachment
 
 router = APIRouter(tags=["assets"])
 
@@ -165,5 +166,5 @@ async def reissue_config(
     return Response(
         content=data,
         media_type="application/octet-stream",
-        headers={"Content-Disposition": f'attachment; filename="{asset.name}.abcf"'},
+        headers={"Content-Disposition": attachment(asset.name, ".abcf", default="asset")},
     )

@@ -9,7 +9,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.assets.models import AssetKind
-from server.kit.types import Name, Password, Text
+from server.kit.types import JsonObject, Name, Password, Text
 
 
 class AssetCreate(BaseModel):
@@ -23,7 +23,7 @@ class AssetCreate(BaseModel):
     base_id: uuid.UUID | None = Field(
         default=None, description="for a UAV: the landing base it lives in"
     )
-    attributes: dict[str, Any] = Field(default_factory=dict, max_length=50)
+    attributes: JsonObject = Field(default_factory=dict, max_length=50)
 
 
 class AssetUpdate(BaseModel):
@@ -33,7 +33,7 @@ class AssetUpdate(BaseModel):
     name: Name | None = None
     description: Text | None = None
     base_id: uuid.UUID | None = None
-    attributes: dict[str, Any] | None = Field(default=None, max_length=50)
+    attributes: JsonObject | None = Field(default=None, max_length=50)
 
 
 class ConfigRequest(BaseModel):

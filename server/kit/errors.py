@@ -12,7 +12,9 @@ AppError                      {"error": {"code", "message", "details"}}
 
 from __future__ import annotations
 
+import json
 import logging
+import math
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -92,6 +94,46 @@ def error_body(code: str, message: str, details: Any = None) -> dict[str, Any]:
     return {"error": {"code": code, "message": message, "details": details}}
 
 
+MAX_DETAIL_DEPTH = 32
+
+
+def non_finite_token(value: float) -> str:
+    """How JavaScript and Python spell a non-finite float: "NaN", "Infinity" or "-Infinity"."""
+    if math.isnan(value):
+        return "NaN"
+    return "Infinity" if value > 0 else "-Infinity"
+
+
+def json_safe(value: Any, depth: int = 0) -> Any:
+    """`value` made encodable as strict JSON: a non-finite float becomes its token as a string,
+    an unknown object its str(), anything nested deeper than MAX_DETAIL_DEPTH "...".
+
+    Error details echo what the client sent (a bare NaN is valid Python JSON but not JSON), so
+    the error encoder must never be the thing that fails.
+    """
+    if value is None or isinstance(value, str | bool | int):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else non_finite_token(value)
+    if depth >= MAX_DETAIL_DEPTH:
+        return "..."
+    if isinstance(value, dict):
+        return {str(k): json_safe(v, depth + 1) for k, v in value.items()}
+    if isinstance(value, list | tuple | set | frozenset):
+        return [json_safe(v, depth + 1) for v in value]
+    return str(value)
+
+
+class ErrorResponse(JSONResponse):
+    """A JSON response that cannot fail to encode (see json_safe)."""
+
+    def render(self, content: Any) -> bytes:
+        """Strict JSON (no NaN tokens), UTF-8."""
+        return json.dumps(
+            json_safe(content), ensure_ascii=False, allow_nan=False, separators=(",", ":")
+        ).encode("utf-8")
+
+
 _STATUS_CODES = {
     400: "bad_request",
     401: "unauthorized",
@@ -124,7 +166,7 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(AppError)
     async def _app_error(_: Request, exc: AppError) -> JSONResponse:
-        return JSONResponse(
+        return ErrorResponse(
             error_body(exc.code, exc.message, exc.details),
             status_code=exc.status,
             headers=exc.headers,
@@ -135,16 +177,19 @@ def install_error_handlers(app: FastAPI) -> None:
         details = _clean_validation(list(exc.errors()))
         first = details[0] if details else {"loc": [], "msg": "invalid request"}
         where = ".".join(first["loc"])
-        return JSONResponse(
+        return ErrorResponse(
             error_body("validation_error", f"invalid request: {where}: {first['msg']}", details),
             status_code=422,
         )
 
     @app.exception_handler(StarletteHTTPException)
-    async def _http(_: Request, exc: StarletteHTTPException) -> JSONResponse:
+    async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
         code = _STATUS_CODES.get(exc.status_code, "error")
-        return JSONResponse(
-            error_body(code, str(exc.detail)),
+        message = str(exc.detail)
+        if exc.status_code == 404 and "endpoint" not in request.scope:
+            message = _no_route(request.url.path)
+        return ErrorResponse(
+            error_body(code, message),
             status_code=exc.status_code,
             headers=getattr(exc, "headers", None),
         )
@@ -152,7 +197,20 @@ def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
         log.exception("unhandled error on %s %s", request.method, request.url.path)
-        return JSONResponse(error_body("internal_error", "internal server error"), status_code=500)
+        # the server drops the connection after an unhandled error (the exception is re-raised to
+        # it): say so, or a keep-alive client sends its next request into a closed socket
+        return ErrorResponse(
+            error_body("internal_error", "internal server error"),
+            status_code=500,
+            headers={"Connection": "close"},
+        )
+
+
+def _no_route(path: str) -> str:
+    """The 404 message of a path no route matches; paths never end with a slash (no redirect)."""
+    if path.endswith("/") and path.strip("/"):
+        return f"no route {path}: API paths have no trailing slash ({path.rstrip('/')})"
+    return f"no route {path}"
 
 
 class RejectNulBytes:
@@ -175,7 +233,7 @@ class RejectNulBytes:
                 if scope["type"] == "websocket":
                     await send({"type": "websocket.close", "code": 1008})
                     return
-                response = JSONResponse(
+                response = ErrorResponse(
                     error_body("validation_error", "NUL characters are not allowed in a URL"),
                     status_code=422,
                 )

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import math
 import re
-from typing import Annotated
+from typing import Annotated, Any
 
 from pydantic import AfterValidator, StringConstraints
 
@@ -40,3 +41,32 @@ Password = Annotated[
 LoginPassword = Annotated[
     str, StringConstraints(min_length=1, max_length=1024), AfterValidator(_no_control)
 ]
+
+
+MAX_JSON_DEPTH = 16
+
+
+def _json_value(value: Any, path: str = "", depth: int = 0) -> None:
+    """Raise ValueError for what JSON columns cannot hold: NaN/Infinity, NUL, absurd nesting."""
+    if depth > MAX_JSON_DEPTH:
+        raise ValueError(f"{path or 'value'}: nested deeper than {MAX_JSON_DEPTH} levels")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ValueError(f"{path or 'value'}: {value!r} is not a finite number (JSON has no NaN)")
+    if isinstance(value, str) and "\x00" in value:
+        raise ValueError(f"{path or 'value'}: must not contain NUL characters")
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _json_value(str(k), path, depth + 1)
+            _json_value(v, f"{path}.{k}" if path else str(k), depth + 1)
+    elif isinstance(value, list):
+        for n, v in enumerate(value):
+            _json_value(v, f"{path}[{n}]", depth + 1)
+
+
+def _json_object(value: dict[str, Any]) -> dict[str, Any]:
+    _json_value(value)
+    return value
+
+
+# free-form JSON kept as it is (asset attributes): finite numbers only, stored and sent back as JSON
+JsonObject = Annotated[dict[str, Any], AfterValidator(_json_object)]

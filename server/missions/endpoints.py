@@ -30,15 +30,8 @@ from server.missions.service import MissionService, estimate, limits_from, rejec
 from server.missions.validate import Problem
 
 router = APIRouter(tags=["missions"])
-MAX_IMPORT_BYTES = 5 * 1024 * 1024
 JSON_TYPES = {"application/json"}
 WPL_TYPES = {"text/plain", wpl.MEDIA_TYPE}
-
-
-class TooLarge(AppError):
-    """The request body is over the limit."""
-
-    status, code = 413, "too_large"
 
 
 class UnsupportedMediaType(AppError):
@@ -182,9 +175,7 @@ async def import_mission(
     description: str = Query("", max_length=2000),
 ) -> MissionOut:
     """Import a QGroundControl .plan (JSON) or a WPL 110 file (text); 422 names every item refused."""
-    body = await request.body()
-    if len(body) > MAX_IMPORT_BYTES:
-        raise TooLarge(f"the file is over {MAX_IMPORT_BYTES} bytes")
+    body = await request.body()  # at most AEROBASE_MAX_IMPORT_BYTES (server/kit/bodylimit.py)
     try:
         imported, source = _read_import(body, request.headers.get("content-type", ""))
     except qgc.ImportRejected as err:

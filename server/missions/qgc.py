@@ -21,6 +21,7 @@ from server.missions.items import (
     frame_problem,
     normalize_frame,
 )
+from server.missions.json_numbers import non_finite_numbers
 from server.missions.qgc_altitude import (
     MODE_LABELS,
     Source,
@@ -75,7 +76,10 @@ def plan_number(value: Any) -> float | None:
     """A JSON number as a finite float; None for null or non-numbers/NaN."""
     if isinstance(value, bool) or not isinstance(value, int | float):
         return None
-    f = float(value)
+    try:
+        f = float(value)
+    except OverflowError:  # an integer beyond the range of a double
+        return None
     return f if math.isfinite(f) else None
 
 
@@ -171,6 +175,10 @@ def parse_plan(plan: Any) -> Imported:
         raise ImportRejected(
             [Problem("plan", "a .plan file is a JSON object", type(plan).__name__)]
         )
+    numbers = non_finite_numbers(plan)
+    if numbers:
+        # refused before anything reads them: they cannot be stored, checked or sent back as JSON
+        raise ImportRejected(numbers)
     problems: list[Problem] = []
     if plan.get("fileType") != "Plan":
         problems.append(

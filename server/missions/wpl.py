@@ -65,7 +65,14 @@ def parse_wpl(text: str) -> Imported:
             numbers = [_float(f) for f in fields[4:11]]
             auto = int(float(fields[11]))
         except (ValueError, OverflowError):
-            problems.append(Problem(where, "fields must be numbers", line[:120], index=index))
+            problems.append(
+                Problem(
+                    where,
+                    "fields must be finite numbers (nan for no value; not inf, not beyond 1.8e308)",
+                    line[:120],
+                    index=index,
+                )
+            )
             continue
         if seq != n:
             problems.append(

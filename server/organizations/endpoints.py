@@ -3,13 +3,25 @@
 from __future__ import annotations
 
 import uuid
+from typing import Annotated
 
-from fastapi import APIRouter, Query, Request, Response
+from fastapi import APIRouter, Depends, Query, Request, Response
 
 from server.audit.service import record
 from server.auth.service import SessionService
-from server.deps import DB, Admin, PasswordsDep, SettingsDep, Superuser, Viewer, client_addr
+from server.deps import (
+    DB,
+    Admin,
+    CurrentPrincipal,
+    PasswordsDep,
+    SettingsDep,
+    Superuser,
+    Viewer,
+    client_addr,
+    require,
+)
 from server.kit.errors import Conflict, NotFound
+from server.kit.scope import Principal
 from server.organizations import service
 from server.organizations.models import Membership, Role, User
 from server.organizations.repository import MembershipRepository, OrganizationRepository
@@ -22,6 +34,17 @@ from server.organizations.schemas import (
 )
 
 router = APIRouter(tags=["organizations"])
+_viewer = require(Role.viewer)
+
+
+async def _viewer_or_superuser(principal: CurrentPrincipal) -> Principal:
+    """A viewer of an organisation, or a superuser logged in without one (sees every organisation)."""
+    if principal.kind == "user" and principal.is_superuser:
+        return principal
+    return await _viewer(principal)
+
+
+ViewerOrSuperuser = Annotated[Principal, Depends(_viewer_or_superuser)]
 
 
 def _user_out(m: Membership, u: User) -> UserOut:
@@ -50,7 +73,7 @@ async def create_organization(
 
 @router.get("/api/v1/organizations", response_model=list[OrganizationOut])
 async def list_organizations(
-    principal: Viewer,
+    principal: ViewerOrSuperuser,
     db: DB,
     limit: int = Query(100, ge=1, le=1000),
     offset: int = Query(0, ge=0, le=10**9),
@@ -65,7 +88,7 @@ async def list_organizations(
 
 @router.get("/api/v1/organizations/{organization_id}", response_model=OrganizationOut)
 async def get_organization(
-    organization_id: uuid.UUID, principal: Viewer, db: DB
+    organization_id: uuid.UUID, principal: ViewerOrSuperuser, db: DB
 ) -> OrganizationOut:
     """One organisation: one's own, or any for a superuser."""
     org = await OrganizationRepository(db).by_id(organization_id)

@@ -5,13 +5,14 @@ from __future__ import annotations
 import uuid
 from collections.abc import Sequence
 from datetime import datetime
+from typing import Any
 
 from sqlalchemy import delete, or_, select, update
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.commands.models import AssetCommand
 from server.kit import metrics
-from server.kit.scope import ScopedRepository
+from server.kit.scope import ScopedRepository, scoped
 from server.runs.machine import FINAL, Action
 from server.runs.models import Run, RunStepCommand, RunTransition
 from server.telemetry.models import AssetEvent
@@ -63,6 +64,28 @@ class RunRepository(ScopedRepository[Run]):
             select(RunTransition).where(RunTransition.run_id == run_id).order_by(RunTransition.at)
         )  # unscoped: run checked by get()
         return list((await self.db.execute(stmt)).scalars())
+
+    async def landing_events(self, run: Run) -> tuple[AssetEvent | None, AssetEvent | None]:
+        """The UAV's last `landed` and the base's first `landing_confirmed` event of a run's flight."""
+
+        def during(asset_id: uuid.UUID, name: str) -> Any:
+            stmt = scoped(AssetEvent, self.principal).where(
+                AssetEvent.asset_id == asset_id,
+                AssetEvent.name == name,
+                AssetEvent.created_at >= (run.flight_started_at or run.created_at),
+            )
+            if run.finished_at is not None:
+                stmt = stmt.where(AssetEvent.created_at <= run.finished_at)
+            return stmt
+
+        landed = during(run.uav_id, "landed").order_by(AssetEvent.created_at.desc()).limit(1)
+        confirmed = (
+            during(run.base_id, "landing_confirmed").order_by(AssetEvent.created_at).limit(1)
+        )
+        return (
+            (await self.db.execute(landed)).scalars().first(),
+            (await self.db.execute(confirmed)).scalars().first(),
+        )
 
 
 async def claim(

@@ -6,7 +6,7 @@ import uuid
 from datetime import datetime
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
 from server.kit.types import Text
 
@@ -63,13 +63,36 @@ class RunOut(BaseModel):
     timeline: list[TransitionOut] = []
 
 
+class LandingReport(BaseModel):
+    """Where the UAV touched down, as the agent measured it, and whether the base confirmed it."""
+
+    agent_offset_m: float | None = Field(
+        description="horizontal distance from the pad's centre at the agent's last measured fix "
+        "(precision landing); null when it landed without one"
+    )
+    agent_offset_north_m: float | None
+    agent_offset_east_m: float | None
+    agent_fix_height_m: float | None = Field(description="the fix's height above the pad")
+    agent_fix_age_s: float | None = Field(description="how old that fix was at touchdown")
+    agent_fix_sources: str | None = Field(description='e.g. "pattern+aruco+ir"')
+    landed_at: datetime | None = Field(description="when the agent reported the touchdown")
+    base_confirmed: bool = Field(description="the base weighed the UAV, stable, in its window")
+    base_confirmed_at: datetime | None
+    base_mass_g: float | None
+
+
 class RunReport(BaseModel):
     """The flight history of one run."""
 
     run: RunOut
     flight_time_s: float | None
     battery_used_pct: float | None
-    landing_error_m: float | None
+    landing_error_m: float | None = Field(
+        description="the agent's measured touchdown offset (landing.agent_offset_m)"
+    )
+    landing: LandingReport | None = Field(
+        description="what the agent and the base reported of the touchdown; null before it"
+    )
     track: list[dict[str, Any]]
 
 

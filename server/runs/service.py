@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import uuid
 from collections import Counter, defaultdict
 from datetime import datetime
@@ -15,7 +16,15 @@ from server.runs.engine import progress_payload
 from server.runs.machine import FINAL, State
 from server.runs.models import Run
 from server.runs.repository import RunRepository
-from server.runs.schemas import AssetSummary, FleetReport, RunOut, RunReport, TransitionOut
+from server.runs.schemas import (
+    AssetSummary,
+    FleetReport,
+    LandingReport,
+    RunOut,
+    RunReport,
+    TransitionOut,
+)
+from server.telemetry.models import AssetEvent
 
 
 async def create_run(
@@ -110,12 +119,43 @@ async def report(runs: RunRepository, store: Any, run: Run) -> RunReport:
         r["battery.percent"] for r in rows if isinstance(r.get("battery.percent"), int | float)
     ]
     used = round(batteries[0] - batteries[-1], 2) if len(batteries) >= 2 else None
+    landing = landing_report(*await runs.landing_events(run))
+    measured = landing.agent_offset_m if landing else None
     return RunReport(
         run=run_out(run, timeline),
         flight_time_s=_flight_time(run),
         battery_used_pct=used,
-        landing_error_m=run.landing_error_m,
+        landing_error_m=run.landing_error_m if run.landing_error_m is not None else measured,
+        landing=landing,
         track=track,
+    )
+
+
+def _number(data: dict[str, Any], key: str) -> float | None:
+    value = data.get(key)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        return None
+    return float(value)
+
+
+def landing_report(landed: AssetEvent | None, confirmed: AssetEvent | None) -> LandingReport | None:
+    """The report's landing part from the agent's `landed` and the base's `landing_confirmed`."""
+    if landed is None and confirmed is None:
+        return None
+    agent = landed.data if landed is not None and isinstance(landed.data, dict) else {}
+    base = confirmed.data if confirmed is not None and isinstance(confirmed.data, dict) else {}
+    sources = agent.get("fix_sources")
+    return LandingReport(
+        agent_offset_m=_number(agent, "offset_m"),
+        agent_offset_north_m=_number(agent, "offset_north_m"),
+        agent_offset_east_m=_number(agent, "offset_east_m"),
+        agent_fix_height_m=_number(agent, "fix_height_m"),
+        agent_fix_age_s=_number(agent, "fix_age_s"),
+        agent_fix_sources=sources if isinstance(sources, str) and sources else None,
+        landed_at=landed.ts if landed is not None else None,
+        base_confirmed=confirmed is not None,
+        base_confirmed_at=confirmed.ts if confirmed is not None else None,
+        base_mass_g=_number(base, "mass_g"),
     )
 
 

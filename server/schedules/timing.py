@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import datetime, timedelta
+from datetime import UTC, datetime, timedelta
 from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
-from croniter import croniter
+from croniter import CroniterError, croniter
 
 
 class TimingError(ValueError):
@@ -22,9 +22,22 @@ def zone(name: str) -> ZoneInfo:
 
 
 def check_cron(expr: str) -> None:
-    """Raise TimingError unless `expr` is a 5-field cron expression."""
+    """Raise TimingError unless `expr` is a 5-field cron expression that fires at some time."""
     if len(expr.split()) != 5 or not croniter.is_valid(expr):
         raise TimingError(f"not a 5-field cron expression: {expr!r}")
+    _next_cron(expr, datetime(2000, 1, 1, tzinfo=UTC))
+
+
+def _next_cron(expr: str, after: datetime) -> datetime:
+    """The first time `expr` matches after `after`; TimingError for a date that never comes."""
+    try:
+        nxt: datetime = croniter(expr, after).get_next(datetime)
+    except (CroniterError, ValueError, OverflowError) as err:
+        # e.g. "0 0 31 2 *": every field is valid, but February has no 31st
+        raise TimingError(
+            f"cron expression {expr!r} never fires: no date matches all its fields"
+        ) from err
+    return nxt
 
 
 def next_after(
@@ -52,9 +65,7 @@ def next_after(
         if not cron:
             raise TimingError("a cron schedule needs a cron expression")
         check_cron(cron)
-        local = after.astimezone(zone(tz))
-        nxt = croniter(cron, local).get_next(datetime)
-        return nxt.astimezone(after.tzinfo)
+        return _next_cron(cron, after.astimezone(zone(tz))).astimezone(after.tzinfo)
     raise TimingError(f"unknown schedule kind {kind!r}")
 
 

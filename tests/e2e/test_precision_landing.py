@@ -57,6 +57,15 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         assert body["state"] == "completed", (body["reason"], body["timeline"], seen)
         assert not body["alert"], (body["reason"], seen)  # charging started: contacts seated
         assert p.world.base.contacts_seated
+        # the run report shows the touchdown offset the agent measured (issue 14 item 15: it was
+        # always null) beside the base's confirmation, and the measurement matches the truth
+        report = await _report(p, run_id)
+        landing = report["landing"]
+        print(f"precland e2e report: landing {landing}, truth {error_m:.3f} m")
+        assert report["landing_error_m"] == landing["agent_offset_m"], report
+        assert abs(landing["agent_offset_m"] - error_m) < 0.05, (landing, error_m)
+        assert landing["agent_fix_sources"] and landing["agent_fix_age_s"] < 5, landing
+        assert landing["base_confirmed"] and landing["base_mass_g"] > 0, landing
         # the autopilot steered its descent with the agent's LANDING_TARGETs
         assert lander.stats.landings >= 1 and lander.stats.targets_sent > 20, seen
         assert copter.precland.accepted > 20 and copter.precland.rejected == 0, seen
@@ -77,6 +86,16 @@ async def test_unreachable_sensors_leave_the_landing_to_gnss(live_server, tenant
         assert body["state"] == "completed", (body["reason"], body["timeline"])
         assert p.agent.lander is not None and p.agent.lander.stats.targets_sent == 0
         assert copter.precland.accepted == 0
+        # nothing measured the touchdown: the report says so (null), the base still confirms
+        report = await _report(p, run_id)
+        assert report["landing_error_m"] is None and report["landing"]["agent_offset_m"] is None
+        assert report["landing"]["base_confirmed"] and report["landing"]["landed_at"], report
+
+
+async def _report(p, run_id: str) -> dict:  # type: ignore[no-untyped-def]
+    r = await p.api.get(f"/api/v1/runs/{run_id}/report", headers=p.tenant.h("viewer"))
+    assert r.status_code == 200, r.text
+    return dict(r.json())
 
 
 def _closed_port(kind: int) -> int:
