@@ -335,6 +335,7 @@ async def test_silent_sockets_are_closed_after_the_handshake_time(
     assert time.monotonic() - started < 5
 
 
+@pytest.mark.slow  # 20 MB through the fan-out, about 4 s
 async def test_a_reader_that_stalls_is_closed_after_the_send_timeout(
     tight: LiveServer, superuser_email: str
 ) -> None:
@@ -368,3 +369,29 @@ async def test_a_reader_that_stalls_is_closed_after_the_send_timeout(
         assert time.monotonic() - started < 10
     finally:
         op.transport.abort()
+
+
+async def test_nul_characters_are_stored_or_refused_never_fail_the_batch(
+    live_server: LiveServer, tenant: Tenant
+) -> None:
+    """A NUL character is valid JSON but PostgreSQL's text cannot hold it: the event is stored
+    without it, and the telemetry sample (JSON column) keeps it escaped."""
+    uav = tenant.create_asset("uav")
+    async with asset_socket(live_server.url, asset_token(live_server.url, uav)) as ws:
+        await ws.send(
+            message("event", {"name": "a\x00b", "message": "c\x00d", "data": {"e": "f\x00"}}, seq=1)
+        )
+        await ws.send(message("telemetry", uav_sample(flight_mode="AU\x00TO"), seq=2))
+        replies = []
+        while not any(r["type"] == "ack" and r["payload"]["seq"] == 2 for r in replies):
+            replies.append(await next_of(ws, "ack", "error"))
+    assert [r for r in replies if r["type"] == "error"] == []
+    async with httpx.AsyncClient(base_url=live_server.url, headers=tenant.h("viewer")) as c:
+        events = (
+            await c.get(
+                f"/api/v1/assets/{uav['id']}/events", params={"start": "2000-01-01T00:00:00Z"}
+            )
+        ).json()
+        latest = (await c.get(f"/api/v1/assets/{uav['id']}/telemetry/latest")).json()
+    assert [(e["name"], e["message"]) for e in events] == [("ab", "cd")]
+    assert latest["flight_mode"] in ("AU\x00TO", "AUTO")
