@@ -143,7 +143,7 @@ class ErrorPayload(Frozen):
     re_seq: Seq | None = None
 
 
-MAX_IDS_PER_MESSAGE = 1000
+MAX_IDS_PER_MESSAGE = 5000
 AssetIds = Annotated[tuple[uuid.UUID, ...], Field(max_length=MAX_IDS_PER_MESSAGE)]
 
 

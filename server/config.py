@@ -58,7 +58,7 @@ class Settings(BaseSettings):
     # operator WebSocket: sockets per login session (across replicas), assets followed per socket,
     # messages per second per socket (beyond the burst: error rate_limited and close 4429)
     ws_max_sockets_per_session: int = Field(default=8, ge=1)
-    ws_max_subscriptions: int = Field(default=1000, ge=1)
+    ws_max_subscriptions: int = Field(default=5000, ge=1)
     ws_operator_rate_per_s: float = Field(default=5.0, gt=0)
     ws_operator_burst: float = Field(default=20.0, ge=1)
     telemetry_retention_days: float = Field(default=90.0, gt=0)
