@@ -15,12 +15,20 @@ import websockets
 from websockets.asyncio.client import ClientConnection
 
 from assetlink.configfile import decrypt_config
+from protocol.messages import now_ms
 
 
-def message(kind: str, payload: Any, seq: int = 0, ts: int = 1_767_225_600_000) -> str:
-    """One envelope's JSON text (Python's encoder: NaN and Infinity stay as such)."""
+def message(kind: str, payload: Any, seq: int = 0, ts: int | None = None) -> str:
+    """One envelope's JSON text, sent now by default (Python's encoder: NaN and Infinity stay)."""
     return json.dumps(
-        {"v": 1, "type": kind, "id": str(uuid.uuid4()), "seq": seq, "ts": ts, "payload": payload}
+        {
+            "v": 1,
+            "type": kind,
+            "id": str(uuid.uuid4()),
+            "seq": seq,
+            "ts": now_ms() if ts is None else ts,
+            "payload": payload,
+        }
     )
 
 

@@ -26,6 +26,7 @@ from websockets.asyncio.client import ClientConnection
 
 from protocol.base import MAX_MESSAGE_BYTES
 from protocol.codec import DecodeError, decode, drop_non_finite
+from protocol.messages import now_ms
 from tests.conftest import LiveServer, Tenant, test_settings
 from tests.polling import eventually
 from tests.server.realtime_client import asset_token, hello, ws_url
@@ -145,7 +146,7 @@ def fuzz_texts(rng: random.Random, asset_id: str, seq: list[int]) -> Iterator[st
             "v": 1,
             "id": str(uuid.uuid4()),
             "seq": seq[0],
-            "ts": 1_767_225_600_000 + seq[0],
+            "ts": now_ms(),
             **msg,
         }
         for _ in range(rng.choice([0, 1, 1, 2, 3])):
