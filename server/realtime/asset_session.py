@@ -131,6 +131,11 @@ class AssetSession:
         finally:
             for t in tasks:
                 t.cancel()
+            for (
+                _,
+                fut,
+            ) in self.pending:  # nobody acks them now: a storage error is not "unretrieved"
+                fut.add_done_callback(_retrieve)
             broker.unsubscribe(command_channel(self.asset_id), self._nudge)
             if corrections:
                 broker.unsubscribe(corrections, self._forward_rtcm)
@@ -335,3 +340,8 @@ def _dropped_message(salvaged: Salvaged) -> str:
     if salvaged.cleared:
         text += " (cleared: " + ", ".join(f"payload.{f}" for f in salvaged.cleared) + ")"
     return text + "; the rest of the message is stored"
+
+
+def _retrieve(fut: asyncio.Future[None]) -> None:
+    if not fut.cancelled():
+        fut.exception()
