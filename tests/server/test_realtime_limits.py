@@ -255,3 +255,44 @@ async def test_a_peer_that_answers_no_ping_is_dropped(
         raw.close()
     finally:
         live.stop()
+
+
+@pytest.mark.slow  # two server processes
+async def test_sockets_per_session_are_bounded_across_replicas(
+    database_url: str,
+    api: httpx.Client,
+    superuser_email: str,
+    tmp_path,
+    monkeypatch,  # type: ignore[no-untyped-def]
+) -> None:
+    """The slots live in the broker (Redis): a session's sockets on two replicas count together."""
+    from tests.replicas import replicas
+
+    monkeypatch.setenv("AEROBASE_WS_MAX_SOCKETS_PER_SESSION", "2")
+    tenant = Tenant(api, superuser_email)
+    with replicas(database_url, tmp_path) as started:
+        a, b = (f"http://127.0.0.1:{port}" for port, _ in started)
+        token = tenant.tokens["viewer"]
+        on_a = await websockets.connect(ws_url(a, "/ws/operator", token))
+        on_b = await websockets.connect(ws_url(b, "/ws/operator", token))
+        try:
+            for ws in (on_a, on_b):
+                await ws.send(subscribe(str(uuid.uuid4())))
+                assert (await next_of(ws, "error"))["payload"]["code"] == "not_found"
+            for url in (a, b):
+                async with websockets.connect(ws_url(url, "/ws/operator", token)) as extra:
+                    assert await close_code(extra) == 4429
+            await on_a.close()
+
+            async def admitted_on_b() -> bool:
+                async with websockets.connect(ws_url(b, "/ws/operator", token)) as again:
+                    await again.send(subscribe(str(uuid.uuid4())))
+                    try:
+                        return bool((await next_of(again, "error", within=2))["payload"])
+                    except websockets.ConnectionClosed:
+                        return False
+
+            await eventually(admitted_on_b, 15, "the slot freed on A taken on B")
+        finally:
+            await on_a.close()
+            await on_b.close()
