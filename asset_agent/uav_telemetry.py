@@ -1,6 +1,13 @@
-"""Pure translation of the autopilot's state into the wire protocol's UAV telemetry and events."""
+"""Pure translation of the autopilot's state into the wire protocol's UAV telemetry and events.
+
+Autopilots report NaN for values they do not have (ArduPilot's ATTITUDE before the EKF is up, a
+battery monitor without a current sensor): a non-finite number is dropped here, field by field, so
+the rest of the sample is still sent (the protocol refuses NaN and infinities).
+"""
 
 from __future__ import annotations
+
+import math
 
 from asset_agent.autopilot.state import UavState
 from asset_agent.events import Event
@@ -52,21 +59,31 @@ MESSAGES = {
 }
 
 
+def _f(v: float | None) -> float | None:
+    """The value when it is a finite number, else None (dropped)."""
+    return v if v is not None and math.isfinite(v) else None
+
+
 def _clamp(v: float | None, lo: float, hi: float) -> float | None:
+    v = _f(v)
     return None if v is None else min(hi, max(lo, v))
 
 
 def to_telemetry(s: UavState) -> UavTelemetry:
-    """One telemetry sample from the autopilot's state."""
+    """One telemetry sample from the autopilot's state; non-finite values are left out."""
     position = None
-    if s.lat is not None and s.lon is not None and s.alt_msl is not None:
-        position = Position(lat=s.lat, lon=s.lon, alt_msl_m=s.alt_msl, alt_rel_m=s.alt_rel or 0.0)
+    lat, lon, alt_msl = _f(s.lat), _f(s.lon), _f(s.alt_msl)
+    if lat is not None and lon is not None and alt_msl is not None:
+        position = Position(lat=lat, lon=lon, alt_msl_m=alt_msl, alt_rel_m=_f(s.alt_rel) or 0.0)
     velocity = None
-    if s.vn is not None and s.ve is not None and s.vd is not None:
-        velocity = Velocity(north_m_s=s.vn, east_m_s=s.ve, down_m_s=s.vd)
+    vn, ve, vd = _f(s.vn), _f(s.ve), _f(s.vd)
+    if vn is not None and ve is not None and vd is not None:
+        velocity = Velocity(north_m_s=vn, east_m_s=ve, down_m_s=vd)
     attitude = None
-    if s.roll_deg is not None and s.pitch_deg is not None and s.yaw_deg is not None:
-        attitude = Attitude(roll_deg=s.roll_deg, pitch_deg=s.pitch_deg, yaw_deg=s.yaw_deg)
+    roll, pitch, yaw = _f(s.roll_deg), _f(s.pitch_deg), _f(s.yaw_deg)
+    if roll is not None and pitch is not None and yaw is not None:
+        attitude = Attitude(roll_deg=roll, pitch_deg=pitch, yaw_deg=yaw)
+    heading = _f(s.heading_deg)
     mission = None
     if s.mission_total is not None:
         mission = MissionProgress(
@@ -76,11 +93,13 @@ def to_telemetry(s: UavState) -> UavTelemetry:
         position=position,
         velocity=velocity,
         attitude=attitude,
-        heading_deg=None if s.heading_deg is None else s.heading_deg % 360,
+        heading_deg=None if heading is None else heading % 360,
         battery=Battery(
-            percent=_clamp(s.battery_pct, 0, 100), voltage_v=s.voltage_v, current_a=s.current_a
+            percent=_clamp(s.battery_pct, 0, 100),
+            voltage_v=_f(s.voltage_v),
+            current_a=_f(s.current_a),
         ),
-        gnss=Gnss(fix=FIX.get(s.fix_type, "none"), satellites=s.satellites, hdop=s.hdop),  # type: ignore[arg-type]
+        gnss=Gnss(fix=FIX.get(s.fix_type, "none"), satellites=s.satellites, hdop=_f(s.hdop)),  # type: ignore[arg-type]
         flight_mode=s.mode,
         armed=s.armed,
         landed_state=LANDED.get(s.landed_state, "unknown"),  # type: ignore[arg-type]
@@ -99,6 +118,10 @@ def to_event(e: Event) -> EventPayload:
         severity=SEVERITY.get(e.kind, "info"),
         message=message,
         data={
-            k: v for k, v in detail.items() if isinstance(v, str | int | float | bool) or v is None
+            k: v
+            for k, v in detail.items()
+            if isinstance(v, str | int | bool)
+            or v is None
+            or (isinstance(v, float) and _f(v) is not None)
         },
     )

@@ -20,14 +20,14 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, TypeAdapter, field_validator, model_serializer
 
 from protocol import rtcm
-from protocol.base import Frozen
+from protocol.base import MAX_SAFE_INT, MAX_UNIX_MS, Frozen, JsonObject
 from protocol.telemetry_payloads import LandingBaseTelemetry, TelemetryPayload, UavTelemetry
 from protocol.vocabulary import FINAL_STATUSES, CommandStatus, RunProgressPayload
 
 AgentKind = Literal["base_station", "asset_agent", "operator"]
 Severity = Literal["info", "warning", "critical"]
-Seq = Annotated[int, Field(ge=0)]
-UnixMs = Annotated[int, Field(ge=0)]
+Seq = Annotated[int, Field(ge=0, le=MAX_SAFE_INT)]
+UnixMs = Annotated[int, Field(ge=0, lt=MAX_UNIX_MS)]  # [1970-01-01, 2100-01-01)
 Name = Annotated[str, Field(min_length=1, max_length=200)]
 
 
@@ -63,7 +63,7 @@ class EventPayload(Frozen):
     name: Name
     severity: Severity = "info"
     message: str = ""
-    data: dict[str, Any] = Field(default_factory=dict)
+    data: JsonObject = Field(default_factory=dict)
 
 
 class CommandPayload(Frozen):
@@ -74,7 +74,7 @@ class CommandPayload(Frozen):
     """
 
     name: Name
-    params: dict[str, Any] = Field(default_factory=dict)
+    params: JsonObject = Field(default_factory=dict)
     deadline: UnixMs
 
 
@@ -82,8 +82,8 @@ class CommandProgress(Frozen):
     """Where a long command is: step name, its index out of total, and a human message."""
 
     step: str
-    index: Annotated[int, Field(ge=0)]
-    total: Annotated[int, Field(ge=0)]
+    index: Annotated[int, Field(ge=0, le=MAX_SAFE_INT)]
+    total: Annotated[int, Field(ge=0, le=MAX_SAFE_INT)]
     message: str = ""
 
 
@@ -94,7 +94,7 @@ class CommandResultPayload(Frozen):
     status: CommandStatus
     reason: str = ""
     progress: CommandProgress | None = None
-    data: dict[str, Any] | None = None
+    data: JsonObject | None = None
 
     @property
     def final(self) -> bool:
@@ -143,16 +143,20 @@ class ErrorPayload(Frozen):
     re_seq: Seq | None = None
 
 
+MAX_IDS_PER_MESSAGE = 5000
+AssetIds = Annotated[tuple[uuid.UUID, ...], Field(max_length=MAX_IDS_PER_MESSAGE)]
+
+
 class SubscribePayload(Frozen):
     """Operator -> server: start receiving these assets' telemetry, events and results."""
 
-    asset_ids: tuple[uuid.UUID, ...]
+    asset_ids: AssetIds
 
 
 class UnsubscribePayload(Frozen):
     """Operator -> server: stop receiving these assets."""
 
-    asset_ids: tuple[uuid.UUID, ...]
+    asset_ids: AssetIds
 
 
 # --- envelopes --------------------------------------------------------------------------

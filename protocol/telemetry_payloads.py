@@ -1,6 +1,7 @@
 """Telemetry payloads, discriminated by asset kind: a `uav` or a `landing_base`.
 
-Optional fields are None when the asset has no such sensor or no reading yet.
+Optional fields are None when the asset has no such sensor or no reading yet. Numbers are finite
+(NaN and infinities are refused, see `protocol.base.Frozen`) and integers bounded.
 Units are in the field names (m, m_s, deg, pct, v, a, w, g, mm_h, c).
 """
 
@@ -11,7 +12,7 @@ from uuid import UUID
 
 from pydantic import Field
 
-from protocol.base import Frozen
+from protocol.base import MAX_SAFE_INT, Frozen
 
 Pct = Annotated[float, Field(ge=0, le=100)]
 Deg360 = Annotated[float, Field(ge=0, le=360)]
@@ -71,15 +72,15 @@ class Gnss(Frozen):
     """GNSS receiver state, including RTK float/fixed solutions."""
 
     fix: GnssFix
-    satellites: Annotated[int, Field(ge=0)] | None = None
+    satellites: Annotated[int, Field(ge=0, le=255)] | None = None
     hdop: Annotated[float, Field(ge=0)] | None = None
 
 
 class MissionProgress(Frozen):
     """Current mission item out of the total uploaded."""
 
-    current: Annotated[int, Field(ge=0)]
-    total: Annotated[int, Field(ge=0)]
+    current: Annotated[int, Field(ge=0, le=65535)]  # MAVLink mission sequence numbers are uint16
+    total: Annotated[int, Field(ge=0, le=65535)]
 
 
 class UavTelemetry(Frozen):
@@ -144,8 +145,8 @@ class Rtk(Frozen):
 
     state: str
     corrections_rate: Annotated[float, Field(ge=0)] = 0.0
-    frames_total: Annotated[int, Field(ge=0)] = 0
-    bad_frames: Annotated[int, Field(ge=0)] = 0
+    frames_total: Annotated[int, Field(ge=0, le=MAX_SAFE_INT)] = 0
+    bad_frames: Annotated[int, Field(ge=0, le=MAX_SAFE_INT)] = 0
 
 
 class Faults(Frozen):

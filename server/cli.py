@@ -8,6 +8,7 @@ import getpass
 import os
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from server import migrate
 from server.auth.service import Account, SessionService
@@ -34,16 +35,23 @@ def server_main(argv: Sequence[str] | None = None) -> int:
     overrides = {k: v for k, v in (("host", args.host), ("port", args.port)) if v is not None}
     settings = Settings(**overrides)
     configure_logging(settings.log_format, settings.log_level)
-    uvicorn.run(
-        create_app(settings),
-        host=settings.host,
-        port=settings.port,
-        log_config=None,
-        ws_max_size=1 << 20,
-        ws_per_message_deflate=False,
-        proxy_headers=True,
-    )
+    uvicorn.run(create_app(settings), **uvicorn_options(settings))
     return 0
+
+
+def uvicorn_options(settings: Settings) -> dict[str, Any]:
+    """How uvicorn serves the app: frames over 1 MiB close with 1009, and a peer that does not
+    answer the server's pings (every ws_ping_interval_s) within ws_ping_timeout_s is dropped."""
+    return {
+        "host": settings.host,
+        "port": settings.port,
+        "log_config": None,
+        "ws_max_size": 1 << 20,
+        "ws_per_message_deflate": False,
+        "ws_ping_interval": settings.ws_ping_interval_s,
+        "ws_ping_timeout": settings.ws_ping_timeout_s,
+        "proxy_headers": True,
+    }
 
 
 def _password(given: str | None, env: str = "AEROBASE_PASSWORD") -> str:

@@ -53,6 +53,20 @@ class Settings(BaseSettings):
     # asset WebSocket: messages per second per connection (excess rejected with an error)
     ws_rate_per_s: float = Field(default=200.0, gt=0)
     ws_burst: float = Field(default=400.0, ge=1)
+    # both WebSockets (frontend_api.md, "Limits of the sockets"): a socket that has not sent its
+    # first message (an asset's hello, an operator's first subscribe) within ws_handshake_s, or
+    # whose peer has not taken a frame within ws_send_timeout_s, is closed with 4408; the server
+    # pings every ws_ping_interval_s and drops a peer whose pong is ws_ping_timeout_s late
+    ws_handshake_s: float = Field(default=10.0, gt=0)
+    ws_send_timeout_s: float = Field(default=10.0, gt=0)
+    ws_ping_interval_s: float = Field(default=10.0, gt=0)
+    ws_ping_timeout_s: float = Field(default=10.0, gt=0)
+    # operator WebSocket: sockets per login session (across replicas), assets followed per socket,
+    # messages per second per socket (beyond the burst: error rate_limited and close 4429)
+    ws_max_sockets_per_session: int = Field(default=8, ge=1)
+    ws_max_subscriptions: int = Field(default=5000, ge=1)
+    ws_operator_rate_per_s: float = Field(default=5.0, gt=0)
+    ws_operator_burst: float = Field(default=20.0, ge=1)
     telemetry_retention_days: float = Field(default=90.0, gt=0)
     # commands reach an asset's socket on a broker nudge; this sweep catches a nudge that could not
     # arrive (several processes without REDIS_URL, a Redis hiccup)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import uuid
+from collections.abc import Collection
+
 from sqlalchemy import select
 
 from server.assets.models import Asset
@@ -25,3 +28,10 @@ class AssetRepository(ScopedRepository[Asset]):
         if kind:
             stmt = stmt.where(Asset.kind == kind)
         return list((await self.db.execute(stmt)).scalars())
+
+    async def visible_ids(self, ids: Collection[uuid.UUID]) -> set[uuid.UUID]:
+        """Which of these ids are assets of the caller's organisation (one query)."""
+        if not ids:
+            return set()
+        stmt = self.select().with_only_columns(Asset.id).where(Asset.id.in_(list(ids)))
+        return set((await self.db.execute(stmt)).scalars())

@@ -4,7 +4,10 @@ After hello/welcome the session runs four tasks beside the reader: the sender (o
 socket), the acker (cumulative acks, in order, once storage completed), the heartbeat (keeps the
 auth session alive and the presence claim ours) and command delivery (from the database, nudged
 through the broker). The reader rate-limits, de-duplicates by seq, fans durable messages out to
-operators and hands them to the ingest.
+operators and hands them to the ingest. A message whose only fault is a NaN or infinite number is
+kept without it: the asset is answered `invalid_payload` naming the field and the asset's events
+record `telemetry_field_dropped`. A binary frame closes the socket with 1003, no hello within the
+handshake time with 4408.
 """
 
 from __future__ import annotations
@@ -24,10 +27,12 @@ from fastapi import WebSocket, WebSocketDisconnect
 from starlette.websockets import WebSocketState
 
 from asynckit.ratelimit import TokenBucket
-from protocol.codec import DecodeError, decode, encode
+from protocol.codec import DecodeError, Salvaged, decode, drop_non_finite, encode
 from protocol.messages import (
     AckPayload,
     CommandPayload,
+    Envelope,
+    EventPayload,
     Hello,
     RtcmPayload,
     WelcomePayload,
@@ -37,8 +42,9 @@ from server.assets.models import Asset
 from server.commands import service as commands
 from server.kit.scope import Principal
 from server.realtime.channels import asset_channel, command_channel, presence_key, rtcm_channel
-from server.realtime.ingest import Item
-from server.realtime.sender import Sender
+from server.realtime.frames import Refused, receive_text
+from server.realtime.ingest import DROPPED_EVENT, Item, RowRejected
+from server.realtime.sender import Sender, SlowReader
 from server.services import Services
 from server.telemetry.service import StreamOfAnotherAsset
 
@@ -49,7 +55,6 @@ HEARTBEAT_S = 15.0  # the asset session idles out after 60 s without one
 # replica admit the asset's reconnect, so it is short and refreshed every PRESENCE_REFRESH_S.
 PRESENCE_TTL_S = 10.0
 PRESENCE_REFRESH_S = 3.0
-HELLO_TIMEOUT_S = 15.0
 DURABLE = ("telemetry", "event", "command_result")
 
 
@@ -72,8 +77,8 @@ class AssetSession:
         self.organization_id = organization_id
         self.presence = presence_key(asset_id)
         self.owner = f"{services.hub.node}:{uuid.uuid4().hex[:8]}"
-        self.sender = Sender(ws, max_queue=10_000)
         settings = services.settings
+        self.sender = Sender(ws, max_queue=10_000, timeout_s=settings.ws_send_timeout_s)
         self.bucket = TokenBucket(settings.ws_rate_per_s, settings.ws_burst)
         self.wake = asyncio.Event()  # commands wait in the database
         self.stream = uuid.UUID(int=0)
@@ -108,16 +113,29 @@ class AssetSession:
                 asyncio.create_task(self.deliver_commands()),
             ]
             reader = asyncio.create_task(self.read())
+            tasks.append(reader)
             done, _ = await asyncio.wait([reader, tasks[0]], return_when=asyncio.FIRST_COMPLETED)
+            if reader in done and not reader.exception() and tasks[0] not in done:
+                # the reader queued a close: let the sender write it (bounded by its timeout)
+                with contextlib.suppress(Exception):
+                    await asyncio.wait_for(asyncio.shield(tasks[0]), 2 * self.sender.timeout_s)
             for t in done:
-                if t.exception() and not isinstance(t.exception(), WebSocketDisconnect):
-                    log.warning("asset socket ended: %r", t.exception())
-            reader.cancel()
-        except (WebSocketDisconnect, TimeoutError):
+                error = t.exception()
+                if error is not None and not isinstance(error, WebSocketDisconnect | SlowReader):
+                    log.error("asset socket failed", exc_info=error)
+        except WebSocketDisconnect:
             pass
+        except Refused as refused:
+            with contextlib.suppress(Exception):
+                await self.ws.close(refused.code, refused.reason)
         finally:
             for t in tasks:
                 t.cancel()
+            for (
+                _,
+                fut,
+            ) in self.pending:  # nobody acks them now: a storage error is not "unretrieved"
+                fut.add_done_callback(_retrieve)
             broker.unsubscribe(command_channel(self.asset_id), self._nudge)
             if corrections:
                 broker.unsubscribe(corrections, self._forward_rtcm)
@@ -131,6 +149,21 @@ class AssetSession:
                 with contextlib.suppress(Exception):
                     await self.ws.close(1000)
 
+    async def _publish_dropped(self, seq: int, kind: str, salvaged: Salvaged) -> None:
+        """Tell the asset's operators what was dropped (the ingest records the same event)."""
+        event = envelope(
+            EventPayload(
+                asset_id=self.asset_id,
+                name=DROPPED_EVENT,
+                severity="warning",
+                message=_dropped_message(salvaged),
+                data={"seq": seq, "kind": kind, "fields": list(salvaged.dropped)},
+            )
+        )
+        await self.services.broker.publish(
+            asset_channel(self.asset_id), {"id": str(event.id), "text": encode(event)}
+        )
+
     def _nudge(self, _message: dict[str, Any]) -> None:
         self.wake.set()
 
@@ -140,7 +173,7 @@ class AssetSession:
 
     async def _hello(self) -> bool:
         """Read the hello, find where its stream stands, send the welcome; False once closed."""
-        raw = await asyncio.wait_for(self.ws.receive_text(), HELLO_TIMEOUT_S)
+        raw = await receive_text(self.ws, self.services.settings.ws_handshake_s, "hello")
         hello = decode(raw, "asset_to_server")
         if not isinstance(hello, Hello):
             await self.ws.close(1008, "the first message must be hello")
@@ -164,7 +197,11 @@ class AssetSession:
         """Validate, rate-limit, de-duplicate, fan out and store what the asset sends."""
         hub, broker, ingest = self.services.hub, self.services.broker, self.services.ingest
         while True:
-            raw = await self.ws.receive_text()
+            try:
+                raw = await receive_text(self.ws)
+            except Refused as refused:
+                self.sender.close(refused.code, refused.reason)
+                return
             hub.counters.received += 1
             if not self.bucket.take():
                 # Acks are cumulative: storing later messages past a rejected one would lose it. So the
@@ -178,11 +215,17 @@ class AssetSession:
                 )
                 self.sender.close(1008, "rate limit exceeded")
                 return
-            msg = decode(raw, "asset_to_server")
-            if isinstance(msg, DecodeError):
+            decoded = decode(raw, "asset_to_server")
+            salvaged = None
+            if isinstance(decoded, DecodeError):
                 hub.counters.malformed += 1
-                self.sender.send_error(msg.code, msg.message)
-                continue
+                if decoded.code == "invalid_payload" and decoded.kind in DURABLE:
+                    salvaged = drop_non_finite(raw, "asset_to_server")
+                if salvaged is None:
+                    self.sender.send_error(decoded.code, decoded.message, decoded.seq)
+                    continue
+                self.sender.send_error("invalid_payload", _dropped_message(salvaged), decoded.seq)
+            msg: Envelope = salvaged.message if salvaged else decoded  # type: ignore[assignment]
             if msg.type in DURABLE:
                 if msg.seq <= self.last_seq:
                     hub.counters.duplicates += 1
@@ -206,9 +249,12 @@ class AssetSession:
                     msg.ts,
                     data["payload"],
                     getattr(msg, "re", None),
+                    dropped=salvaged.dropped if salvaged else (),
                 )
                 self.pending.append((msg.seq, ingest.submit(item)))
                 self.have_pending.set()
+                if salvaged:
+                    await self._publish_dropped(msg.seq, msg.type, salvaged)
             elif msg.type == "rtcm":
                 await broker.publish(rtcm_channel(self.asset_id), {"data": msg.payload.data})
             elif msg.type == "hello":
@@ -223,6 +269,10 @@ class AssetSession:
             seq, fut = self.pending[0]
             try:
                 await fut
+            except RowRejected as rejected:
+                # this one message cannot be stored (the others of its batch were): it is refused,
+                # and acknowledged with the rest so that the asset does not replay it forever
+                self.sender.send_error("invalid_payload", str(rejected), seq)
             except Exception:
                 self.sender.close(1011, "storage failed; reconnect and replay")
                 return
@@ -230,6 +280,7 @@ class AssetSession:
             self.pending.popleft()
             while self.pending and self.pending[0][1].done() and not self.pending[0][1].exception():
                 highest = self.pending.popleft()[0]
+            # (a rejected row still pending is reported on its own turn of the loop)
             if not self.pending:
                 self.have_pending.clear()
             self.sender.send_text(encode(envelope(AckPayload(seq=highest))))
@@ -282,3 +333,15 @@ class AssetSession:
                 await asyncio.wait_for(
                     self.wake.wait(), self.services.settings.command_sweep_s * rng.uniform(0.5, 1.5)
                 )
+
+
+def _dropped_message(salvaged: Salvaged) -> str:
+    text = "non-finite numbers dropped: " + ", ".join(f"payload.{f}" for f in salvaged.dropped)
+    if salvaged.cleared:
+        text += " (cleared: " + ", ".join(f"payload.{f}" for f in salvaged.cleared) + ")"
+    return text + "; the rest of the message is stored"
+
+
+def _retrieve(fut: asyncio.Future[None]) -> None:
+    if not fut.cancelled():
+        fut.exception()

@@ -5,6 +5,7 @@
   `rtcm.<id>`         RTCM3 corrections a landing base publishes, for its UAVs and the NTRIP caster
   `sessions.ended`    {"ids": [...]}: close those sessions' sockets (code 4001)
 Presence key `conn.asset.<id>`: one live connection per asset across every process.
+Slot keys `ws.session.<id>.<n>`: an operator socket holds one of its login session's n slots.
 """
 
 from __future__ import annotations
@@ -35,3 +36,8 @@ def sessions_ended_channel() -> str:
 def presence_key(asset_id: uuid.UUID) -> str:
     """The presence claim of an asset's one live connection."""
     return f"conn.asset.{asset_id}"
+
+
+def socket_slot_key(session_id: uuid.UUID, index: int) -> str:
+    """Slot `index` of a login session's operator sockets (claimed like a presence)."""
+    return f"ws.session.{session_id}.{index}"

@@ -4,6 +4,12 @@ A connection hands over (stream, seq, message); the batcher stores telemetry thr
 store, then events and stream positions (telemetry service) and command results (commands service)
 in one transaction per batch, then resolves the connection's future so it can ack. Writes are
 idempotent (a replay after a crash stores nothing twice).
+
+One bad row never fails a batch shared by many connections: a batch refused because of its data
+(a value the database or the store cannot hold) is split in halves and retried until the rows at
+fault are alone; each of those fails with `RowRejected` (its sender is answered `invalid_payload`)
+and every other row is stored. Any other failure (the database unreachable, busy, a deadlock)
+fails the batch as a whole: its senders are closed with 1011 and replay, so nothing is lost.
 """
 
 from __future__ import annotations
@@ -16,6 +22,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any
 
+from sqlalchemy.exc import DataError, IntegrityError, StatementError
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
 from asynckit.tasks import cancel_and_wait
@@ -25,6 +32,33 @@ from server.telemetry import service as telemetry
 from server.telemetry.store import Sample, TelemetryStore, flatten
 
 log = logging.getLogger(__name__)
+DROPPED_EVENT = "telemetry_field_dropped"
+# what a value the storage cannot hold raises: a replay would fail the same way
+DATA_FAULTS = (DataError, IntegrityError, ValueError, OverflowError, TypeError, UnicodeError)
+
+
+def _data_fault(err: BaseException) -> bool:
+    """True when the rows are at fault, not the database (a whitelist: anything else is replayed).
+
+    Looks through the wrapped errors: SQLite's OverflowError and asyncpg's "invalid input for
+    query argument" (a ValueError) are raised while binding parameters; PostgreSQL's own refusals
+    carry SQLSTATE class 22 (data exception) or 23 (integrity constraint violation).
+    """
+    seen: BaseException | None = err
+    for _ in range(5):
+        if seen is None:
+            return False
+        if isinstance(seen, DATA_FAULTS):
+            return True
+        if str(getattr(seen, "sqlstate", "") or "")[:2] in ("22", "23"):
+            return True
+        orig = seen.orig if isinstance(seen, StatementError) else None
+        seen = orig if isinstance(orig, BaseException) else seen.__cause__
+    return False
+
+
+class RowRejected(Exception):
+    """This one message cannot be stored (the rest of its batch was)."""
 
 
 @dataclass
@@ -39,6 +73,7 @@ class Item:
     ts_ms: int
     payload: dict[str, Any]
     re: uuid.UUID | None = None
+    dropped: tuple[str, ...] = ()  # non-finite fields the server removed (recorded as an event)
     done: asyncio.Future[None] = field(
         default_factory=lambda: asyncio.get_running_loop().create_future()
     )
@@ -47,6 +82,16 @@ class Item:
 
 def _ts(ms: int) -> datetime:
     return datetime.fromtimestamp(ms / 1000, UTC)
+
+
+def _dropped_event(item: Item) -> dict[str, Any]:
+    fields = ", ".join(item.dropped)
+    return {
+        "name": DROPPED_EVENT,
+        "severity": "warning",
+        "message": f"{item.kind} seq {item.seq}: non-finite numbers dropped ({fields})",
+        "data": {"seq": item.seq, "kind": item.kind, "fields": list(item.dropped)},
+    }
 
 
 class Ingest:
@@ -99,19 +144,38 @@ class Ingest:
                     batch.append(await asyncio.wait_for(self.queue.get(), timeout))
                 except TimeoutError:
                     break
-            try:
-                await self._store(batch)
-                for item in batch:
-                    if not item.done.done():
-                        item.done.set_result(None)
-                self.stored += len(batch)
-            except asyncio.CancelledError:
-                raise
-            except Exception as err:
+            await self._store_isolated(batch)
+
+    async def _store_isolated(self, batch: list[Item]) -> None:
+        """Store a batch and resolve its futures; a batch refused for its data is halved until the
+        rows at fault are alone (only they fail); any other failure fails the batch (replayed)."""
+        try:
+            await self._store(batch)
+        except asyncio.CancelledError:
+            raise
+        except Exception as err:
+            if not _data_fault(err):
                 log.exception("storing a batch of %d messages failed", len(batch))
                 for item in batch:
                     if not item.done.done():
                         item.done.set_exception(err)
+                return
+            if len(batch) == 1:
+                item = batch[0]
+                log.warning(
+                    "message seq %d of asset %s cannot be stored: %r", item.seq, item.asset_id, err
+                )
+                if not item.done.done():
+                    item.done.set_exception(RowRejected(f"message seq {item.seq} cannot be stored"))
+                return
+            half = len(batch) // 2
+            await self._store_isolated(batch[:half])
+            await self._store_isolated(batch[half:])
+            return
+        for item in batch:
+            if not item.done.done():
+                item.done.set_result(None)
+        self.stored += len(batch)
 
     async def _store(self, batch: list[Item]) -> None:
         samples = [
@@ -127,6 +191,14 @@ class Ingest:
                 if item.kind == "event":
                     telemetry.record_event(
                         db, item.organization_id, item.asset_id, _ts(item.ts_ms), item.payload
+                    )
+                if item.dropped:
+                    telemetry.record_event(
+                        db,
+                        item.organization_id,
+                        item.asset_id,
+                        _ts(item.ts_ms),
+                        _dropped_event(item),
                     )
                 elif item.kind == "command_result" and item.re is not None:
                     await commands.apply_result(db, item.re, item.asset_id, item.payload)

@@ -1,9 +1,17 @@
-"""A person's live view on `/ws/operator`: subscribe to assets of their organisation, receive what they send."""
+"""A person's live view on `/ws/operator`: subscribe to assets of their organisation, receive what they send.
+
+Bounded (frontend_api.md, "Limits of the sockets"): sockets per login session (a slot claimed
+through the broker, so the bound holds across replicas), assets followed per socket, messages
+per second, time to the first message, time for the peer to take a frame.
+"""
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
+import logging
+import random
 import uuid
 from collections import deque
 from collections.abc import Iterable
@@ -11,16 +19,20 @@ from typing import Any
 
 from fastapi import WebSocket, WebSocketDisconnect
 
+from asynckit.ratelimit import TokenBucket
 from protocol.codec import DecodeError, decode
 from protocol.messages import Subscribe, Unsubscribe
 from server.assets.repository import AssetRepository
-from server.kit.errors import NotFound
 from server.kit.scope import Principal
-from server.realtime.channels import asset_channel
-from server.realtime.sender import Sender
+from server.realtime.channels import asset_channel, socket_slot_key
+from server.realtime.frames import TOO_MANY, Refused, receive_text
+from server.realtime.sender import Sender, SlowReader
 from server.services import Services
 
+log = logging.getLogger(__name__)
 RECENT_IDS = 256  # a run's progress is published on its UAV's and its base's channel
+SLOT_TTL_S = 30.0  # a crashed replica's slots free themselves after this
+MAX_LISTED_IDS = 20  # ids named in one not_found error
 
 
 class OperatorSession:
@@ -31,9 +43,13 @@ class OperatorSession:
         self.services = services
         self.ws = ws
         self.principal = principal
-        self.sender = Sender(ws, max_queue=5000)
+        settings = services.settings
+        self.sender = Sender(ws, max_queue=5000, timeout_s=settings.ws_send_timeout_s)
+        self.bucket = TokenBucket(settings.ws_operator_rate_per_s, settings.ws_operator_burst)
         self.subscribed: set[uuid.UUID] = set()
         self.recent: deque[str] = deque(maxlen=RECENT_IDS)
+        self.owner = f"{services.hub.node}:{uuid.uuid4().hex[:8]}"
+        self.slot: str | None = None
 
     def forward(self, message: dict[str, Any]) -> None:
         """Pass one broker message on to the socket (once, even when it came on two channels)."""
@@ -52,44 +68,91 @@ class OperatorSession:
     async def serve(self) -> None:
         """Read subscribe/unsubscribe requests until the socket closes (or is closed for us)."""
         hub = self.services.hub
+        if not await self._claim_slot():
+            limit = self.services.settings.ws_max_sockets_per_session
+            await self.ws.close(TOO_MANY, f"this session already has {limit} sockets open")
+            return
         hub.register_closer(self.principal.session_id, self.sender.close)
         send_task = asyncio.create_task(self.sender.run())
+        read_task = asyncio.create_task(self.read())
+        keep_task = asyncio.create_task(self._keep_slot())
+        try:
+            done, _ = await asyncio.wait(
+                [read_task, send_task], return_when=asyncio.FIRST_COMPLETED
+            )
+            if read_task in done and not read_task.exception() and send_task not in done:
+                # the reader queued a close: let the sender write it (bounded by its timeout)
+                with contextlib.suppress(Exception):
+                    await asyncio.wait_for(asyncio.shield(send_task), 2 * self.sender.timeout_s)
+            for task in done:
+                error = task.exception()
+                if error is not None and not isinstance(error, WebSocketDisconnect | SlowReader):
+                    log.error("operator socket failed", exc_info=error)
+        finally:
+            for task in (read_task, send_task, keep_task):
+                task.cancel()
+            self.unsubscribe(list(self.subscribed))
+            hub.unregister_closer(self.principal.session_id, self.sender.close)
+            if self.slot is not None:
+                with contextlib.suppress(Exception):
+                    await self.services.broker.release(self.slot, self.owner)
+
+    async def read(self) -> None:
+        """Handle messages until the peer leaves; a refused socket is closed through the sender."""
+        settings = self.services.settings
+        first = True
         try:
             while True:
-                receive = asyncio.create_task(self.ws.receive_text())
-                done, _ = await asyncio.wait(
-                    [receive, send_task], return_when=asyncio.FIRST_COMPLETED
-                )
-                if send_task in done:
-                    receive.cancel()
-                    break
-                msg = decode(receive.result(), "operator_to_server")
+                # the first message (a subscribe, possibly empty) is due within the handshake time
+                timeout = settings.ws_handshake_s if first else None
+                raw = await receive_text(self.ws, timeout, "first message (subscribe)")
+                first = False
+                if not self.bucket.take():
+                    self.sender.send_error(
+                        "rate_limited",
+                        f"over {self.bucket.rate:g} messages/s (burst {self.bucket.burst:g})",
+                    )
+                    raise Refused(TOO_MANY, "message rate limit exceeded")
+                msg = decode(raw, "operator_to_server")
                 if isinstance(msg, DecodeError):
-                    self.sender.send_error(msg.code, msg.message)
+                    self.services.hub.counters.malformed += 1
+                    self.sender.send_error(msg.code, msg.message, msg.seq)
                 elif isinstance(msg, Subscribe):
                     await self.subscribe(msg.payload.asset_ids)
                 elif isinstance(msg, Unsubscribe):
                     self.unsubscribe(msg.payload.asset_ids)
-        except WebSocketDisconnect:
-            pass
-        finally:
-            send_task.cancel()
-            self.unsubscribe(list(self.subscribed))
-            hub.unregister_closer(self.principal.session_id, self.sender.close)
+        except Refused as refused:
+            self.sender.close(refused.code, refused.reason)
 
     async def subscribe(self, asset_ids: Iterable[uuid.UUID]) -> None:
-        """Follow these assets; one the caller may not see is answered with not_found."""
+        """Follow these assets (one query for all); those the caller may not see are answered with
+        one not_found, those past the socket's limit with too_many_subscriptions."""
+        wanted = [i for i in dict.fromkeys(asset_ids) if i not in self.subscribed]
+        if not wanted:
+            return
         async with self.services.sessionmaker() as db:
-            repo = AssetRepository(db, self.principal)
-            for asset_id in asset_ids:
-                try:
-                    await repo.get(asset_id)
-                except NotFound:
-                    self.sender.send_error("not_found", f"asset {asset_id} not found")
-                    continue
-                if asset_id not in self.subscribed:
-                    self.subscribed.add(asset_id)
-                    self.services.broker.subscribe(asset_channel(asset_id), self.forward)
+            visible = await AssetRepository(db, self.principal).visible_ids(wanted)
+        missing = [i for i in wanted if i not in visible]
+        if missing:
+            named = ", ".join(str(i) for i in missing[:MAX_LISTED_IDS])
+            more = (
+                f" and {len(missing) - MAX_LISTED_IDS} more"
+                if len(missing) > MAX_LISTED_IDS
+                else ""
+            )
+            noun = "asset" if len(missing) == 1 else "assets"
+            self.sender.send_error("not_found", f"{noun} {named}{more} not found")
+        room = self.services.settings.ws_max_subscriptions - len(self.subscribed)
+        found = [i for i in wanted if i in visible]
+        for asset_id in found[: max(room, 0)]:
+            self.subscribed.add(asset_id)
+            self.services.broker.subscribe(asset_channel(asset_id), self.forward)
+        if len(found) > room:
+            limit = self.services.settings.ws_max_subscriptions
+            self.sender.send_error(
+                "too_many_subscriptions",
+                f"a socket follows at most {limit} assets: {len(found) - max(room, 0)} not followed",
+            )
 
     def unsubscribe(self, asset_ids: Iterable[uuid.UUID]) -> None:
         """Stop following these assets."""
@@ -97,3 +160,21 @@ class OperatorSession:
             if asset_id in self.subscribed:
                 self.subscribed.discard(asset_id)
                 self.services.broker.unsubscribe(asset_channel(asset_id), self.forward)
+
+    async def _claim_slot(self) -> bool:
+        """Take one of the session's socket slots (shared by every replica through the broker)."""
+        broker, limit = self.services.broker, self.services.settings.ws_max_sockets_per_session
+        for index in range(limit):
+            key = socket_slot_key(self.principal.session_id, index)
+            if await broker.claim(key, self.owner, SLOT_TTL_S) is None:
+                self.slot = key
+                return True
+        return False
+
+    async def _keep_slot(self) -> None:
+        """Refresh the slot while the socket lives (jittered, well inside its time to live)."""
+        rng = random.Random()
+        while self.slot is not None:
+            await asyncio.sleep(SLOT_TTL_S / 3 * rng.uniform(0.8, 1.2))
+            if not await self.services.broker.refresh(self.slot, self.owner, SLOT_TTL_S):
+                await self.services.broker.claim(self.slot, self.owner, SLOT_TTL_S)

@@ -1,4 +1,8 @@
-"""The sending half of a server WebSocket: one queue, one writer task, closable from anywhere."""
+"""The sending half of a server WebSocket: one queue, one writer task, closable from anywhere.
+
+A peer that does not take a frame within the send timeout (a slow or stalled reader) is closed
+with 4408 instead of holding the writer, its queue and its subscriptions forever.
+"""
 
 from __future__ import annotations
 
@@ -9,15 +13,22 @@ from fastapi import WebSocket
 
 from protocol.codec import encode
 from protocol.messages import ErrorPayload, envelope
+from server.realtime.frames import TIMED_OUT
+
+
+class SlowReader(Exception):
+    """The peer did not take a frame within the send timeout; its socket was closed."""
 
 
 class Sender:
     """Serialises sends on one socket and closes it from anywhere (broker callbacks included)."""
 
-    def __init__(self, ws: WebSocket, max_queue: int = 1000) -> None:
-        """Queue at most `max_queue` frames; beyond that `send_text` drops and counts."""
+    def __init__(self, ws: WebSocket, max_queue: int = 1000, timeout_s: float = 10.0) -> None:
+        """Queue at most `max_queue` frames (beyond that `send_text` drops and counts); a frame
+        the peer has not taken within `timeout_s` closes the socket."""
         self.ws = ws
         self.queue: asyncio.Queue[str | tuple[int, str]] = asyncio.Queue(max_queue)
+        self.timeout_s = timeout_s
         self.dropped = 0
 
     def send_text(self, text: str) -> bool:
@@ -32,7 +43,7 @@ class Sender:
     def send_error(self, code: str, message: str, seq: int | None = None) -> bool:
         """Queue an error message (about message `seq` when given)."""
         return self.send_text(
-            encode(envelope(ErrorPayload(code=code, message=message, re_seq=seq)))
+            encode(envelope(ErrorPayload(code=code, message=message[:2000], re_seq=seq)))
         )
 
     def close(self, code: int, reason: str) -> None:
@@ -41,11 +52,20 @@ class Sender:
             self.queue.put_nowait((code, reason))
 
     async def run(self) -> None:
-        """Write queued frames until a close is queued (or the socket fails)."""
+        """Write queued frames until a close is queued (or the socket fails); raises SlowReader
+        after closing a peer that stopped taking frames."""
         while True:
             item = await self.queue.get()
             if isinstance(item, tuple):
-                with contextlib.suppress(Exception):
-                    await self.ws.close(item[0], item[1][:120])
+                await self._close(item[0], item[1])
                 return
-            await self.ws.send_text(item)
+            try:
+                await asyncio.wait_for(self.ws.send_text(item), self.timeout_s)
+            except TimeoutError:
+                await self._close(TIMED_OUT, f"a frame not taken within {self.timeout_s:g} s")
+                raise SlowReader(f"peer took no frame within {self.timeout_s:g} s") from None
+
+    async def _close(self, code: int, reason: str) -> None:
+        # bounded too: the close frame waits behind what the peer has not read
+        with contextlib.suppress(Exception):
+            await asyncio.wait_for(self.ws.close(code, reason[:120]), self.timeout_s)

@@ -20,6 +20,11 @@ class StreamOfAnotherAsset(ValueError):
     """A hello named a stream that belongs to another asset."""
 
 
+def _text(value: Any) -> str:
+    # valid JSON, but PostgreSQL's text types cannot hold NUL: stored without it on every database
+    return str(value).replace("\x00", "")
+
+
 def record_event(
     db: AsyncSession,
     organization_id: uuid.UUID,
@@ -27,15 +32,15 @@ def record_event(
     ts: datetime,
     payload: Mapping[str, Any],
 ) -> None:
-    """Add one event an asset reported (name and message cut to their column sizes)."""
+    """Add one event an asset reported (name and message cut to their column sizes, without NUL)."""
     db.add(
         AssetEvent(
             organization_id=organization_id,
             asset_id=asset_id,
             ts=ts,
-            name=str(payload.get("name", ""))[:200],
-            severity=str(payload.get("severity", "info")),
-            message=str(payload.get("message", ""))[:2000],
+            name=_text(payload.get("name", ""))[:200],
+            severity=_text(payload.get("severity", "info"))[:16],
+            message=_text(payload.get("message", ""))[:2000],
             data=payload.get("data") or {},
         )
     )
