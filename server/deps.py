@@ -55,7 +55,7 @@ async def get_uow(request: Request) -> AsyncIterator[UnitOfWork]:
 
 
 def get_db(uow: Annotated[UnitOfWork, Depends(get_uow, scope="function")]) -> AsyncSession:
-    """The request's database session (the one of its unit of work), for reads."""
+    """The session of the request's unit of work (prefer a service taking the `UoW`)."""
     return uow.db
 
 

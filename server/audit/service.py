@@ -1,4 +1,4 @@
-"""Writing audit events: the one helper every service records through, in its unit of work."""
+"""The audit log: the one helper every service records through (in its unit of work), and reads."""
 
 from __future__ import annotations
 
@@ -6,7 +6,9 @@ import uuid
 from typing import Any
 
 from server.audit.models import AuditEvent
+from server.audit.repository import AuditRepository
 from server.kit.principal import Principal
+from server.kit.service import Service
 from server.kit.uow import UnitOfWork
 
 
@@ -34,3 +36,11 @@ async def record(
         )
     )
     await uow.db.flush()
+
+
+class AuditService(Service):
+    """Reading the audit log of the caller's organisation."""
+
+    async def recent(self, limit: int, action: str | None) -> list[AuditEvent]:
+        """The newest events, optionally of one action."""
+        return await AuditRepository(self.db, self.principal).recent(limit, action)

@@ -6,19 +6,16 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, Request, Response
 
-from server.assets.models import Asset
 from server.auth.limiter import LoginLimiter
-from server.auth.login import LoginService
+from server.auth.login import IdentityService, LoginService
 from server.auth.schemas import (
     AssetLoginRequest,
     LoginRequest,
-    MembershipOut,
     MeResponse,
     TokenResponse,
 )
 from server.auth.service import IssuedToken, SessionService
 from server.deps import CurrentPrincipal, ServicesDep, SettingsDep, UoW, current_session
-from server.organizations.repository import UserRepository
 
 router = APIRouter(tags=["auth"])
 
@@ -87,31 +84,5 @@ async def me(
     principal: CurrentPrincipal, request: Request, uow: UoW, settings: SettingsDep
 ) -> MeResponse:
     """Who the caller is, in which organisation, with which role."""
-    db = uow.db
     session = await current_session(request, uow, settings)
-    if principal.kind == "asset":
-        asset = await db.get(Asset, principal.asset_id)
-        return MeResponse(
-            kind="asset",
-            id=principal.asset_id,  # type: ignore[arg-type]
-            name=asset.name if asset else None,
-            organization_id=principal.organization_id,
-            role=None,
-            session_id=session.id,
-            session_expires_at=session.expires_at,
-        )
-    memberships = await UserRepository(db).memberships(principal.user_id)  # type: ignore[arg-type]
-    return MeResponse(
-        kind="user",
-        id=principal.user_id,  # type: ignore[arg-type]
-        email=principal.label,
-        is_superuser=principal.is_superuser,
-        organization_id=principal.organization_id,
-        role=principal.role.value if principal.role else None,
-        memberships=[
-            MembershipOut(organization_id=o.id, organization_name=o.name, role=m.role.value)
-            for m, o in memberships
-        ],
-        session_id=session.id,
-        session_expires_at=session.expires_at,
-    )
+    return await IdentityService(uow, principal).me(session)

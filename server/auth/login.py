@@ -1,16 +1,21 @@
-"""Logging in: limits on failed attempts, credentials, disabled accounts, the one-session rule."""
+"""Logging in (limits on failed attempts, credentials, disabled accounts, the one-session rule)
+and telling callers who they are."""
 
 from __future__ import annotations
 
 import asyncio
 import uuid
 
+from server.assets.models import Asset
 from server.assets.repository import AssetRepository
 from server.auth.limiter import LoginLimiter
+from server.auth.models import AuthSession
+from server.auth.schemas import MembershipOut, MeResponse
 from server.auth.service import Account, IssuedToken, SessionService
 from server.config import Settings
 from server.kit.errors import Unauthorized, Unprocessable
 from server.kit.security import Passwords, same_hash, token_hash
+from server.kit.service import Service
 from server.kit.time import utcnow
 from server.kit.uow import UnitOfWork
 from server.organizations.models import Membership, Organization, User
@@ -81,4 +86,38 @@ class LoginService:
             Account("asset", asset.id, asset.organization_id, asset.name),
             force=force,
             via="asset.login",
+        )
+
+
+class IdentityService(Service):
+    """Who the caller is."""
+
+    async def me(self, session: AuthSession) -> MeResponse:
+        """The caller, its organisation and role, and (a user's) memberships."""
+        p = self.principal
+        if p.kind == "asset":
+            asset = await self.db.get(Asset, p.asset_id)
+            return MeResponse(
+                kind="asset",
+                id=p.asset_id,  # type: ignore[arg-type]
+                name=asset.name if asset else None,
+                organization_id=p.organization_id,
+                role=None,
+                session_id=session.id,
+                session_expires_at=session.expires_at,
+            )
+        memberships = await UserRepository(self.db).memberships(p.user_id)  # type: ignore[arg-type]
+        return MeResponse(
+            kind="user",
+            id=p.user_id,  # type: ignore[arg-type]
+            email=p.label,
+            is_superuser=p.is_superuser,
+            organization_id=p.organization_id,
+            role=p.role.value if p.role else None,
+            memberships=[
+                MembershipOut(organization_id=o.id, organization_name=o.name, role=m.role.value)
+                for m, o in memberships
+            ],
+            session_id=session.id,
+            session_expires_at=session.expires_at,
         )
