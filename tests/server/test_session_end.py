@@ -1,18 +1,17 @@
 """Every end of a session closes that session's sockets within a second, in every replica.
 
 Logout, disabling or removing the user, expiry (idle and TTL), renewal, a forced takeover and a
-config reissue, over real sockets; the last test runs two app instances sharing the database and
-Redis, ends the session on one and watches the socket on the other close.
+config reissue, over real sockets; the last test runs two `aerobase server` processes sharing the
+database and Redis, ends sessions on one and watches their sockets on the other close.
 """
 
 from __future__ import annotations
 
 import asyncio
 import json
-import os
 import time
 import uuid
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Iterator
 from contextlib import asynccontextmanager
 
 import httpx
@@ -21,10 +20,10 @@ import websockets
 
 from protocol.codec import encode
 from protocol.messages import HelloPayload, envelope
-from tests.conftest import LiveServer, Tenant, auth, login, need_service, test_settings
+from tests.conftest import LiveServer, Tenant, auth, login, test_settings
+from tests.replicas import replicas
 
 CLOSE_WITHIN_S = 1.0
-REDIS_URL = os.environ.get("REDIS_TEST_URL", "redis://127.0.0.1:6379/0")
 
 
 @asynccontextmanager
@@ -192,27 +191,22 @@ async def test_a_config_reissue_closes_the_assets_socket(live_server, tenant: Te
 
 
 @pytest.fixture
-def replicas(database_url: str):  # type: ignore[no-untyped-def]
-    """Two app instances on their own sockets, sharing the database and Redis."""
-    need_service("Redis", "127.0.0.1", 6379)
-    servers = [
-        LiveServer(test_settings(database_url, redis_url=REDIS_URL)).start() for _ in range(2)
-    ]
-    yield servers
-    for s in servers:
-        s.stop()
+def two_replicas(database_url: str, tmp_path) -> Iterator[tuple[str, str]]:  # type: ignore[no-untyped-def]
+    """Two `aerobase server` processes sharing the database and Redis."""
+    with replicas(database_url, tmp_path) as started:
+        yield tuple(f"http://127.0.0.1:{port}" for port, _ in started)  # type: ignore[misc]
 
 
 @pytest.mark.slow
 async def test_a_session_ended_on_one_replica_closes_its_socket_on_the_other(
-    replicas, api, superuser_email
+    two_replicas, api, superuser_email
 ):
-    a, b = replicas
+    a, b = two_replicas
     tenant = Tenant(api, superuser_email, "replicas")
-    async with operator_socket(b.url, tenant.tokens["operator"]) as ws:
+    async with operator_socket(b, tenant.tokens["operator"]) as ws:
         started = time.monotonic()
         r = await _post(
-            a.url,
+            a,
             f"/api/v1/users/{tenant.user_ids['operator']}",
             tenant.h("admin"),
             method="PATCH",
@@ -221,7 +215,7 @@ async def test_a_session_ended_on_one_replica_closes_its_socket_on_the_other(
         assert r.status_code == 200, r.text
         assert await closed_within(ws, started, CLOSE_WITHIN_S) == 4001
     token = login(api, tenant.emails["viewer"], Tenant.PASSWORD, force=True)
-    async with operator_socket(b.url, token) as ws:
+    async with operator_socket(b, token) as ws:
         started = time.monotonic()
-        assert (await _post(a.url, "/api/v1/auth/logout", auth(token))).status_code == 204
+        assert (await _post(a, "/api/v1/auth/logout", auth(token))).status_code == 204
         assert await closed_within(ws, started, CLOSE_WITHIN_S) == 4001
