@@ -1,12 +1,12 @@
-"""Failed-login limits that hold under concurrency: an attempt is counted before it is checked.
+"""Failed-login limits that hold under concurrency: admissions are serialised per key.
 
-Each attempt first commits one row per key (the account, the client address) in its own short
-transaction, then counts the key's rows in the window, its own included. Rows commit in some
-order and each attempt counts after its own row is durable, so the attempt whose row is the
-(limit+1)-th sees more than the limit and is refused: however many arrive together, at most
-`limit` are checked. The database is shared by every replica, so the bound is too. A refused
-attempt takes its rows back (it checked nothing); a checked one that fails leaves them as its
-failures; a successful login clears them.
+An attempt is admitted in one short transaction of its own: take the key (a transaction-scoped
+advisory lock per key on PostgreSQL, so every replica queues on it; on SQLite the insert that
+follows takes the database's single write lock), record the attempt, count the key's attempts
+in the window with its own, and commit — or, past the limit, roll back and answer 429. So each
+admission counts every earlier one: however many wrong passwords arrive together, exactly the
+first `limit` are checked. A checked attempt that fails leaves its rows as its failures; a
+successful login takes them back and clears the account's.
 """
 
 from __future__ import annotations
@@ -50,14 +50,12 @@ class LoginLimiter:
         """Count an attempt; RateLimited (and not counted) when a key is over its limit."""
         keys = self.keys(account_key, addr)
         async with unit_of_work(self.sessionmaker) as uow:
-            ids = await LoginFailureRepository(uow.db).add([k for k, _ in keys], now)
-        async with self.sessionmaker() as db:
-            repo = LoginFailureRepository(db)
+            repo = LoginFailureRepository(uow.db)
+            await repo.lock(sorted(k for k, _ in keys))
+            ids = await repo.add([k for k, _ in keys], now)
             for key, limit in keys:
                 count, oldest = await repo.window(key, now - self.window)
-                if count > limit:
-                    await repo.delete(ids)
-                    await db.commit()
+                if count > limit:  # leaving the block with the error rolls this attempt back
                     retry = int(((oldest or now) + self.window - now).total_seconds()) + 1
                     what = "this account" if key.startswith("account:") else "your address"
                     raise RateLimited(

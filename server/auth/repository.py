@@ -69,6 +69,14 @@ class LoginFailureRepository:
             oldest = oldest.replace(tzinfo=UTC)
         return int(count), oldest
 
+    async def lock(self, keys: list[str]) -> None:
+        """Hold these keys until the transaction ends (PostgreSQL advisory locks, taken in the
+        order given; SQLite has one writer at a time, which serialises the insert that follows)."""
+        if self.db.get_bind().dialect.name == "postgresql":
+            for key in keys:
+                lock = func.pg_advisory_xact_lock(func.hashtext(key))
+                await self.db.execute(select(lock))  # unscoped: a lock, no table
+
     async def add(self, keys: list[str], at: datetime) -> list[uuid.UUID]:
         """Record one attempt against each key; the new rows' ids."""
         rows = [LoginFailure(key=k, at=at) for k in keys]

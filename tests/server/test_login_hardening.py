@@ -127,7 +127,8 @@ async def test_30_concurrent_wrong_passwords_check_at_most_the_limit(live_server
         codes = [r.status_code for r in answers]
         checked = codes.count(401)
         assert set(codes) <= {401, 429}, codes
-        assert 1 <= checked <= limit, f"{checked} wrong passwords checked (limit {limit}): {codes}"
+        # at most the limit, and no fewer: admissions queue per key, so the first `limit` go on
+        assert checked == limit, f"{checked} wrong passwords checked (limit {limit}): {codes}"
         # the limit stands afterwards, for the right password too
         r = await c.post(
             "/api/v1/auth/login",
