@@ -15,10 +15,11 @@ from server.auth.service import Account, SessionService
 from server.config import Settings
 from server.kit.db import make_engine, make_sessionmaker
 from server.kit.errors import AppError
+from server.kit.principal import Role
 from server.kit.security import Passwords
+from server.kit.uow import UnitOfWork
 from server.logging import configure_logging
 from server.organizations import service
-from server.organizations.models import Role
 from server.organizations.repository import UserRepository
 
 
@@ -155,10 +156,9 @@ async def _admin(db, args, settings: Settings, passwords: Passwords) -> str:  # 
         orgs = [o for _, o in memberships if args.org is None or o.name == args.org]
         if args.org and not orgs:
             raise AppError(f"{args.email} is not a member of {args.org}")
-        issued = await SessionService(db, settings).open(
+        issued = await SessionService(UnitOfWork(db), settings).open(
             Account("user", user.id, orgs[0].id if orgs else None, user.email),
             force=args.force,
-            client_addr=None,
             via="token.cli",
         )
         return issued.access_token

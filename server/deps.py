@@ -13,9 +13,10 @@ from server.auth.models import AuthSession
 from server.auth.service import SessionService
 from server.config import Settings
 from server.kit.errors import Forbidden, Unauthorized
-from server.kit.scope import Principal
+from server.kit.principal import Principal, Role
 from server.kit.security import Passwords
-from server.organizations.models import Role, User
+from server.kit.uow import UnitOfWork, unit_of_work
+from server.organizations.models import User
 from server.organizations.repository import MembershipRepository
 from server.services import Services
 
@@ -41,15 +42,21 @@ def get_services(conn: HTTPConnection) -> Services:
 ServicesDep = Annotated[Services, Depends(get_services)]
 
 
-async def get_db(request: Request) -> AsyncIterator[AsyncSession]:
-    """One transaction per request: committed when the endpoint succeeds, rolled back otherwise."""
-    async with get_services(request).sessionmaker() as db:
-        try:
-            yield db
-            await db.commit()
-        except BaseException:
-            await db.rollback()
-            raise
+async def get_uow(request: Request) -> AsyncIterator[UnitOfWork]:
+    """One unit of work per request: committed once when the endpoint succeeds (then its
+    after-commit hooks run), rolled back otherwise. Endpoints and services never commit."""
+    services = get_services(request)
+    async with unit_of_work(
+        services.sessionmaker,
+        client_addr=client_addr(request),
+        session_end_listeners=services.session_end_listeners,
+    ) as uow:
+        yield uow
+
+
+def get_db(uow: Annotated[UnitOfWork, Depends(get_uow, scope="function")]) -> AsyncSession:
+    """The session of the request's unit of work (prefer a service taking the `UoW`)."""
+    return uow.db
 
 
 def get_settings(request: Request) -> Settings:
@@ -63,6 +70,7 @@ def get_passwords(request: Request) -> Passwords:
 
 
 # scope="function": commit before the response is sent, so a client never reads before the write lands
+UoW = Annotated[UnitOfWork, Depends(get_uow, scope="function")]
 DB = Annotated[AsyncSession, Depends(get_db, scope="function")]
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 PasswordsDep = Annotated[Passwords, Depends(get_passwords)]
@@ -78,12 +86,13 @@ def bearer_token(request: Request) -> str | None:
 
 
 async def principal_of(
-    db: AsyncSession, settings: Settings, token: str | None
+    uow: UnitOfWork, settings: Settings, token: str | None
 ) -> tuple[Principal, AuthSession]:
     """Resolve a token to the caller; raises Unauthorized."""
     if not token:
         raise Unauthorized()
-    session = await SessionService(db, settings).authenticate(token)
+    db = uow.db
+    session = await SessionService(uow, settings).authenticate(token)
     if session.principal_kind == "asset":
         return Principal(
             kind="asset",
@@ -100,6 +109,8 @@ async def principal_of(
             kind="user", session_id=session.id, organization_id=session.organization_id
         )
         found = await MembershipRepository(db, probe).of_user(user.id)
+        if found is not None and not found[0].is_active:
+            raise Unauthorized("account disabled in this organisation", code="account_disabled")
         if found is not None:
             role = found[0].role
         elif user.is_superuser:
@@ -115,14 +126,14 @@ async def principal_of(
     ), session
 
 
-async def current_session(request: Request, db: DB, settings: SettingsDep) -> AuthSession:
+async def current_session(request: Request, uow: UoW, settings: SettingsDep) -> AuthSession:
     """The caller's live session."""
-    return (await principal_of(db, settings, bearer_token(request)))[1]
+    return (await principal_of(uow, settings, bearer_token(request)))[1]
 
 
-async def current_principal(request: Request, db: DB, settings: SettingsDep) -> Principal:
+async def current_principal(request: Request, uow: UoW, settings: SettingsDep) -> Principal:
     """The caller (user or asset), from its bearer token."""
-    principal, _ = await principal_of(db, settings, bearer_token(request))
+    principal, _ = await principal_of(uow, settings, bearer_token(request))
     request.state.principal = principal
     return principal
 

@@ -5,8 +5,9 @@ from server.audit.models import AuditEvent
 from server.auth.models import AuthSession, LoginFailure
 from server.commands.models import AssetCommand, CommandStatusChange
 from server.kit.db import Base
+from server.kit.principal import Role
 from server.missions.models import Mission, MissionKind
-from server.organizations.models import Membership, Organization, Role, User
+from server.organizations.models import Membership, Organization, User
 from server.runs.models import Run, RunStepCommand, RunTransition
 from server.schedules.models import Schedule
 from server.telemetry.models import AssetEvent, AssetStream, TelemetrySample

@@ -7,21 +7,17 @@ in its imports instead of hiding in an untyped `app.state`.
 
 from __future__ import annotations
 
-from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
-from typing import Any
 
 from sqlalchemy.ext.asyncio import AsyncEngine, AsyncSession, async_sessionmaker
 
 from server.config import Settings
 from server.kit.security import Passwords
+from server.kit.uow import SessionEndListener
 from server.realtime.broker import Broker
 from server.realtime.hub import Hub
 from server.realtime.ingest import Ingest
 from server.telemetry.store import TelemetryStore
-
-# called with the ids of sessions that ended (logout, takeover, a disabled account or asset)
-SessionEndListener = Callable[[list[Any]], Awaitable[None]]
 
 
 @dataclass(frozen=True)

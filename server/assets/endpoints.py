@@ -4,56 +4,46 @@ from __future__ import annotations
 
 import base64
 import uuid
+from typing import Annotated
 
-from fastapi import APIRouter, Query, Request, Response
+from fastapi import APIRouter, Depends, Query, Response
 
 from server.assets.models import AssetKind
-from server.assets.repository import AssetRepository
 from server.assets.schemas import AssetCreate, AssetCreated, AssetOut, AssetUpdate, ConfigRequest
 from server.assets.service import AssetService
-from server.audit.service import record
-from server.auth.service import SessionService
-from server.deps import DB, Admin, SettingsDep, Viewer, client_addr, get_services
+from server.deps import Admin, SettingsDep, UoW, Viewer
 from server.kit.download import attachment
 
 router = APIRouter(tags=["assets"])
 
 
-def _service(db: DB, principal: Admin, settings: SettingsDep) -> AssetService:
-    return AssetService(
-        AssetRepository(db, principal), settings.effective_public_url, settings.config_scrypt_log_n
-    )
+def _service(uow: UoW, principal: Viewer, settings: SettingsDep) -> AssetService:
+    return AssetService(uow, principal, settings)
 
 
-async def _end_sessions(
-    request: Request, db: DB, settings: SettingsDep, asset_id: uuid.UUID, reason: str
-) -> None:
-    ended = await SessionService(db, settings).end_all_for_asset(asset_id, reason)
-    await db.commit()
-    for listener in get_services(request).session_end_listeners:
-        await listener(ended)
+def _admin_service(uow: UoW, principal: Admin, settings: SettingsDep) -> AssetService:
+    return AssetService(uow, principal, settings)
+
+
+Assets = Annotated[AssetService, Depends(_service)]
+AssetsAdmin = Annotated[AssetService, Depends(_admin_service)]
 
 
 @router.get("/api/v1/assets", response_model=list[AssetOut])
 async def list_assets(
-    principal: Viewer,
-    db: DB,
+    assets: Assets,
     kind: AssetKind | None = None,
     limit: int = Query(100, ge=1, le=1000),
     offset: int = Query(0, ge=0, le=10**9),
 ) -> list[AssetOut]:
     """Assets of the caller's organisation."""
-    rows = await AssetRepository(db, principal).list_filtered(limit, offset, kind)
-    return [AssetOut.model_validate(a) for a in rows]
+    return [AssetOut.model_validate(a) for a in await assets.list_assets(limit, offset, kind)]
 
 
 @router.post("/api/v1/assets", status_code=201, response_model=AssetCreated)
-async def create_asset(
-    body: AssetCreate, principal: Admin, request: Request, db: DB, settings: SettingsDep
-) -> AssetCreated:
+async def create_asset(body: AssetCreate, assets: AssetsAdmin) -> AssetCreated:
     """Register an asset; answers with its encrypted configuration file (admins only)."""
-    service = _service(db, principal, settings)
-    asset, data = await service.register(
+    asset, data = await assets.register(
         name=body.name,
         kind=body.kind,
         password=body.password,
@@ -61,73 +51,28 @@ async def create_asset(
         base_id=body.base_id,
         attributes=body.attributes,
     )
-    await record(
-        db,
-        "asset.created",
-        organization_id=principal.organization_id,
-        actor_kind="user",
-        actor_id=principal.actor_id,
-        target=str(asset.id),
-        client_addr=client_addr(request),
-        name=asset.name,
-        kind=asset.kind.value,
-    )
     out = AssetOut.model_validate(asset).model_dump()
     return AssetCreated(**out, config_file=base64.b64encode(data).decode())
 
 
 @router.get("/api/v1/assets/{asset_id}", response_model=AssetOut)
-async def get_asset(asset_id: uuid.UUID, principal: Viewer, db: DB) -> AssetOut:
+async def get_asset(asset_id: uuid.UUID, assets: Assets) -> AssetOut:
     """One asset of the caller's organisation."""
-    return AssetOut.model_validate(await AssetRepository(db, principal).get(asset_id))
+    return AssetOut.model_validate(await assets.get(asset_id))
 
 
 @router.patch("/api/v1/assets/{asset_id}", response_model=AssetOut)
-async def update_asset(
-    asset_id: uuid.UUID,
-    body: AssetUpdate,
-    principal: Admin,
-    request: Request,
-    db: DB,
-    settings: SettingsDep,
-) -> AssetOut:
+async def update_asset(asset_id: uuid.UUID, body: AssetUpdate, assets: AssetsAdmin) -> AssetOut:
     """Rename an asset, describe it, bind a UAV to a base (admins only)."""
-    service = _service(db, principal, settings)
-    asset = await service.repo.get(asset_id)
-    changes = body.model_dump(exclude_unset=True)
-    await service.update(asset, changes)
-    await record(
-        db,
-        "asset.updated",
-        organization_id=principal.organization_id,
-        actor_kind="user",
-        actor_id=principal.actor_id,
-        target=str(asset.id),
-        client_addr=client_addr(request),
-        changes=sorted(changes),
+    return AssetOut.model_validate(
+        await assets.update(asset_id, body.model_dump(exclude_unset=True))
     )
-    return AssetOut.model_validate(asset)
 
 
 @router.delete("/api/v1/assets/{asset_id}", status_code=204, response_class=Response)
-async def delete_asset(
-    asset_id: uuid.UUID, principal: Admin, request: Request, db: DB, settings: SettingsDep
-) -> Response:
+async def delete_asset(asset_id: uuid.UUID, assets: AssetsAdmin) -> Response:
     """Delete an asset and end its sessions (admins only)."""
-    repo = AssetRepository(db, principal)
-    asset = await repo.get(asset_id)
-    await record(
-        db,
-        "asset.deleted",
-        organization_id=principal.organization_id,
-        actor_kind="user",
-        actor_id=principal.actor_id,
-        target=str(asset.id),
-        client_addr=client_addr(request),
-        name=asset.name,
-    )
-    await _end_sessions(request, db, settings, asset.id, "asset_deleted")
-    await db.delete(asset)
+    await assets.delete(asset_id)
     return Response(status_code=204)
 
 
@@ -141,28 +86,11 @@ async def delete_asset(
         }
     },
 )
-async def reissue_config(
-    asset_id: uuid.UUID,
-    body: ConfigRequest,
-    principal: Admin,
-    request: Request,
-    db: DB,
-    settings: SettingsDep,
-) -> Response:
-    """Re-issue the configuration file with a new secret; the old secret stops working (admins only)."""
-    service = _service(db, principal, settings)
-    asset = await service.repo.get(asset_id)
-    data = await service.reissue(asset, body.password)
-    await record(
-        db,
-        "asset.credentials_rotated",
-        organization_id=principal.organization_id,
-        actor_kind="user",
-        actor_id=principal.actor_id,
-        target=str(asset.id),
-        client_addr=client_addr(request),
-    )
-    await _end_sessions(request, db, settings, asset.id, "credentials_rotated")
+async def reissue_config(asset_id: uuid.UUID, body: ConfigRequest, assets: AssetsAdmin) -> Response:
+    """Re-issue the configuration file with a new secret; the old secret stops working (admins only).
+
+    The rotation commits only after this answer is built: if it cannot be, nothing rotates."""
+    asset, data = await assets.reissue(asset_id, body.password)
     return Response(
         content=data,
         media_type="application/octet-stream",

@@ -6,6 +6,7 @@ import uuid
 from collections.abc import Collection
 
 from sqlalchemy import select
+from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.assets.models import Asset
 from server.kit.scope import ScopedRepository
@@ -35,3 +36,11 @@ class AssetRepository(ScopedRepository[Asset]):
             return set()
         stmt = self.select().with_only_columns(Asset.id).where(Asset.id.in_(list(ids)))
         return set((await self.db.execute(stmt)).scalars())
+
+    @staticmethod
+    async def by_name_for_login(db: AsyncSession, name: str) -> Asset | None:
+        """The asset with this name, locked for the login's transaction (before any caller)."""
+        stmt = (
+            select(Asset).where(Asset.name == name).with_for_update()
+        )  # unscoped: identity lookup
+        return (await db.execute(stmt)).scalar_one_or_none()

@@ -9,18 +9,34 @@ from typing import Any
 from assetlink.configfile import AssetConfig, encrypt_config
 from server.assets.models import Asset, AssetKind
 from server.assets.repository import AssetRepository
+from server.audit.service import record
+from server.auth.service import SessionService
+from server.config import Settings
 from server.kit.errors import Conflict, Unprocessable
+from server.kit.principal import Principal
 from server.kit.security import new_secret, token_hash
+from server.kit.service import Service
 from server.kit.time import utcnow
+from server.kit.uow import UnitOfWork
 
 
-class AssetService:
-    """Registers assets and issues their encrypted configuration files."""
+class AssetService(Service):
+    """Registers assets, changes and deletes them, issues their encrypted configuration files."""
 
-    def __init__(self, repo: AssetRepository, server_url: str, scrypt_log_n: int) -> None:
-        self.repo = repo
-        self.server_url = server_url
-        self.scrypt_log_n = scrypt_log_n
+    def __init__(self, uow: UnitOfWork, principal: Principal, settings: Settings) -> None:
+        super().__init__(uow, principal)
+        self.settings = settings
+        self.repo = AssetRepository(self.db, principal)
+        self.server_url = settings.effective_public_url
+        self.scrypt_log_n = settings.config_scrypt_log_n
+
+    async def list_assets(self, limit: int, offset: int, kind: AssetKind | None) -> list[Asset]:
+        """Assets of the caller's organisation, optionally of one kind."""
+        return await self.repo.list_filtered(limit, offset, kind)
+
+    async def get(self, asset_id: uuid.UUID) -> Asset:
+        """One asset of the caller's organisation (NotFound otherwise)."""
+        return await self.repo.get(asset_id)
 
     async def _check_base(self, kind: AssetKind, base_id: uuid.UUID | None) -> None:
         if base_id is None:
@@ -56,11 +72,36 @@ class AssetService:
         )
         self.repo.db.add(asset)
         await self.repo.db.flush()
-        return asset, await self._issue(asset, password)
+        data = await self._issue(asset, password)
+        await record(
+            self.uow,
+            self.principal,
+            "asset.created",
+            target=str(asset.id),
+            name=asset.name,
+            kind=asset.kind.value,
+        )
+        return asset, data
 
-    async def reissue(self, asset: Asset, password: str) -> bytes:
-        """A new configuration file with a new secret; the old secret stops working."""
-        return await self._issue(asset, password)
+    async def reissue(self, asset_id: uuid.UUID, password: str) -> tuple[Asset, bytes]:
+        """A new configuration file with a new secret; the old secret and its sessions stop once
+        this unit of work commits (and not at all if the answer cannot be built)."""
+        asset = await self.repo.get(asset_id)
+        data = await self._issue(asset, password)
+        await record(self.uow, self.principal, "asset.credentials_rotated", target=str(asset.id))
+        await SessionService(self.uow, self.settings).end_all_for_asset(
+            asset.id, "credentials_rotated"
+        )
+        return asset, data
+
+    async def delete(self, asset_id: uuid.UUID) -> None:
+        """Delete an asset and end its sessions."""
+        asset = await self.repo.get(asset_id)
+        await record(
+            self.uow, self.principal, "asset.deleted", target=str(asset.id), name=asset.name
+        )
+        await SessionService(self.uow, self.settings).end_all_for_asset(asset.id, "asset_deleted")
+        await self.db.delete(asset)
 
     async def _issue(self, asset: Asset, password: str) -> bytes:
         secret = new_secret()
@@ -77,8 +118,9 @@ class AssetService:
         # scrypt is deliberately slow: keep it off the event loop
         return await asyncio.to_thread(encrypt_config, cfg, password, self.scrypt_log_n)
 
-    async def update(self, asset: Asset, changes: dict[str, Any]) -> Asset:
+    async def update(self, asset_id: uuid.UUID, changes: dict[str, Any]) -> Asset:
         """Apply a partial update."""
+        asset = await self.repo.get(asset_id)
         if "name" in changes and changes["name"] != asset.name:
             if await self.repo.name_taken(changes["name"]):
                 raise Conflict(
@@ -89,4 +131,7 @@ class AssetService:
         for key, value in changes.items():
             setattr(asset, key, value)
         await self.repo.db.flush()
+        await record(
+            self.uow, self.principal, "asset.updated", target=str(asset.id), changes=sorted(changes)
+        )
         return asset

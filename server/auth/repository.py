@@ -28,6 +28,11 @@ class SessionRepository:
         """The session with this id."""
         return await self.db.get(AuthSession, session_id)
 
+    async def by_ids(self, ids: list[uuid.UUID]) -> list[AuthSession]:
+        """The sessions with these ids (those that exist)."""
+        stmt = select(AuthSession).where(AuthSession.id.in_(ids))  # unscoped: identity lookup
+        return list((await self.db.execute(stmt)).scalars())
+
     async def open_for(
         self, *, user_id: uuid.UUID | None = None, asset_id: uuid.UUID | None = None
     ) -> list[AuthSession]:
@@ -64,10 +69,25 @@ class LoginFailureRepository:
             oldest = oldest.replace(tzinfo=UTC)
         return int(count), oldest
 
-    async def add(self, keys: list[str], at: datetime) -> None:
-        """Record one failure against each key."""
-        self.db.add_all([LoginFailure(key=k, at=at) for k in keys])
+    async def lock(self, keys: list[str]) -> None:
+        """Hold these keys until the transaction ends (PostgreSQL advisory locks, taken in the
+        order given; SQLite has one writer at a time, which serialises the insert that follows)."""
+        if self.db.get_bind().dialect.name == "postgresql":
+            for key in keys:
+                lock = func.pg_advisory_xact_lock(func.hashtext(key))
+                await self.db.execute(select(lock))  # unscoped: a lock, no table
+
+    async def add(self, keys: list[str], at: datetime) -> list[uuid.UUID]:
+        """Record one attempt against each key; the new rows' ids."""
+        rows = [LoginFailure(key=k, at=at) for k in keys]
+        self.db.add_all(rows)
         await self.db.flush()
+        return [r.id for r in rows]
+
+    async def delete(self, ids: list[uuid.UUID]) -> None:
+        """Take these attempts back."""
+        if ids:
+            await self.db.execute(delete(LoginFailure).where(LoginFailure.id.in_(ids)))
 
     async def clear(self, key: str) -> None:
         """Forget the failures of one key (after a successful login)."""

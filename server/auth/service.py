@@ -1,4 +1,4 @@
-"""Decisions about logins and sessions: one live session per account, rate limits, tokens."""
+"""Decisions about sessions: one live session per account, tokens, how sessions end."""
 
 from __future__ import annotations
 
@@ -10,11 +10,23 @@ from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.audit.service import record
 from server.auth.models import AuthSession
-from server.auth.repository import LoginFailureRepository, SessionRepository
+from server.auth.repository import SessionRepository
 from server.config import Settings
-from server.kit.errors import Conflict, RateLimited, Unauthorized
+from server.kit.errors import Conflict, Unauthorized
+from server.kit.principal import Principal
 from server.kit.security import new_token, token_hash
 from server.kit.time import utcnow
+from server.kit.uow import UnitOfWork
+
+# why a session ended, as stored (`end_reason`) and as told to its token and its sockets
+END_REASONS = {
+    "taken_over": "another login took this session over",
+    "logout": "the session was logged out",
+    "credentials_rotated": "the asset's credentials were rotated",
+    "asset_deleted": "the asset was deleted",
+    "disabled": "the account was disabled",
+    "removed": "the user was removed from the organisation",
+}
 
 
 @dataclass(frozen=True)
@@ -26,6 +38,17 @@ class Account:
     organization_id: uuid.UUID | None
     label: str
 
+    def principal(self, session_id: uuid.UUID) -> Principal:
+        """The account as the caller of its new session (for the audit log)."""
+        return Principal(
+            kind=self.kind,
+            session_id=session_id,
+            organization_id=self.organization_id,
+            user_id=self.id if self.kind == "user" else None,
+            asset_id=self.id if self.kind == "asset" else None,
+            label=self.label,
+        )
+
 
 @dataclass(frozen=True)
 class IssuedToken:
@@ -36,48 +59,17 @@ class IssuedToken:
     ended_sessions: tuple[uuid.UUID, ...]
 
 
-class RateLimiter:
-    """Failed logins per account and per client address, over a sliding window."""
-
-    def __init__(self, db: AsyncSession, settings: Settings) -> None:
-        self.repo = LoginFailureRepository(db)
-        self.settings = settings
-
-    def _keys(self, account_key: str, addr: str | None) -> list[tuple[str, int]]:
-        keys = [(f"account:{account_key}", self.settings.login_max_failures_account)]
-        if addr:
-            keys.append((f"addr:{addr}", self.settings.login_max_failures_address))
-        return keys
-
-    async def check(self, account_key: str, addr: str | None, now: datetime) -> None:
-        """Raise RateLimited when the account or the address has too many recent failures."""
-        window = timedelta(seconds=self.settings.login_window_s)
-        for key, limit in self._keys(account_key, addr):
-            count, oldest = await self.repo.window(key, now - window)
-            if count >= limit and oldest is not None:
-                retry = (oldest + window - now).total_seconds()
-                what = "this account" if key.startswith("account:") else "your address"
-                raise RateLimited(
-                    f"too many failed logins for {what}; try again in {int(retry) + 1} s",
-                    retry_after_s=int(retry) + 1,
-                )
-
-    async def failed(self, account_key: str, addr: str | None, now: datetime) -> None:
-        """Count one failure against the account and the address."""
-        await self.repo.add([k for k, _ in self._keys(account_key, addr)], now)
-
-    async def succeeded(self, account_key: str) -> None:
-        """A successful login clears the account's failures (not the address's)."""
-        await self.repo.clear(f"account:{account_key}")
-
-
 class SessionService:
-    """Opens, checks, renews and ends sessions."""
+    """Opens, checks, renews and ends sessions; every end is announced after commit.
 
-    def __init__(self, db: AsyncSession, settings: Settings) -> None:
-        self.db = db
+    Auth runs before there is a caller, so this service takes the unit of work and the settings
+    where the others take the unit of work and the principal."""
+
+    def __init__(self, uow: UnitOfWork, settings: Settings) -> None:
+        self.uow = uow
+        self.db = uow.db
         self.settings = settings
-        self.repo = SessionRepository(db)
+        self.repo = SessionRepository(uow.db)
 
     def _policy(self, kind: str) -> tuple[int, int]:
         s = self.settings
@@ -87,9 +79,7 @@ class SessionService:
             else (s.asset_session_ttl_s, s.asset_session_idle_s)
         )
 
-    async def open(
-        self, account: Account, *, force: bool, client_addr: str | None, via: str = "login"
-    ) -> IssuedToken:
+    async def open(self, account: Account, *, force: bool, via: str = "login") -> IssuedToken:
         """One live session per account: refuse with 409 while one is alive unless `force`."""
         now = utcnow()
         key = {"user_id": account.id} if account.kind == "user" else {"asset_id": account.id}
@@ -105,20 +95,6 @@ class SessionService:
                     "last_seen_at": live.last_seen_at.isoformat(),
                 },
             )
-        ended = []
-        for old in existing:
-            old.ended_at, old.end_reason = now, "taken_over"
-            ended.append(old.id)
-            await record(
-                self.db,
-                "session.taken_over",
-                organization_id=account.organization_id,
-                actor_kind=account.kind,
-                actor_id=str(account.id),
-                target=str(old.id),
-                client_addr=client_addr,
-                previous_client_addr=old.client_addr,
-            )
         ttl, idle = self._policy(account.kind)
         token = new_token()
         session = AuthSession(
@@ -131,21 +107,22 @@ class SessionService:
             last_seen_at=now,
             expires_at=now + timedelta(seconds=ttl),
             idle_timeout_s=idle,
-            client_addr=client_addr,
+            client_addr=self.uow.client_addr,
         )
         self.repo.add(session)
         await self.db.flush()
-        await record(
-            self.db,
-            via,
-            organization_id=account.organization_id,
-            actor_kind=account.kind,
-            actor_id=str(account.id),
-            target=str(session.id),
-            client_addr=client_addr,
-            forced=bool(ended),
-        )
-        return IssuedToken(token, session, tuple(ended))
+        actor = account.principal(session.id)
+        for old in existing:
+            await self.end(old, "taken_over")
+            await record(
+                self.uow,
+                actor,
+                "session.taken_over",
+                target=str(old.id),
+                previous_client_addr=old.client_addr,
+            )
+        await record(self.uow, actor, via, target=str(session.id), forced=bool(existing))
+        return IssuedToken(token, session, tuple(old.id for old in existing))
 
     async def authenticate(self, token: str) -> AuthSession:
         """The live session of a bearer token, its last activity refreshed; else Unauthorized."""
@@ -154,11 +131,7 @@ class SessionService:
         if session is None:
             raise Unauthorized("unknown token")
         if session.ended_at is not None:
-            reason = {
-                "taken_over": "another login took this session over",
-                "logout": "the session was logged out",
-                "credentials_rotated": "the asset's credentials were rotated",
-            }.get(session.end_reason or "", "the session was ended")
+            reason = END_REASONS.get(session.end_reason or "", "the session was ended")
             raise Unauthorized(f"session ended: {reason}", code="session_ended")
         if not session.alive_at(now):
             raise Unauthorized("session expired", code="session_expired")
@@ -176,19 +149,21 @@ class SessionService:
         return True
 
     async def renew(self, session: AuthSession) -> str:
-        """Give the session a new token and a new expiry; the old token stops working."""
+        """Give the session a new token and a new expiry; the old token and its sockets stop."""
         token = new_token()
         ttl, _ = self._policy(session.principal_kind)
         session.token_hash = token_hash(token)
         session.expires_at = utcnow() + timedelta(seconds=ttl)
         await self.db.flush()
+        self.uow.sessions_ended([session.id], "renewed: connect again with the new token")
         return token
 
     async def end(self, session: AuthSession, reason: str) -> None:
-        """End a session now."""
+        """End a session now; its sockets close once the unit of work commits."""
         if session.ended_at is None:
             session.ended_at, session.end_reason = utcnow(), reason
             await self.db.flush()
+            self.uow.sessions_ended([session.id], END_REASONS.get(reason, reason))
 
     async def end_all_for_asset(self, asset_id: uuid.UUID, reason: str) -> list[uuid.UUID]:
         """End every open session of an asset (credentials rotated, asset deleted)."""
@@ -208,3 +183,15 @@ class SessionService:
                 await self.end(s, reason)
                 ended.append(s.id)
         return ended
+
+
+async def alive_until(
+    db: AsyncSession, ids: list[uuid.UUID], now: datetime
+) -> dict[uuid.UUID, datetime | None]:
+    """For each session: until when it stays alive without further activity (None: not alive)."""
+    out: dict[uuid.UUID, datetime | None] = dict.fromkeys(ids)
+    for session in await SessionRepository(db).by_ids(ids):
+        if session.alive_at(now):
+            idle_end = session.last_seen_at + timedelta(seconds=session.idle_timeout_s)
+            out[session.id] = min(session.expires_at, idle_end)
+    return out

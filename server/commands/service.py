@@ -13,10 +13,17 @@ from sqlalchemy.ext.asyncio import AsyncSession
 
 from protocol import vocabulary
 from protocol.vocabulary import FINAL_STATUSES, CommandParams
+from server.assets.repository import AssetRepository
 from server.commands.models import AssetCommand, CommandStatusChange
+from server.commands.repository import CommandRepository
 from server.kit import metrics
 from server.kit.errors import Unprocessable
+from server.kit.principal import Principal
+from server.kit.service import Service
 from server.kit.time import utcnow
+from server.kit.uow import UnitOfWork
+from server.realtime.broker import Broker
+from server.realtime.channels import command_channel
 
 
 def parse_command(name: str, params: Mapping[str, Any]) -> CommandParams:
@@ -152,3 +159,47 @@ async def expire(db: AsyncSession) -> list[AssetCommand]:
         ):
             expired.append(cmd)
     return expired
+
+
+class CommandService(Service):
+    """Commands of the caller's organisation: queue one, read them back."""
+
+    def __init__(self, uow: UnitOfWork, principal: Principal, broker: Broker) -> None:
+        super().__init__(uow, principal)
+        self.broker = broker
+        self.repo = CommandRepository(self.db, principal)
+        self.assets = AssetRepository(self.db, principal)
+
+    async def send(
+        self, asset_id: uuid.UUID, name: str, params: Mapping[str, Any], timeout_s: float
+    ) -> AssetCommand:
+        """Queue a command; once it is committed, whichever process holds the asset's socket is
+        nudged to deliver it (from the database)."""
+        asset = await self.assets.get(asset_id)
+        cmd = await create(
+            self.db,
+            organization_id=asset.organization_id,
+            asset_id=asset.id,
+            command=parse_command(name, params),
+            timeout_s=timeout_s,
+            created_by=self.principal.actor_id,
+        )
+        message = {"command_id": str(cmd.id)}
+
+        async def nudge() -> None:
+            await self.broker.publish(command_channel(asset.id), message)
+
+        self.uow.after_commit(nudge)
+        return cmd
+
+    async def of_asset(self, asset_id: uuid.UUID, limit: int) -> list[AssetCommand]:
+        """The newest commands of an asset of the caller's organisation."""
+        await self.assets.get(asset_id)
+        return await self.repo.of_asset(asset_id, limit)
+
+    async def with_history(
+        self, command_id: uuid.UUID
+    ) -> tuple[AssetCommand, list[CommandStatusChange]]:
+        """A command and its status history."""
+        cmd = await self.repo.get(command_id)
+        return cmd, await self.repo.history(cmd.id)

@@ -1,4 +1,4 @@
-"""The caller's identity and the one place where organisation scoping happens.
+"""The one place where organisation scoping happens.
 
 Every readable query of an organisation-owned table starts from `scoped(Model, principal)`;
 a test walks the repositories and fails on a raw `select(` of such a table. A row of another
@@ -8,34 +8,13 @@ organisation is therefore simply not found (404), never forbidden (403), so ids 
 from __future__ import annotations
 
 import uuid
-from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
 from sqlalchemy import Select, false, select
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.kit.errors import NotFound
-from server.organizations.models import Role
-
-
-@dataclass(frozen=True)
-class Principal:
-    """Who is calling: a user (with a role in one organisation) or an asset."""
-
-    kind: str  # "user" | "asset"
-    session_id: uuid.UUID
-    organization_id: uuid.UUID | None
-    role: Role | None = None
-    user_id: uuid.UUID | None = None
-    asset_id: uuid.UUID | None = None
-    is_superuser: bool = False
-    label: str = ""  # e-mail or asset name, for logs and audit
-
-    @property
-    def actor_id(self) -> str:
-        """The id written into the audit log."""
-        return str(self.user_id or self.asset_id)
-
+from server.kit.principal import Principal
 
 M = TypeVar("M")
 

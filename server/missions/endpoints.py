@@ -5,20 +5,15 @@ from __future__ import annotations
 import asyncio
 import json
 import uuid
-from typing import Any, Literal
+from typing import Annotated, Literal
 
-from fastapi import APIRouter, Query, Request, Response
+from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import JSONResponse
 
-from server.assets.models import AssetKind
-from server.assets.repository import AssetRepository
-from server.audit.service import record
-from server.deps import DB, Operator, SettingsDep, Viewer, client_addr
-from server.kit.errors import AppError, Unprocessable
-from server.kit.scope import Principal
+from server.deps import Operator, SettingsDep, UoW, Viewer
+from server.kit.errors import AppError
 from server.missions import qgc, wpl
 from server.missions.models import Mission, MissionKind
-from server.missions.repository import MissionRepository
 from server.missions.schemas import (
     MissionCreate,
     MissionOut,
@@ -40,8 +35,16 @@ class UnsupportedMediaType(AppError):
     status, code = 415, "unsupported_media_type"
 
 
-def _service(db: DB, principal: Principal, settings: SettingsDep) -> MissionService:
-    return MissionService(MissionRepository(db, principal), limits_from(settings))
+def _service(uow: UoW, principal: Viewer, settings: SettingsDep) -> MissionService:
+    return MissionService(uow, principal, limits_from(settings))
+
+
+def _operator_service(uow: UoW, principal: Operator, settings: SettingsDep) -> MissionService:
+    return MissionService(uow, principal, limits_from(settings))
+
+
+Missions = Annotated[MissionService, Depends(_service)]
+MissionsOperator = Annotated[MissionService, Depends(_operator_service)]
 
 
 def _out(mission: Mission) -> MissionOut:
@@ -66,41 +69,23 @@ def _out(mission: Mission) -> MissionOut:
     )
 
 
-async def _audit(
-    db: DB, request: Request, principal: Principal, action: str, mission: Mission, **details: Any
-) -> None:
-    await record(
-        db,
-        action,
-        organization_id=principal.organization_id,
-        actor_kind="user",
-        actor_id=principal.actor_id,
-        target=str(mission.id),
-        client_addr=client_addr(request),
-        **details,
-    )
-
-
 @router.get("/api/v1/missions", response_model=list[MissionOut])
 async def list_missions(
-    principal: Viewer,
-    db: DB,
+    missions: Missions,
     kind: MissionKind | None = None,
     limit: int = Query(100, ge=1, le=1000),
     offset: int = Query(0, ge=0, le=10**9),
 ) -> list[MissionOut]:
     """Missions of the caller's organisation, oldest first."""
-    rows = await MissionRepository(db, principal).list_filtered(limit, offset, kind)
+    rows = await missions.list_missions(limit, offset, kind)
     # validating and estimating many missions is CPU work: off the event loop
     return await asyncio.to_thread(lambda: [_out(m) for m in rows])
 
 
 @router.post("/api/v1/missions", status_code=201, response_model=MissionOut)
-async def create_mission(
-    body: MissionCreate, principal: Operator, request: Request, db: DB, settings: SettingsDep
-) -> MissionOut:
+async def create_mission(body: MissionCreate, missions: MissionsOperator) -> MissionOut:
     """Create a waypoints or survey mission (operators); 422 lists every problem."""
-    mission = await _service(db, principal, settings).create(
+    mission = await missions.create(
         name=body.name,
         description=body.description,
         kind=body.kind,
@@ -108,15 +93,6 @@ async def create_mission(
         survey=body.survey,
         home=body.home,
         speed_mps=body.speed_mps,
-    )
-    await _audit(
-        db,
-        request,
-        principal,
-        "mission.created",
-        mission,
-        name=mission.name,
-        kind=mission.kind.value,
     )
     return _out(mission)
 
@@ -167,10 +143,8 @@ def _read_import(body: bytes, content_type: str) -> tuple[qgc.Imported, str]:
     openapi_extra={"requestBody": IMPORT_BODY},
 )
 async def import_mission(
-    principal: Operator,
+    missions: MissionsOperator,
     request: Request,
-    db: DB,
-    settings: SettingsDep,
     name: str | None = Query(None, min_length=1, max_length=100),
     description: str = Query("", max_length=2000),
 ) -> MissionOut:
@@ -182,55 +156,33 @@ async def import_mission(
         raise rejected(err.problems, code="import_rejected") from err
     label = {"qgc": "QGroundControl plan", "wpl": "waypoint file"}[source]
     title = (name or "").strip() or f"imported {label}"
-    mission = await _service(db, principal, settings).import_file(
+    mission = await missions.import_file(
         imported, name=title, description=description, source=source
-    )
-    await _audit(
-        db,
-        request,
-        principal,
-        "mission.imported",
-        mission,
-        name=mission.name,
-        source=source,
-        items=len(mission.items),
     )
     return _out(mission)
 
 
 @router.get("/api/v1/missions/{mission_id}", response_model=MissionOut)
-async def get_mission(mission_id: uuid.UUID, principal: Viewer, db: DB) -> MissionOut:
+async def get_mission(mission_id: uuid.UUID, missions: Missions) -> MissionOut:
     """One mission of the caller's organisation."""
-    return _out(await MissionRepository(db, principal).get(mission_id))
+    return _out(await missions.get(mission_id))
 
 
 @router.patch("/api/v1/missions/{mission_id}", response_model=MissionOut)
 async def update_mission(
     mission_id: uuid.UUID,
     body: MissionUpdate,
-    principal: Operator,
-    request: Request,
-    db: DB,
-    settings: SettingsDep,
+    missions: MissionsOperator,
 ) -> MissionOut:
     """Change a mission (operators); items and survey are validated and compiled again."""
-    service = _service(db, principal, settings)
-    mission = await service.repo.get(mission_id)
     changes = body.model_dump(exclude_unset=True)
-    await service.update(mission, changes, body)
-    await _audit(db, request, principal, "mission.updated", mission, changes=sorted(changes))
-    return _out(mission)
+    return _out(await missions.update(mission_id, changes, body))
 
 
 @router.delete("/api/v1/missions/{mission_id}", status_code=204, response_class=Response)
-async def delete_mission(
-    mission_id: uuid.UUID, principal: Operator, request: Request, db: DB
-) -> Response:
+async def delete_mission(mission_id: uuid.UUID, missions: MissionsOperator) -> Response:
     """Delete a mission (operators)."""
-    repo = MissionRepository(db, principal)
-    mission = await repo.get(mission_id)
-    await _audit(db, request, principal, "mission.deleted", mission, name=mission.name)
-    await repo.delete(mission)
+    await missions.delete(mission_id)
     return Response(status_code=204)
 
 
@@ -244,10 +196,10 @@ async def delete_mission(
     },
 )
 async def export_mission(
-    mission_id: uuid.UUID, principal: Viewer, db: DB, format: Literal["qgc", "wpl"] = "qgc"
+    mission_id: uuid.UUID, missions: Missions, format: Literal["qgc", "wpl"] = "qgc"
 ) -> Response:
     """The mission as a QGroundControl .plan file or a WPL 110 waypoint file."""
-    mission = await MissionRepository(db, principal).get(mission_id)
+    mission = await missions.get(mission_id)
     content, filename = MissionService.export(mission, format)
     headers = {"Content-Disposition": f'attachment; filename="{filename}"'}
     if isinstance(content, dict):
@@ -257,13 +209,10 @@ async def export_mission(
 
 @router.post("/api/v1/missions/{mission_id}/validate", response_model=ValidationReport)
 async def validate_mission(
-    mission_id: uuid.UUID, body: ValidateRequest, principal: Operator, db: DB, settings: SettingsDep
+    mission_id: uuid.UUID, body: ValidateRequest, missions: MissionsOperator
 ) -> ValidationReport:
     """Check a mission against the limits and, with `uav_id`, the UAV's endurance (operators)."""
-    service = _service(db, principal, settings)
-    mission = await service.repo.get(mission_id)
-    uav = await AssetRepository(db, principal).get(body.uav_id) if body.uav_id else None
-    if uav is not None and uav.kind != AssetKind.uav:
-        raise Unprocessable(f"asset {uav.id} is not a UAV", code="not_a_uav")
-    report = await asyncio.to_thread(service.check, mission, uav)
+    mission = await missions.get(mission_id)
+    uav = await missions.uav(body.uav_id)
+    report = await asyncio.to_thread(missions.check, mission, uav)
     return ValidationReport.model_validate(report)

@@ -5,10 +5,16 @@ from __future__ import annotations
 import asyncio
 import math
 import re
+import uuid
 from typing import Any
 
 from server.assets.models import Asset, AssetKind
+from server.assets.repository import AssetRepository
+from server.audit.service import record
 from server.kit.errors import Unprocessable
+from server.kit.principal import Principal
+from server.kit.service import Service
+from server.kit.uow import UnitOfWork
 from server.missions import qgc, qgc_export, wpl
 from server.missions.build import Built, build, home_of
 from server.missions.flight import estimate_flight
@@ -74,12 +80,37 @@ def safe_filename(name: str, suffix: str) -> str:
     return f"{stem[:80]}{suffix}"
 
 
-class MissionService:
+class MissionService(Service):
     """Creates, changes, imports, exports and checks missions of the caller's organisation."""
 
-    def __init__(self, repo: MissionRepository, limits: MissionLimits) -> None:
-        self.repo = repo
+    def __init__(self, uow: UnitOfWork, principal: Principal, limits: MissionLimits) -> None:
+        super().__init__(uow, principal)
+        self.repo = MissionRepository(self.db, principal)
         self.limits = limits
+
+    async def _audit(self, action: str, mission: Mission, **details: Any) -> None:
+        await record(self.uow, self.principal, action, target=str(mission.id), **details)
+
+    async def list_missions(
+        self, limit: int, offset: int, kind: MissionKind | None
+    ) -> list[Mission]:
+        """Missions of the caller's organisation, oldest first."""
+        return await self.repo.list_filtered(limit, offset, kind)
+
+    async def delete(self, mission_id: uuid.UUID) -> None:
+        """Delete a mission."""
+        mission = await self.repo.get(mission_id)
+        await self._audit("mission.deleted", mission, name=mission.name)
+        await self.repo.delete(mission)
+
+    async def uav(self, uav_id: uuid.UUID | None) -> Asset | None:
+        """The UAV a check is against (NotFound for another organisation's, 422 for a base)."""
+        if uav_id is None:
+            return None
+        uav = await AssetRepository(self.db, self.principal).get(uav_id)
+        if uav.kind != AssetKind.uav:
+            raise Unprocessable(f"asset {uav.id} is not a UAV", code="not_a_uav")
+        return uav
 
     async def _built(
         self,
@@ -123,10 +154,18 @@ class MissionService:
             extras=extras or {},
             created_by=self.repo.principal.actor_id,
         )
-        return await self.repo.add(mission)
+        mission = await self.repo.add(mission)
+        if source == "api":
+            await self._audit("mission.created", mission, name=mission.name, kind=kind.value)
+        else:
+            await self._audit(
+                "mission.imported", mission, name=name, source=source, items=len(mission.items)
+            )
+        return mission
 
-    async def update(self, mission: Mission, changes: dict[str, Any], body: Any) -> Mission:
+    async def update(self, mission_id: uuid.UUID, changes: dict[str, Any], body: Any) -> Mission:
         """Apply a partial update; items and survey are validated (and compiled) again."""
+        mission = await self.repo.get(mission_id)
         home = (
             body.home if "home" in changes else (HomeIn(**mission.home) if mission.home else None)
         )
@@ -148,6 +187,7 @@ class MissionService:
             if key in changes and (changes[key] is not None or key == "speed_mps"):
                 setattr(mission, key, changes[key])
         await self.repo.db.flush()
+        await self._audit("mission.updated", mission, changes=sorted(changes))
         return mission
 
     async def import_file(

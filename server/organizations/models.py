@@ -2,32 +2,15 @@
 
 from __future__ import annotations
 
-import enum
 import uuid
 from datetime import datetime
 
-from sqlalchemy import Enum, ForeignKey, String, UniqueConstraint
+from sqlalchemy import Enum, ForeignKey, String, UniqueConstraint, true
 from sqlalchemy.orm import Mapped, mapped_column
 
 from server.kit.db import Base, IdMixin
+from server.kit.principal import Role
 from server.kit.time import utcnow
-
-
-class Role(enum.StrEnum):
-    """Roles inside an organisation, weakest first."""
-
-    viewer = "viewer"
-    operator = "operator"
-    admin = "admin"
-
-    @property
-    def rank(self) -> int:
-        """Position in the order viewer < operator < admin."""
-        return list(Role).index(self)
-
-    def allows(self, needed: Role) -> bool:
-        """True when this role is at least `needed`."""
-        return self.rank >= needed.rank
 
 
 class Organization(IdMixin, Base):
@@ -47,7 +30,7 @@ class User(IdMixin, Base):
     email: Mapped[str] = mapped_column(String(320), unique=True)
     password_hash: Mapped[str] = mapped_column(String(255))
     is_superuser: Mapped[bool] = mapped_column(default=False)
-    is_active: Mapped[bool] = mapped_column(default=True)
+    is_active: Mapped[bool] = mapped_column(default=True)  # the whole account (platform level)
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
 
 
@@ -66,4 +49,6 @@ class Membership(IdMixin, Base):
         ForeignKey("organizations.id", ondelete="CASCADE"), index=True
     )
     role: Mapped[Role] = mapped_column(Enum(Role, name="role", native_enum=False, length=16))
+    # an admin disables a user in their organisation only; the user's other memberships stand
+    is_active: Mapped[bool] = mapped_column(default=True, server_default=true())
     created_at: Mapped[datetime] = mapped_column(default=utcnow)

@@ -7,8 +7,8 @@ from datetime import datetime
 
 from pydantic import BaseModel, ConfigDict
 
+from server.kit.principal import Role
 from server.kit.types import Email, Name, Password
-from server.organizations.models import Role
 
 
 class OrganizationCreate(BaseModel):

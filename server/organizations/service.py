@@ -7,10 +7,20 @@ import uuid
 
 from sqlalchemy.ext.asyncio import AsyncSession
 
+from server.audit.service import record
+from server.auth.service import SessionService
+from server.config import Settings
 from server.kit.errors import Conflict, NotFound
+from server.kit.principal import Principal, Role
 from server.kit.security import Passwords
-from server.organizations.models import Membership, Organization, Role, User
-from server.organizations.repository import OrganizationRepository, UserRepository
+from server.kit.service import Service
+from server.kit.uow import UnitOfWork
+from server.organizations.models import Membership, Organization, User
+from server.organizations.repository import (
+    MembershipRepository,
+    OrganizationRepository,
+    UserRepository,
+)
 
 
 async def create_organization(db: AsyncSession, name: str) -> Organization:
@@ -55,3 +65,96 @@ async def org_by_name(db: AsyncSession, name: str) -> Organization:
     if org is None:
         raise NotFound(f"no organisation named {name!r}")
     return org
+
+
+class OrganizationService(Service):
+    """Organisations and the members of the caller's organisation."""
+
+    def __init__(self, uow: UnitOfWork, principal: Principal, settings: Settings) -> None:
+        super().__init__(uow, principal)
+        self.settings = settings
+        self.orgs = OrganizationRepository(self.db)
+        self.members = MembershipRepository(self.db, principal)
+
+    async def create_organization(self, name: str) -> Organization:
+        """A new organisation (the caller is a superuser)."""
+        org = await create_organization(self.db, name)
+        await record(
+            self.uow,
+            self.principal,
+            "organization.created",
+            target=org.name,
+            organization_id=org.id,
+        )
+        return org
+
+    async def organizations(self, limit: int, offset: int) -> list[Organization]:
+        """Every organisation for a superuser, one's own otherwise."""
+        if self.principal.is_superuser:
+            return await self.orgs.all(limit, offset)
+        org = await self.orgs.by_id(self.principal.organization_id)  # type: ignore[arg-type]
+        return [org] if org and offset == 0 else []
+
+    async def organization(self, organization_id: uuid.UUID) -> Organization:
+        """One's own organisation, or any for a superuser; NotFound otherwise."""
+        org = await self.orgs.by_id(organization_id)
+        if org is None or (
+            org.id != self.principal.organization_id and not self.principal.is_superuser
+        ):
+            raise NotFound(f"organisation {organization_id} not found")
+        return org
+
+    async def users(self, limit: int, offset: int) -> list[tuple[Membership, User]]:
+        """Members of the caller's organisation."""
+        return await self.members.with_users(limit, offset)
+
+    async def user(self, user_id: uuid.UUID) -> tuple[Membership, User]:
+        """One member of the caller's organisation; NotFound otherwise."""
+        found = await self.members.of_user(user_id)
+        if found is None:
+            raise NotFound(f"user {user_id} not found")
+        return found
+
+    async def create_user(
+        self, passwords: Passwords, *, email: str, password: str, role: Role
+    ) -> tuple[Membership, User]:
+        """A new user, member of the caller's organisation."""
+        org_id = self.principal.organization_id
+        user = await create_user(self.db, passwords, email=email, password=password)
+        m = await add_member(self.db, org_id, user.id, role)  # type: ignore[arg-type]
+        await record(self.uow, self.principal, "user.created", target=user.email, role=role.value)
+        return m, user
+
+    async def update_user(
+        self, user_id: uuid.UUID, *, role: Role | None, is_active: bool | None
+    ) -> tuple[Membership, User]:
+        """Change a member's role, or disable them in this organisation (their sessions here end;
+        their other organisations are not this admin's to close)."""
+        m, u = await self.user(user_id)
+        if u.id == self.principal.user_id and role not in (None, Role.admin):
+            raise Conflict("you cannot lower your own role", code="self_demotion")
+        if u.id == self.principal.user_id and is_active is False:
+            raise Conflict("you cannot disable yourself", code="self_disable")
+        if role is not None:
+            m.role = role
+        if is_active is not None:
+            m.is_active = is_active
+            if not is_active:
+                await SessionService(self.uow, self.settings).end_all_for_user(
+                    u.id, "disabled", self.principal.organization_id
+                )
+        changes = {k: v for k, v in (("role", role), ("is_active", is_active)) if v is not None}
+        await record(self.uow, self.principal, "user.updated", target=u.email, changes=changes)
+        await self.db.flush()
+        return m, u
+
+    async def remove_user(self, user_id: uuid.UUID) -> None:
+        """Remove a member from the caller's organisation and end their sessions there."""
+        m, u = await self.user(user_id)
+        if u.id == self.principal.user_id:
+            raise Conflict("you cannot remove yourself", code="self_removal")
+        await SessionService(self.uow, self.settings).end_all_for_user(
+            u.id, "removed", self.principal.organization_id
+        )
+        await self.db.delete(m)
+        await record(self.uow, self.principal, "user.removed", target=u.email)

@@ -40,7 +40,8 @@ from protocol.messages import (
 )
 from server.assets.models import Asset
 from server.commands import service as commands
-from server.kit.scope import Principal
+from server.kit.principal import Principal
+from server.kit.uow import unit_of_work
 from server.realtime.channels import asset_channel, command_channel, presence_key, rtcm_channel
 from server.realtime.frames import Refused, receive_text
 from server.realtime.ingest import DROPPED_EVENT, Item, RowRejected
@@ -296,11 +297,10 @@ class AssetSession:
             await asyncio.sleep(PRESENCE_REFRESH_S * rng.uniform(0.8, 1.2))
             if time.monotonic() - touched >= HEARTBEAT_S:
                 touched = time.monotonic()
-                async with self.services.sessionmaker() as db:
-                    alive = await SessionService(db, self.services.settings).touch(
+                async with unit_of_work(self.services.sessionmaker) as uow:
+                    alive = await SessionService(uow, self.services.settings).touch(
                         self.principal.session_id
                     )
-                    await db.commit()
                 if not alive:
                     self.sender.close(4001, "session ended")
                     return

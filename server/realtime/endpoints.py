@@ -6,7 +6,8 @@ from fastapi import APIRouter, WebSocket
 
 from server.deps import ServicesDep, principal_of
 from server.kit.errors import AppError
-from server.kit.scope import Principal
+from server.kit.principal import Principal
+from server.kit.uow import unit_of_work
 from server.realtime.asset_session import AssetSession
 from server.realtime.operator_session import OperatorSession
 from server.services import Services
@@ -23,15 +24,14 @@ def _token(ws: WebSocket) -> str | None:
 
 async def _authenticate(ws: WebSocket, services: Services) -> Principal | None:
     """The caller, or None once the socket is closed with 4401."""
-    async with services.sessionmaker() as db:
-        try:
-            principal, _ = await principal_of(db, services.settings, _token(ws))
-            await db.commit()
-            return principal
-        except AppError as err:
-            await ws.accept()
-            await ws.close(4401, f"unauthorized: {err.message}"[:120])
-            return None
+    try:
+        async with unit_of_work(services.sessionmaker) as uow:
+            principal, _ = await principal_of(uow, services.settings, _token(ws))
+        return principal
+    except AppError as err:
+        await ws.accept()
+        await ws.close(4401, f"unauthorized: {err.message}"[:120])
+        return None
 
 
 @router.websocket("/ws/asset")

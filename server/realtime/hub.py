@@ -8,20 +8,25 @@ from __future__ import annotations
 import collections
 import contextlib
 import logging
+import time
 import uuid
 from collections.abc import Callable
 from dataclasses import dataclass
+from datetime import datetime, timedelta
 from typing import Any
 
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
 from protocol.messages import CommandResultPayload, envelope
+from server.auth.service import alive_until
 from server.commands import service as commands
 from server.kit.periodic import Periodic
+from server.kit.time import utcnow
 from server.realtime.broker import Broker
 from server.realtime.channels import asset_channel, sessions_ended_channel
 
 log = logging.getLogger(__name__)
+RECHECK_S = 30.0
 
 
 @dataclass
@@ -40,40 +45,73 @@ class Counters:
 class Hub:
     """Connections of this process; everything shared goes through the broker and the database."""
 
-    def __init__(self, broker: Broker, sessionmaker: async_sessionmaker[AsyncSession]) -> None:
+    def __init__(
+        self,
+        broker: Broker,
+        sessionmaker: async_sessionmaker[AsyncSession],
+        session_sweep_s: float = 0.25,
+    ) -> None:
         self.broker = broker
         self.sessionmaker = sessionmaker
         self.node = uuid.uuid4().hex[:12]
         self.counters = Counters()
-        self.closers: dict[uuid.UUID, list[Callable[[int, str], None]]] = {}
+        # per session: how to close each of its sockets here, and when each was opened (wall clock)
+        self.closers: dict[uuid.UUID, list[tuple[Callable[[int, str], None], float]]] = {}
+        # per session with a socket here: until when it is known to be alive (None: read it)
+        self.deadlines: dict[uuid.UUID, datetime | None] = {}
         self.connected: collections.Counter[str] = collections.Counter()  # live sockets by kind
         self._sweeper = Periodic("command-sweeper", self.expire_commands, 1.0)
+        self._session_sweeper = Periodic("session-sweeper", self.sweep_sessions, session_sweep_s)
 
     async def start(self) -> None:
-        """Listen for ended sessions and run the command-deadline sweeper."""
+        """Listen for ended sessions; run the command-deadline and session-expiry sweepers."""
         self.broker.subscribe(sessions_ended_channel(), self._on_sessions_ended)
         self._sweeper.start()
+        self._session_sweeper.start()
 
     async def stop(self) -> None:
-        """Stop the sweeper."""
+        """Stop the sweepers."""
+        await self._session_sweeper.stop()
         await self._sweeper.stop()
 
-    async def sessions_ended(self, ids: list[Any]) -> None:
-        """Tell every process to close these sessions' sockets (code 4001)."""
+    async def sessions_ended(self, ids: list[uuid.UUID], reason: str = "the session ended") -> None:
+        """Tell every process to close these sessions' sockets (code 4001).
+
+        Sockets opened after this moment stay open: after a renewal the same session carries on
+        with its new token."""
         if ids:
-            await self.broker.publish(sessions_ended_channel(), {"ids": [str(i) for i in ids]})
+            await self.broker.publish(
+                sessions_ended_channel(),
+                {"ids": [str(i) for i in ids], "reason": reason, "at": time.time()},
+            )
 
     def _on_sessions_ended(self, message: dict[str, Any]) -> None:
+        reason = str(message.get("reason") or "the session ended")
+        before = message.get("at")
         for raw in message.get("ids", ()):
             with contextlib.suppress(ValueError):
-                for close in self.closers.pop(uuid.UUID(raw), []):
-                    close(4001, "session ended: another login took it over or it was logged out")
+                self._close(uuid.UUID(raw), reason, before if isinstance(before, float) else None)
+
+    def _close(self, session_id: uuid.UUID, reason: str, before: float | None = None) -> None:
+        """Close this session's sockets (those registered before `before`, when given)."""
+        kept = []
+        for close, since in self.closers.pop(session_id, []):
+            if before is not None and since > before:
+                kept.append((close, since))
+            else:
+                close(4001, f"session ended: {reason}")
+        if kept:
+            self.closers[session_id] = kept
+        else:
+            self.deadlines.pop(session_id, None)
 
     def register_closer(
         self, session_id: uuid.UUID, close: Callable[[int, str], None], kind: str = "operator"
     ) -> None:
-        """Remember how to close a socket of this session (an `asset` or `operator` socket)."""
-        self.closers.setdefault(session_id, []).append(close)
+        """Remember how to close a socket of this session (an `asset` or `operator` socket); the
+        sweeper reads the session's expiry soon."""
+        self.closers.setdefault(session_id, []).append((close, time.time()))
+        self.deadlines.setdefault(session_id, None)
         self.connected[kind] += 1
 
     def unregister_closer(
@@ -81,10 +119,34 @@ class Hub:
     ) -> None:
         """Forget a closed socket."""
         self.connected[kind] -= 1
-        with contextlib.suppress(KeyError, ValueError):
-            self.closers[session_id].remove(close)
-            if not self.closers[session_id]:
-                del self.closers[session_id]
+        left = [(c, t) for c, t in self.closers.get(session_id, []) if c != close]
+        if left:
+            self.closers[session_id] = left
+        else:
+            self.closers.pop(session_id, None)
+            self.deadlines.pop(session_id, None)
+
+    async def sweep_sessions(self) -> None:
+        """Close the sockets of sessions that expired (TTL or idle) or ended unannounced.
+
+        Each session with a socket here is read again only once its known deadline has passed,
+        so the sweep costs nothing while sessions are fresh."""
+        now = utcnow()
+        due = [sid for sid, until in self.deadlines.items() if until is None or until <= now]
+        if not due:
+            return
+        async with self.sessionmaker() as db:
+            until = await alive_until(db, due, now)
+        for sid in due:
+            if sid not in self.closers:
+                continue
+            deadline = until.get(sid)
+            if deadline is None:
+                self._close(sid, "the session expired or was ended")
+            else:
+                # read again at the deadline, and now and then meanwhile: an end nobody announced
+                # (the admin CLI, a lost broker message) is noticed within RECHECK_S
+                self.deadlines[sid] = min(deadline, now + timedelta(seconds=RECHECK_S))
 
     async def expire_commands(self) -> None:
         """Every unfinished command past its deadline becomes timed_out; operators hear of it."""

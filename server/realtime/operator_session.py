@@ -23,7 +23,7 @@ from asynckit.ratelimit import TokenBucket
 from protocol.codec import DecodeError, decode
 from protocol.messages import Subscribe, Unsubscribe
 from server.assets.repository import AssetRepository
-from server.kit.scope import Principal
+from server.kit.principal import Principal
 from server.realtime.channels import asset_channel, socket_slot_key
 from server.realtime.frames import TOO_MANY, Refused, receive_text
 from server.realtime.sender import Sender, SlowReader

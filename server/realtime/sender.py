@@ -47,7 +47,12 @@ class Sender:
         )
 
     def close(self, code: int, reason: str) -> None:
-        """Close the socket once what is queued before has been sent."""
+        """Close the socket once what is queued before has been sent (at once when the queue is
+        full: a reader too slow to drain it must not keep its socket open past its session)."""
+        if self.queue.full():
+            while not self.queue.empty():
+                self.queue.get_nowait()
+                self.dropped += 1
         with contextlib.suppress(asyncio.QueueFull):
             self.queue.put_nowait((code, reason))
 

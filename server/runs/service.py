@@ -5,13 +5,16 @@ from __future__ import annotations
 import math
 import uuid
 from collections import Counter, defaultdict
-from datetime import datetime
+from datetime import datetime, timedelta
 from typing import Any
 
 from server.assets.models import AssetKind
 from server.assets.repository import AssetRepository
 from server.kit.errors import Conflict, Unprocessable
+from server.kit.principal import Principal
+from server.kit.service import Service
 from server.kit.time import utcnow
+from server.kit.uow import UnitOfWork
 from server.runs.engine import progress_payload
 from server.runs.machine import FINAL, State
 from server.runs.models import Run
@@ -196,3 +199,61 @@ def fleet(runs_in_window: list[Run], start: datetime, end: datetime) -> FleetRep
             for k, v in per.items()
         ],
     )
+
+
+class RunService(Service):
+    """Runs of the caller's organisation as the API sees them: start, read, abort, report."""
+
+    def __init__(self, uow: UnitOfWork, principal: Principal) -> None:
+        super().__init__(uow, principal)
+        self.repo = RunRepository(self.db, principal)
+
+    async def create(self, mission_id: uuid.UUID, uav_id: uuid.UUID, base_id: uuid.UUID) -> Run:
+        """Start an autonomous run now (the engine checks availability first)."""
+        return await create_run(
+            self.repo,
+            AssetRepository(self.db, self.principal),
+            mission_id=mission_id,
+            uav_id=uav_id,
+            base_id=base_id,
+            created_by=self.principal.actor_id,
+        )
+
+    async def list_runs(
+        self, limit: int, offset: int, state: State | None, uav_id: uuid.UUID | None
+    ) -> list[Run]:
+        """Runs of the caller's organisation, newest first."""
+        return await self.repo.filtered(limit, offset, state.value if state else None, uav_id)
+
+    async def with_timeline(self, run_id: uuid.UUID) -> RunOut:
+        """A run with its timeline."""
+        run = await self.repo.get(run_id)
+        return run_out(run, await self.repo.timeline(run.id))
+
+    async def abort(self, run_id: uuid.UUID, reason: str | None) -> Run:
+        """Ask the run to stop safely (the engine acts on it)."""
+        run = await self.repo.get(run_id)
+        if State(run.state) in FINAL:
+            raise Conflict(f"run {run.id} has already ended ({run.state})", code="run_finished")
+        run.abort_requested = True
+        run.abort_reason = reason or f"requested by {self.principal.label}"
+        run.updated_at = utcnow()
+        await self.db.flush()
+        return run
+
+    async def report(self, run_id: uuid.UUID, store: Any) -> RunReport:
+        """The flight history of a run."""
+        return await report(self.repo, store, await self.repo.get(run_id))
+
+    async def fleet(self, start: datetime | None, end: datetime | None) -> FleetReport:
+        """Runs in [start, end) (default: the last 30 days), summed up."""
+        end = end or utcnow()
+        try:
+            start = start or end - timedelta(days=30)
+        except OverflowError as err:
+            raise Unprocessable(
+                "end is too early for the default 30-day window; give start"
+            ) from err
+        if start.tzinfo is None or end.tzinfo is None or start >= end:
+            raise Unprocessable("start and end need a time zone and start must be before end")
+        return fleet(await self.repo.in_window(start, end), start, end)

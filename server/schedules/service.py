@@ -1,24 +1,29 @@
-"""The scheduler: fires due schedules exactly once, follows the missed-run policy, never retries blindly."""
+"""Schedules: the API's decisions (ScheduleService) and the scheduler, which fires due schedules
+exactly once, follows the missed-run policy and never retries blindly."""
 
 from __future__ import annotations
 
 import logging
 import uuid
+from datetime import timedelta
 from typing import Any
 
 from sqlalchemy.exc import IntegrityError
 
+from server.assets.models import AssetKind
 from server.assets.repository import AssetRepository
-from server.kit.errors import AppError
+from server.kit.errors import AppError, Unprocessable
 from server.kit.periodic import Periodic
-from server.kit.scope import Principal
+from server.kit.principal import Principal, Role
+from server.kit.service import Service
 from server.kit.time import utcnow
-from server.organizations.models import Role
+from server.missions.repository import MissionRepository
 from server.runs.repository import RunRepository
 from server.runs.service import create_run
 from server.schedules.models import Schedule
-from server.schedules.repository import claim_due
-from server.schedules.timing import decide, next_after
+from server.schedules.repository import ScheduleRepository, claim_due
+from server.schedules.schemas import ScheduleCreate
+from server.schedules.timing import TimingError, check_cron, decide, next_after, zone
 from server.services import Services
 
 log = logging.getLogger(__name__)
@@ -37,6 +42,83 @@ def advance_schedule(s: Schedule, after: Any) -> None:
     )
     if s.next_due_at is None:
         s.enabled = False
+
+
+class ScheduleService(Service):
+    """Schedules of the caller's organisation."""
+
+    async def create(self, body: ScheduleCreate) -> Schedule:
+        """A schedule bound to a mission, a UAV and a base, with its first due time."""
+        await MissionRepository(self.db, self.principal).get(body.mission_id)
+        assets = AssetRepository(self.db, self.principal)
+        if (await assets.get(body.uav_id)).kind != AssetKind.uav:
+            raise Unprocessable("uav_id is not a UAV", code="invalid_schedule")
+        if (await assets.get(body.base_id)).kind != AssetKind.landing_base:
+            raise Unprocessable("base_id is not a landing base", code="invalid_schedule")
+        now = utcnow()
+        try:
+            zone(body.timezone)
+            if body.at is not None and body.at.tzinfo is None:
+                raise TimingError("`at` needs a time zone offset (e.g. 2026-11-22T10:00:00Z)")
+            if body.kind == "once":
+                if body.at is None:
+                    raise TimingError("a one-shot schedule needs `at`")
+                first = body.at
+            elif body.kind == "interval":
+                if body.interval_s is None:
+                    raise TimingError("an interval schedule needs `interval_s`")
+                first = body.at or now + timedelta(seconds=body.interval_s)
+            else:
+                check_cron(body.cron or "")
+                nxt = next_after("cron", now, cron=body.cron, tz=body.timezone)
+                if nxt is None:  # next_after returns None only for a spent one-shot, never for cron
+                    raise TimingError(f"cron expression {body.cron!r} has no next time")
+                first = nxt
+        except TimingError as err:
+            raise Unprocessable(str(err), code="invalid_schedule") from err
+        s = Schedule(
+            organization_id=self.principal.organization_id,
+            name=body.name,
+            mission_id=body.mission_id,
+            uav_id=body.uav_id,
+            base_id=body.base_id,
+            kind=body.kind,
+            at=first if body.kind != "cron" else None,
+            interval_s=body.interval_s,
+            cron=body.cron,
+            timezone=body.timezone,
+            missed_policy=body.missed_policy,
+            enabled=body.enabled,
+            next_due_at=first,
+            created_by=self.principal.actor_id,
+            created_at=now,
+            updated_at=now,
+        )
+        self.db.add(s)
+        await self.db.flush()
+        return s
+
+    async def list_schedules(self, limit: int, offset: int) -> list[Schedule]:
+        """Schedules of the caller's organisation."""
+        return await ScheduleRepository(self.db, self.principal).list(limit, offset)
+
+    async def get(self, schedule_id: uuid.UUID) -> Schedule:
+        """One schedule (NotFound for another organisation's)."""
+        return await ScheduleRepository(self.db, self.principal).get(schedule_id)
+
+    async def update(self, schedule_id: uuid.UUID, changes: dict[str, Any]) -> Schedule:
+        """Enable, disable, rename or change the missed-run policy."""
+        s = await self.get(schedule_id)
+        for key, value in changes.items():
+            if value is not None:
+                setattr(s, key, value)
+        s.updated_at = utcnow()
+        await self.db.flush()
+        return s
+
+    async def delete(self, schedule_id: uuid.UUID) -> None:
+        """Delete a schedule (its past runs stay)."""
+        await self.db.delete(await self.get(schedule_id))
 
 
 class Scheduler:

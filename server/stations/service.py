@@ -8,6 +8,7 @@ from collections.abc import AsyncIterator, Awaitable, Callable
 
 from server.kit.errors import RateLimited
 from server.kit.time import utcnow
+from server.kit.uow import unit_of_work
 from server.organizations.repository import UserRepository
 from server.realtime.channels import rtcm_channel
 from server.services import Services
@@ -53,27 +54,27 @@ def caster_authenticator(
     services: Callable[[], Services],
 ) -> Callable[[str, str], Awaitable[uuid.UUID | None]]:
     """`authenticate(username, password)` for the caster: a user's e-mail and password -> organisation."""
-    from server.auth.service import RateLimiter
+    from server.auth.limiter import LoginLimiter
 
     async def authenticate(username: str, password: str) -> uuid.UUID | None:
         state = services()
-        settings = state.settings
-        async with state.sessionmaker() as db:
-            limiter = RateLimiter(db, settings)
-            try:
-                await limiter.check(username, None, utcnow())
-            except RateLimited:
-                return None
-            users = UserRepository(db)
+        limiter = LoginLimiter(state.sessionmaker, state.settings)
+        try:
+            attempt = await limiter.admit(username, None, utcnow())
+        except RateLimited:
+            return None
+        async with unit_of_work(state.sessionmaker) as uow:
+            users = UserRepository(uow.db)
             user = await users.by_email(username) if "\x00" not in username else None
             ok = await asyncio.to_thread(
                 state.passwords.verify, user.password_hash if user else None, password
             )
-            if not ok or user is None or not user.is_active:
-                await limiter.failed(username, None, utcnow())
-                await db.commit()
+            if not ok or user is None:
+                return None  # the attempt stays counted as a failure
+            await limiter.succeeded(uow.db, username, attempt)
+            if not user.is_active:
                 return None
-            memberships = await users.memberships(user.id)
-            return memberships[0][1].id if memberships else None
+            active = [o.id for m, o in await users.memberships(user.id) if m.is_active]
+            return active[0] if active else None
 
     return authenticate

@@ -1,19 +1,29 @@
-"""What an asset's durable stream writes besides samples: its events and how far the stream is stored.
+"""Telemetry decisions: what an asset's durable stream writes besides samples (its events, how far
+the stream is stored) and what the API reads back.
 
-The ingest calls these inside its batch's transaction; they add and flush, the ingest commits.
+The ingest calls the functions inside its batch's transaction; they add and flush, the ingest
+commits. The API reads through TelemetryService.
 """
 
 from __future__ import annotations
 
 import uuid
 from collections.abc import Mapping
-from datetime import datetime
+from datetime import datetime, timedelta
 from typing import Any
 
 from sqlalchemy.ext.asyncio import AsyncSession
 
+from server.assets.repository import AssetRepository
+from server.kit.errors import NotFound, Unprocessable
+from server.kit.principal import Principal
+from server.kit.service import Service
+from server.kit.time import utcnow
+from server.kit.uow import UnitOfWork
 from server.telemetry import repository
 from server.telemetry.models import AssetEvent, AssetStream
+from server.telemetry.repository import EventRepository
+from server.telemetry.store import Aggregate, Query, TelemetryStore
 
 
 class StreamOfAnotherAsset(ValueError):
@@ -65,3 +75,58 @@ async def advance_streams(db: AsyncSession, highest: Mapping[uuid.UUID, int]) ->
     """Move each stream's stored position up to `highest[stream]` (never down: replays are harmless)."""
     for row in await repository.streams(db, highest):
         row.last_seq = max(row.last_seq, highest[row.stream_id])
+
+
+def time_range(start: datetime | None, end: datetime | None) -> tuple[datetime, datetime]:
+    """[start, end) of a read: by default the hour before `end` (default now)."""
+    end = end or utcnow()
+    try:
+        start = start or end - timedelta(hours=1)
+    except OverflowError as err:
+        raise Unprocessable("end is too early for the default one-hour window; give start") from err
+    if start.tzinfo is None or end.tzinfo is None:
+        raise Unprocessable("start and end need a time zone (e.g. 2026-11-22T10:00:00Z)")
+    if start >= end:
+        raise Unprocessable("start must be before end")
+    return start, end
+
+
+class TelemetryService(Service):
+    """Samples and events of the caller's organisation's assets."""
+
+    def __init__(self, uow: UnitOfWork, principal: Principal, store: TelemetryStore) -> None:
+        super().__init__(uow, principal)
+        self.store = store
+        self.assets = AssetRepository(self.db, principal)
+
+    async def samples(
+        self,
+        asset_id: uuid.UUID,
+        start: datetime | None,
+        end: datetime | None,
+        fields: list[str] | None,
+        every: float | None,
+        agg: Aggregate,
+        limit: int,
+    ) -> list[dict[str, Any]]:
+        """Samples of an asset of the caller's organisation (NotFound otherwise) in [start, end):
+        raw, or downsampled to `every`-second buckets."""
+        await self.assets.get(asset_id)
+        start, end = time_range(start, end)
+        return await self.store.query(Query(asset_id, start, end, fields, every, agg, limit))
+
+    async def latest(self, asset_id: uuid.UUID) -> dict[str, Any]:
+        """The newest sample of an asset; NotFound before its first."""
+        await self.assets.get(asset_id)
+        row = await self.store.latest(asset_id)
+        if row is None:
+            raise NotFound(f"asset {asset_id} has sent no telemetry yet")
+        return row
+
+    async def events(
+        self, asset_id: uuid.UUID, start: datetime | None, end: datetime | None, limit: int
+    ) -> list[AssetEvent]:
+        """Events of an asset in [start, end)."""
+        await self.assets.get(asset_id)
+        start, end = time_range(start, end)
+        return await EventRepository(self.db, self.principal).of_asset(asset_id, start, end, limit)

@@ -102,3 +102,33 @@ def test_no_function_in_the_run_package_is_over_80_lines():
 def test_the_length_check_sees_a_long_function():
     probe = ROOT / "server" / "runs" / "machine.py"
     assert _long_functions(probe, 5)  # the same file has functions longer than 5 lines
+
+
+def _commits(path: Path) -> list[str]:
+    """Calls of `.commit(` in a module (a unit of work is committed at the boundary only)."""
+    tree = ast.parse(path.read_text())
+    return [
+        f"{path.relative_to(ROOT)}:{node.lineno}"
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Attribute)
+        and node.func.attr == "commit"
+    ]
+
+
+def test_no_endpoint_module_commits():
+    """One unit of work per request: the request's dependency commits once, endpoints never do."""
+    offenders = []
+    for path in (ROOT / "server").rglob("endpoints.py"):
+        offenders += _commits(path)
+    assert not offenders, "endpoint modules calling commit():\n" + "\n".join(offenders)
+
+
+def test_the_commit_check_sees_a_commit(tmp_path):
+    probe = tmp_path / "endpoints.py"
+    probe.write_text("async def f(db):\n    await db.commit()\n")
+    tree = ast.parse(probe.read_text())
+    assert any(
+        isinstance(n, ast.Call) and isinstance(n.func, ast.Attribute) and n.func.attr == "commit"
+        for n in ast.walk(tree)
+    )

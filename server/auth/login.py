@@ -1,0 +1,123 @@
+"""Logging in (limits on failed attempts, credentials, disabled accounts, the one-session rule)
+and telling callers who they are."""
+
+from __future__ import annotations
+
+import asyncio
+import uuid
+
+from server.assets.models import Asset
+from server.assets.repository import AssetRepository
+from server.auth.limiter import LoginLimiter
+from server.auth.models import AuthSession
+from server.auth.schemas import MembershipOut, MeResponse
+from server.auth.service import Account, IssuedToken, SessionService
+from server.config import Settings
+from server.kit.errors import Unauthorized, Unprocessable
+from server.kit.security import Passwords, same_hash, token_hash
+from server.kit.service import Service
+from server.kit.time import utcnow
+from server.kit.uow import UnitOfWork
+from server.organizations.models import Membership, Organization, User
+from server.organizations.repository import UserRepository
+
+DISABLED = "this account is disabled; ask an administrator of the organisation"
+
+
+def _organisation(
+    user: User, memberships: list[tuple[Membership, Organization]], wanted: uuid.UUID | None
+) -> uuid.UUID | None:
+    """The organisation a login is for: the one asked for, else the first where the user is
+    active; Unauthorized(account_disabled) when the user is disabled there (or everywhere)."""
+    if wanted is not None:
+        found = [m for m, o in memberships if o.id == wanted]
+        if not found and not user.is_superuser:
+            raise Unprocessable("you are not a member of that organisation", code="not_a_member")
+        if found and not found[0].is_active:
+            raise Unauthorized(DISABLED, code="account_disabled")
+        return wanted
+    active = [o.id for m, o in memberships if m.is_active]
+    if memberships and not active and not user.is_superuser:
+        raise Unauthorized(DISABLED, code="account_disabled")
+    return active[0] if active else None
+
+
+class LoginService:
+    """Logs users and assets in; like every auth service it runs before there is a caller."""
+
+    def __init__(
+        self, uow: UnitOfWork, settings: Settings, passwords: Passwords, limiter: LoginLimiter
+    ) -> None:
+        self.uow = uow
+        self.settings = settings
+        self.passwords = passwords
+        self.limiter = limiter
+
+    async def user(
+        self, email: str, password: str, *, force: bool, organization_id: uuid.UUID | None
+    ) -> IssuedToken:
+        """A user's login: at most the limit of concurrent wrong passwords is ever checked."""
+        attempt = await self.limiter.admit(email, self.uow.client_addr, utcnow())
+        users = UserRepository(self.uow.db)
+        user = await users.by_email(email, lock=True)
+        # argon2 is deliberately slow: keep it off the event loop
+        ok = await asyncio.to_thread(
+            self.passwords.verify, user.password_hash if user else None, password
+        )
+        if not ok or user is None:
+            raise Unauthorized("wrong e-mail or password", code="invalid_credentials")
+        # the password was right: this is no failed attempt, whatever follows
+        await self.limiter.succeeded(self.uow.db, email, attempt)
+        if not user.is_active:
+            raise Unauthorized(DISABLED, code="account_disabled")
+        org_id = _organisation(user, await users.memberships(user.id), organization_id)
+        return await SessionService(self.uow, self.settings).open(
+            Account("user", user.id, org_id, user.email), force=force
+        )
+
+    async def asset(self, name: str, secret: str, *, force: bool) -> IssuedToken:
+        """An asset's login. The right secret always gets in (256 random bits: nothing to guess);
+        wrong ones are counted by source and by asset name, and answered 429 past the limits."""
+        asset = await AssetRepository.by_name_for_login(self.uow.db, name)
+        if asset is None or not same_hash(asset.secret_hash, token_hash(secret)):
+            await self.limiter.admit(f"asset:{name}", self.uow.client_addr, utcnow())
+            raise Unauthorized("wrong asset name or secret", code="invalid_credentials")
+        return await SessionService(self.uow, self.settings).open(
+            Account("asset", asset.id, asset.organization_id, asset.name),
+            force=force,
+            via="asset.login",
+        )
+
+
+class IdentityService(Service):
+    """Who the caller is."""
+
+    async def me(self, session: AuthSession) -> MeResponse:
+        """The caller, its organisation and role, and (a user's) memberships."""
+        p = self.principal
+        if p.kind == "asset":
+            asset = await self.db.get(Asset, p.asset_id)
+            return MeResponse(
+                kind="asset",
+                id=p.asset_id,  # type: ignore[arg-type]
+                name=asset.name if asset else None,
+                organization_id=p.organization_id,
+                role=None,
+                session_id=session.id,
+                session_expires_at=session.expires_at,
+            )
+        memberships = await UserRepository(self.db).memberships(p.user_id)  # type: ignore[arg-type]
+        return MeResponse(
+            kind="user",
+            id=p.user_id,  # type: ignore[arg-type]
+            email=p.label,
+            is_superuser=p.is_superuser,
+            organization_id=p.organization_id,
+            role=p.role.value if p.role else None,
+            memberships=[
+                MembershipOut(organization_id=o.id, organization_name=o.name, role=m.role.value)
+                for m, o in memberships
+            ],
+            session_id=session.id,
+            session_expires_at=session.expires_at,
+        )

@@ -1,0 +1,47 @@
+"""API shapes of commands."""
+
+from __future__ import annotations
+
+import uuid
+from datetime import datetime
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from server.kit.types import Name
+
+
+class CommandCreate(BaseModel):
+    """A command for an asset."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: Name
+    params: dict[str, Any] = Field(default_factory=dict, max_length=100)
+    timeout_s: float = Field(default=60.0, gt=0, le=24 * 3600)
+
+
+class StatusChangeOut(BaseModel):
+    """One step of a command's history."""
+
+    model_config = ConfigDict(from_attributes=True)
+    at: datetime
+    status: str
+    reason: str
+    progress: dict[str, Any] | None
+
+
+class CommandOut(BaseModel):
+    """A command and, when asked for one, its history."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: uuid.UUID
+    asset_id: uuid.UUID
+    name: str
+    params: dict[str, Any]
+    status: str
+    reason: str
+    result: dict[str, Any] | None
+    deadline: datetime
+    created_at: datetime
+    updated_at: datetime
+    history: list[StatusChangeOut] = []
