@@ -3,25 +3,16 @@
 from __future__ import annotations
 
 import asyncio
-import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 
 import pytest
 
 from asset_agent.autopilot import Autopilot, AutopilotConfig
 from sim.vehicle.server import VehicleServer, run_vehicle
 from sim.vehicle.standalone import OpenPad
+from tests.polling import eventually
 
 SPEED = 20.0
-
-
-async def wait_for(predicate: Callable[[], bool], within: float = 10.0, what: str = "") -> None:
-    """Poll `predicate` until true; fail the test after `within` wall seconds."""
-    deadline = time.monotonic() + within
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {within} s waiting for {what or predicate}")
-        await asyncio.sleep(0.01)
 
 
 def fast_config(url: str, **overrides: object) -> AutopilotConfig:
@@ -59,7 +50,9 @@ async def autopilot(vehicle: VehicleServer) -> AsyncIterator[Autopilot]:
     try:
         await ap.wait_link(10)
         await asyncio.wait_for(ap.streams_requested.wait(), 10)
-        await wait_for(lambda: ap.state.lat is not None and ap.state.fix_type >= 3, 10, "position")
+        await eventually(
+            lambda: ap.state.lat is not None and ap.state.fix_type >= 3, 10, "position"
+        )
         yield ap
     finally:
         await ap.close()

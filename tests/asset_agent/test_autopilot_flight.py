@@ -16,7 +16,8 @@ from protocol.rtcm import build_frame
 from sim.vehicle.geo import GeoOrigin
 from sim.vehicle.server import VehicleServer
 from sim.vehicle.standalone import OpenPad
-from tests.asset_agent.conftest import fast_config, wait_for
+from tests.asset_agent.conftest import fast_config
+from tests.polling import eventually
 
 
 @contextlib.asynccontextmanager
@@ -85,15 +86,15 @@ async def test_fly_mission_rtl_and_land_on_the_pad(
 
     watcher = asyncio.create_task(watch())
     async with corrections(autopilot):
-        await wait_for(lambda: autopilot.state.fix_type == 6, 15, "RTK fixed")
+        await eventually(lambda: autopilot.state.fix_type == 6, 15, "RTK fixed")
         await autopilot.upload_mission(items_from_dicts(mission))
         assert pad.mass_g > 0 and pad.contacts_seated  # starts seated on the pad
         await autopilot.start_mission()
-        await wait_for(lambda: autopilot.state.armed, 5, "armed")
-        await wait_for(lambda: autopilot.state.in_air, 10, "in the air")
+        await eventually(lambda: autopilot.state.armed, 5, "armed")
+        await eventually(lambda: autopilot.state.in_air, 10, "in the air")
         assert pad.mass_g == 0 and not pad.contacts_seated
-        await wait_for(lambda: vehicle.copter.dyn.state.altitude > 10, 20, "climb")
-        await wait_for(lambda: not autopilot.state.armed, 60, "landed and disarmed")
+        await eventually(lambda: vehicle.copter.dyn.state.altitude > 10, 20, "climb")
+        await eventually(lambda: not autopilot.state.armed, 60, "landed and disarmed")
     truth = vehicle.copter.dyn.state
     assert truth.landed
     notifications = drain(notes)
@@ -104,10 +105,10 @@ async def test_fly_mission_rtl_and_land_on_the_pad(
     assert dist <= 4 * sigma + 0.02, f"landed {dist:.3f} m from the pad centre"
     assert pad.mass_g == vehicle.copter.config.dynamics.mass_g
     assert pad.contacts_seated == (dist <= vehicle.copter.config.contacts_tolerance_m)
-    await wait_for(lambda: autopilot.state.landed_state == "ON_GROUND", 5, "ON_GROUND")
+    await eventually(lambda: autopilot.state.landed_state == "ON_GROUND", 5, "ON_GROUND")
     assert autopilot.state.mission_state == "COMPLETE"
     assert autopilot.state.battery_pct is not None and autopilot.state.battery_pct < 100
-    await wait_for(lambda: "mission_finished" in events, 5, "mission_finished event")
+    await eventually(lambda: "mission_finished" in events, 5, "mission_finished event")
     watcher.cancel()
     for kind in ("armed", "took_off", "landing", "landed", "mission_finished", "disarmed"):
         assert events.count(kind) == 1, (kind, events)
@@ -123,23 +124,23 @@ async def test_guided_takeoff_velocity_and_abort_over_tcp(vehicle: VehicleServer
     await ap.start()
     try:
         await ap.wait_link(10)
-        await wait_for(lambda: ap.state.fix_type >= 3, 10, "fix")
+        await eventually(lambda: ap.state.fix_type >= 3, 10, "fix")
         await ap.set_mode("GUIDED")
         await ap.arm()
         await ap.takeoff(8)
-        await wait_for(lambda: (ap.state.alt_rel or 0) > 7.5, 20, "takeoff altitude")
+        await eventually(lambda: (ap.state.alt_rel or 0) > 7.5, 20, "takeoff altitude")
         start_n = vehicle.copter.dyn.state.position[0]
         ap.send_velocity_ned(3.0, 0.0, 0.0)
-        await wait_for(
+        await eventually(
             lambda: vehicle.copter.dyn.state.position[0] > start_n + 5, 20, "moving north"
         )
         ap.send_position_ned(0.0, 0.0, -6.0)
-        await wait_for(lambda: vehicle.copter.dyn.state.position[0] < 1.0, 20, "back over home")
+        await eventually(lambda: vehicle.copter.dyn.state.position[0] < 1.0, 20, "back over home")
         await ap.pause()
-        await wait_for(lambda: ap.state.mode == "BRAKE", 5, "BRAKE")
+        await eventually(lambda: ap.state.mode == "BRAKE", 5, "BRAKE")
         assert await ap.abort() == "rtl"
-        await wait_for(lambda: ap.state.mode == "RTL", 5, "RTL")
-        await wait_for(lambda: not ap.state.armed, 60, "landed and disarmed")
+        await eventually(lambda: ap.state.mode == "RTL", 5, "RTL")
+        await eventually(lambda: not ap.state.armed, 60, "landed and disarmed")
         assert await ap.abort() == "disarmed"
         # without corrections the landing is only as good as a 3D fix
         sigma = vehicle.copter.gnss.params.sigma_3d_m
@@ -189,7 +190,7 @@ async def test_silent_autopilot_times_out_a_command(
 
 async def test_low_battery_blocks_arming(autopilot: Autopilot, vehicle: VehicleServer) -> None:
     vehicle.copter.dyn.set_battery(12.0)
-    await wait_for(lambda: autopilot.state.battery_pct == 12, 5, "battery report")
+    await eventually(lambda: autopilot.state.battery_pct == 12, 5, "battery report")
     with pytest.raises(CommandRejected) as info:
         await autopilot.arm()
     assert "Battery" in info.value.detail
@@ -205,7 +206,7 @@ async def test_nacked_commands(autopilot: Autopilot) -> None:
     with pytest.raises(CommandRejected):
         await autopilot.start_mission()  # no mission: MISSION_START fails after arming
     await autopilot.disarm()
-    await wait_for(lambda: not autopilot.state.armed, 5, "disarmed in the HEARTBEAT")
+    await eventually(lambda: not autopilot.state.armed, 5, "disarmed in the HEARTBEAT")
 
 
 async def test_auto_without_takeoff_item_is_refused_on_the_ground(autopilot: Autopilot) -> None:
@@ -235,12 +236,12 @@ async def test_rtk_corrections_turn_the_fix_to_rtk_fixed_and_bad_crc_does_not(
     bad[-1] ^= 0xFF
     for _ in range(10):
         assert autopilot.inject_rtcm(bytes(bad)) == 3
-    await wait_for(lambda: gnss.bad_frames >= 10, 5, "bad frames seen")
+    await eventually(lambda: gnss.bad_frames >= 10, 5, "bad frames seen")
     assert gnss.valid_frames == 0
     assert gnss.fix_type(vehicle.copter.wall) == 3
     # a 1029-byte frame is longer than one GPS_RTCM_DATA message (719 bytes): sent in two
     assert autopilot.inject_rtcm(build_frame(bytes(1023))) == 4 + 2
-    await wait_for(lambda: gnss.valid_frames == 1, 5, "the long frame re-assembled")
+    await eventually(lambda: gnss.valid_frames == 1, 5, "the long frame re-assembled")
     seen_fixes: set[int] = set()
 
     def record() -> bool:
@@ -248,11 +249,11 @@ async def test_rtk_corrections_turn_the_fix_to_rtk_fixed_and_bad_crc_does_not(
         return autopilot.state.fix_type == 6
 
     async with corrections(autopilot, 0.1):
-        await wait_for(record, 15, "RTK fixed")
+        await eventually(record, 15, "RTK fixed")
     assert 5 in seen_fixes  # float on the way to fixed
     assert autopilot.state.fix_name == "RTK_FIXED"
     assert vehicle.copter.reading.h_acc_m < 0.05
-    await wait_for(lambda: autopilot.state.fix_type == 3, 15, "back to 3D once corrections stop")
+    await eventually(lambda: autopilot.state.fix_type == 3, 15, "back to 3D once corrections stop")
 
 
 @pytest.mark.slow
@@ -261,11 +262,11 @@ async def test_landing_target_frames(autopilot: Autopilot, vehicle: VehicleServe
     await autopilot.set_mode("GUIDED")
     await autopilot.arm()
     await autopilot.takeoff(10)
-    await wait_for(lambda: copter.dyn.state.altitude > 9.5, 20, "takeoff")
-    await wait_for(lambda: autopilot.state.armed, 5, "armed in the HEARTBEAT")
+    await eventually(lambda: copter.dyn.state.altitude > 9.5, 20, "takeoff")
+    await eventually(lambda: autopilot.state.armed, 5, "armed in the HEARTBEAT")
     texts = autopilot.subscribe()
     autopilot.send_landing_target(0.0, 0.0, 10.0, frame=1)  # MAV_FRAME_LOCAL_NED
-    await wait_for(
+    await eventually(
         lambda: any("Frame not supported" in n.text for n in drain_into(texts, seen)),
         5,
         "rejection",
@@ -287,7 +288,7 @@ async def test_landing_target_frames(autopilot: Autopilot, vehicle: VehicleServe
 
     task = asyncio.create_task(sensor())
     try:
-        await wait_for(lambda: not autopilot.state.armed, 60, "landed")
+        await eventually(lambda: not autopilot.state.armed, 60, "landed")
     finally:
         task.cancel()
     s = copter.dyn.state
@@ -322,13 +323,13 @@ def drain_into(q: asyncio.Queue[Notification], into: list[Notification]) -> list
 async def test_link_loss_and_recovery(autopilot: Autopilot, vehicle: VehicleServer) -> None:
     notes = autopilot.subscribe()
     vehicle.copter.faults.mute_until = math.inf
-    await wait_for(lambda: not autopilot.link_up, 10, "link lost")
+    await eventually(lambda: not autopilot.link_up, 10, "link lost")
     from asset_agent.autopilot import LinkLost
 
     with pytest.raises(LinkLost):
         await autopilot.arm()
     vehicle.copter.faults.mute_until = 0.0
-    await wait_for(lambda: autopilot.link_up, 10, "link recovered")
+    await eventually(lambda: autopilot.link_up, 10, "link recovered")
     kinds = [n.kind for n in drain(notes) if n.kind.startswith("link")]
     assert kinds == ["link_lost", "link_recovered"]
 
@@ -363,19 +364,19 @@ async def test_battery_failsafe_returns_home(autopilot: Autopilot, vehicle: Vehi
     await autopilot.set_mode("GUIDED")
     await autopilot.arm()
     await autopilot.takeoff(5)
-    await wait_for(lambda: autopilot.state.in_air and autopilot.state.armed, 10, "flying")
+    await eventually(lambda: autopilot.state.in_air and autopilot.state.armed, 10, "flying")
     events = [e.kind for e in tracker.update(autopilot.state)]
     vehicle.copter.dyn.set_battery(14.0)
-    await wait_for(
+    await eventually(
         lambda: autopilot.state.mode == "RTL" and autopilot.state.failsafe, 10, "failsafe RTL"
     )
-    await wait_for(
+    await eventually(
         lambda: autopilot.state.battery_pct is not None and autopilot.state.battery_pct < 15, 5
     )
     events += [e.kind for e in tracker.update(autopilot.state)]
     assert {"armed", "took_off", "failsafe", "low_battery"} <= set(events)
     assert "Battery Failsafe" in autopilot.statustexts
-    await wait_for(lambda: not autopilot.state.armed, 60, "landed at home")
+    await eventually(lambda: not autopilot.state.armed, 60, "landed at home")
     assert vehicle.copter.pad_distance() <= 4 * vehicle.copter.gnss.params.sigma_3d_m
     assert isinstance(tracker.prev, UavState)
 

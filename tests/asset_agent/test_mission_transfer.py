@@ -16,7 +16,7 @@ from asset_agent.autopilot import (
 )
 from asset_agent.autopilot.verify import compare
 from sim.vehicle.server import VehicleServer
-from tests.asset_agent.conftest import wait_for
+from tests.polling import eventually
 
 PAD = (41.1780, -8.5960)
 
@@ -46,7 +46,7 @@ async def test_upload_and_read_back_200_items(autopilot: Autopilot, vehicle: Veh
     assert len(back) == 200
     assert all(compare(a, b) is None for a, b in zip(items, back, strict=True))
     assert len(vehicle.copter.items) == 201  # home + 200
-    await wait_for(lambda: autopilot.state.mission_total == 200, 5, "MISSION_CURRENT total")
+    await eventually(lambda: autopilot.state.mission_total == 200, 5, "MISSION_CURRENT total")
 
 
 async def test_clear_mission(autopilot: Autopilot, vehicle: VehicleServer) -> None:
@@ -92,7 +92,7 @@ async def test_autopilot_silent_mid_upload_gives_a_clear_error(
     items = items_from_dicts(survey(200))
     task = asyncio.create_task(autopilot.upload_mission(items, verify=False))
     copter = vehicle.copter
-    await wait_for(
+    await eventually(
         lambda: copter.upload is not None and copter.upload.expected >= 50, 10, "half upload"
     )
     started = time.monotonic()
@@ -125,7 +125,7 @@ async def test_a_second_link_cannot_upload_at_the_same_time(
             autopilot.upload_mission(items_from_dicts(survey(200)), verify=False)
         )
         copter = vehicle.copter
-        await wait_for(
+        await eventually(
             lambda: copter.upload is not None and copter.upload.expected >= 5, 10, "upload"
         )
         with pytest.raises(MissionError) as info:

@@ -19,7 +19,7 @@ from sim.vehicle.constants import AUTO, RTL
 from sim.vehicle.geo import GeoOrigin
 from sim.vehicle.server import VehicleServer
 from sim.vehicle.standalone import OpenPad
-from tests.asset_agent.conftest import wait_for
+from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # a whole (20x) flight
 
@@ -50,15 +50,15 @@ async def test_return_to_base_leaves_the_missions_own_return_and_a_landed_uav_al
     assert uploaded.status == "succeeded", uploaded
     await autopilot.start_mission()
     copter = vehicle.copter
-    await wait_for(lambda: autopilot.state.mission_current == 2, 60, "the mission's return-home")
-    await wait_for(lambda: autopilot.state.mode == "AUTO" and autopilot.state.armed, 5, "AUTO")
+    await eventually(lambda: autopilot.state.mission_current == 2, 60, "the mission's return-home")
+    await eventually(lambda: autopilot.state.mode == "AUTO" and autopilot.state.armed, 5, "AUTO")
     # the link comes back while the mission brings the UAV home: it is left to do so
     on_the_way = await _answer(table[ReturnToBase], ReturnToBase())
     assert on_the_way.status == "succeeded", on_the_way
     assert "already returning" in on_the_way.reason and on_the_way.data == {"action": "none"}
     assert copter.mode == AUTO  # no RTL restarted: no climb back for a second approach
-    await wait_for(lambda: not autopilot.state.armed, 60, "landed and disarmed")
-    await wait_for(lambda: autopilot.state.landed_state == "ON_GROUND", 5, "ON_GROUND")
+    await eventually(lambda: not autopilot.state.armed, 60, "landed and disarmed")
+    await eventually(lambda: autopilot.state.landed_state == "ON_GROUND", 5, "ON_GROUND")
     # ...or once it has landed: nothing to return from, the autopilot is not left in RTL
     landed = await _answer(table[ReturnToBase], ReturnToBase())
     assert landed.status == "succeeded" and "already landed" in landed.reason, landed
@@ -72,8 +72,8 @@ async def test_return_to_base_still_returns_a_uav_that_is_not_on_its_way(
     await autopilot.set_mode("GUIDED")
     await autopilot.arm()
     await autopilot.takeoff(8.0)
-    await wait_for(lambda: vehicle.copter.dyn.state.altitude > 6, 30, "climb")
-    await wait_for(lambda: autopilot.state.armed and autopilot.state.in_air, 5, "seen flying")
+    await eventually(lambda: vehicle.copter.dyn.state.altitude > 6, 30, "climb")
+    await eventually(lambda: autopilot.state.armed and autopilot.state.in_air, 5, "seen flying")
     answer = await _answer(handlers.table()[ReturnToBase], ReturnToBase())
     assert answer.status == "succeeded", answer
-    await wait_for(lambda: vehicle.copter.mode == RTL, 5, "RTL")
+    await eventually(lambda: vehicle.copter.mode == RTL, 5, "RTL")

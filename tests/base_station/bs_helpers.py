@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
-import inspect
-import time
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,24 +14,9 @@ from base_station.config import StationConfig
 from base_station.main import App, setup
 from base_station.station import Result, Station
 from sim.world import World, WorldConfig
+from tests.polling import eventually
 
 SPEED = 15.0  # panels travel in 0.8 s wall, lift in 0.53 s
-
-
-async def wait_for(
-    predicate: Callable[[], bool | Awaitable[bool]], within: float = 10.0, what: str = ""
-) -> None:
-    """Poll `predicate` until it holds; fail after `within` wall seconds."""
-    deadline = time.monotonic() + within
-    while True:
-        value = predicate()
-        if inspect.isawaitable(value):
-            value = await value
-        if value:
-            return
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {within}s waiting for {what or predicate}")
-        await asyncio.sleep(0.01)
 
 
 def station_config(plc_port: int, speed: float = SPEED, **uav: Any) -> StationConfig:
@@ -93,7 +75,7 @@ class Rig:
 
     async def link_up(self, up: bool = True, within: float = 5.0) -> None:
         """Wait until the daemon's view of the PLC link is `up`."""
-        await wait_for(lambda: self.app.coordinator.snapshot.link_up is up, within, f"link {up}")
+        await eventually(lambda: self.app.coordinator.snapshot.link_up is up, within, f"link {up}")
 
     def commands(self) -> list[str]:
         """Command coils the PLC has processed so far (ground truth)."""
@@ -123,7 +105,7 @@ async def rig_at(speed: float = SPEED, seed: int = 11, **uav: Any) -> AsyncItera
             r = Rig(world, app, c)
             try:
                 await r.link_up()
-                await wait_for(lambda: world.base.watchdog_armed, 5.0, "watchdog armed")
+                await eventually(lambda: world.base.watchdog_armed, 5.0, "watchdog armed")
                 yield r
             finally:
                 await stop_daemon(r.app)

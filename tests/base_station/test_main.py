@@ -5,10 +5,11 @@ from __future__ import annotations
 import asyncio
 from pathlib import Path
 
-from bs_helpers import station_config, wait_for
+from bs_helpers import station_config
 
 from base_station.main import main, run, setup
 from sim.world import World, WorldConfig
+from tests.polling import eventually
 
 
 def test_main_with_a_missing_config_exits_2(tmp_path: Path) -> None:
@@ -32,8 +33,8 @@ async def test_run_connects_reads_and_stops_cleanly_without_writing_commands() -
             await asyncio.Event().wait()
 
         task = asyncio.ensure_future(run(app, stop, link))
-        await wait_for(lambda: app.coordinator.snapshot.link_up, 5, "link up")
-        await wait_for(lambda: world.base.watchdog_armed, 5, "watchdog fed")
+        await eventually(lambda: app.coordinator.snapshot.link_up, 5, "link up")
+        await eventually(lambda: world.base.watchdog_armed, 5, "watchdog fed")
         assert linked  # the link runner was started with the station
         stop.set()
         await asyncio.wait_for(task, 5)

@@ -5,17 +5,18 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from bs_helpers import SPEED, Rig, rig_at, run, start_daemon, station_config, stop_daemon, wait_for
+from bs_helpers import SPEED, Rig, rig_at, run, start_daemon, station_config, stop_daemon
 
 from base_station.events import EventKind
 from base_station.plc import FaultBit
 from base_station.station import Status
 from sim.world import World, WorldConfig
+from tests.polling import eventually
 
 
 async def test_available_when_everything_is_fine(rig: Rig) -> None:
     await rig.inject("/pad", {"mass_g": 1500, "contacts_seated": True})
-    await wait_for(lambda: rig.station.telemetry().uav_present is True, what="UAV on the scale")
+    await eventually(lambda: rig.station.telemetry().uav_present is True, what="UAV on the scale")
     result = await run(rig.station, "check_availability")
     assert result.status is Status.SUCCEEDED and result.data["available"], result.reason
     assert {c["name"] for c in result.data["conditions"]} >= {
@@ -41,7 +42,7 @@ async def test_every_failed_condition_is_listed_with_measured_value_and_limit(ri
     await rig.inject("/faults/estop", {"on": True})
     rig.world.base.panels.position = 0.5
     rig.world.base.lift.position = 0.25
-    await wait_for(
+    await eventually(
         lambda: (
             rig.app.coordinator.snapshot.plc.estop_active
             and rig.app.coordinator.snapshot.plc.wind_speed_mps == 11.0
@@ -88,7 +89,7 @@ async def test_every_failed_condition_is_listed_with_measured_value_and_limit(ri
 async def test_weather_sensor_fault_fails_availability(rig: Rig) -> None:
     await rig.inject("/pad", {"mass_g": 1500})
     await rig.inject("/faults/weather_sensor", {"on": True})
-    await wait_for(
+    await eventually(
         lambda: (
             "weather_sensor_fault" in rig.station.telemetry().faults.names
             and rig.station.telemetry().uav_present is True
@@ -106,7 +107,7 @@ async def test_weather_sensor_fault_fails_availability(rig: Rig) -> None:
 async def test_landing_confirmed_only_after_stable_window(rig: Rig) -> None:
     async with rig.station.subscribe() as events:
         await rig.inject("/pad", {"mass_g": 1500, "contacts_seated": True})
-        await wait_for(lambda: rig.station.telemetry().uav_present is True, what="present")
+        await eventually(lambda: rig.station.telemetry().uav_present is True, what="present")
         seen_present = asyncio.get_running_loop().time()
         event = await asyncio.wait_for(_first(events, EventKind.LANDING_CONFIRMED), 5)
         # confirmation needs the mass to stay in the window for stable_s (0.5 s)
@@ -115,12 +116,12 @@ async def test_landing_confirmed_only_after_stable_window(rig: Rig) -> None:
     tel = rig.station.telemetry()
     assert tel.landing_confirmed and 1480 <= tel.scale_mass_g <= 1520
     await rig.inject("/pad", {"mass_g": 0})
-    await wait_for(lambda: rig.station.telemetry().landing_confirmed is False, what="gone")
+    await eventually(lambda: rig.station.telemetry().landing_confirmed is False, what="gone")
 
 
 async def test_mass_outside_the_window_is_never_confirmed(rig: Rig) -> None:
     await rig.inject("/pad", {"mass_g": 2600})
-    await wait_for(lambda: rig.app.coordinator.polls >= 30, what="30 polls (1.5 s)")
+    await eventually(lambda: rig.app.coordinator.polls >= 30, what="30 polls (1.5 s)")
     tel = rig.station.telemetry()
     assert tel.uav_present is False and tel.landing_confirmed is False
     assert EventKind.LANDING_CONFIRMED not in [e.kind for e in rig.app.coordinator.events.history]
@@ -149,7 +150,7 @@ async def test_charging_cc_cv_to_completion_with_limit_and_power_source() -> Non
     async with rig_at(speed=400.0) as rig:
         await rig.inject("/weather/force", {"rain_mm_h": 2.0})  # clouds: solar cannot cover it
         await rig.inject("/pad", {"mass_g": 1500, "contacts_seated": True, "uav_soc": 0.88})
-        await wait_for(lambda: rig.station.telemetry().charger.contact, what="contacts")
+        await eventually(lambda: rig.station.telemetry().charger.contact, what="contacts")
         samples: list[tuple[str | None, int, float | None]] = []
         async with rig.station.subscribe() as events:
             result = await run(rig.station, "start_charging", {"current_limit_ma": 4000})
@@ -173,24 +174,24 @@ async def test_charging_cc_cv_to_completion_with_limit_and_power_source() -> Non
         ]
         assert "grid" in sources
         assert (await run(rig.station, "stop_charging")).status is Status.SUCCEEDED
-        await wait_for(lambda: rig.station.telemetry().charger.state == "idle")
+        await eventually(lambda: rig.station.telemetry().charger.state == "idle")
 
 
 async def test_charger_fault_refuses_charging_and_is_reported(rig: Rig) -> None:
     await rig.inject("/pad", {"mass_g": 1500, "contacts_seated": True, "uav_soc": 0.5})
     await rig.inject("/faults/charger", {"on": True})
     await rig.inject("/faults/grid", {"present": False})
-    await wait_for(
+    await eventually(
         lambda: "charger_fault" in rig.station.telemetry().faults.names, what="charger fault"
     )
-    await wait_for(lambda: rig.station.telemetry().charger.contact, what="contacts")
+    await eventually(lambda: rig.station.telemetry().charger.contact, what="contacts")
     result = await run(rig.station, "start_charging")
     assert result.status is Status.REJECTED and "charger fault" in result.reason
     assert any(
         e.kind is EventKind.FAULT and "CHARGER" in e.data["faults"]
         for e in rig.app.coordinator.events.history
     )
-    await wait_for(lambda: rig.station.telemetry().power.grid_present is False, what="grid off")
+    await eventually(lambda: rig.station.telemetry().power.grid_present is False, what="grid off")
 
 
 @pytest.mark.slow
@@ -206,10 +207,10 @@ async def test_a_charger_that_never_starts_fails_with_why_while_the_daemon_keeps
         )
         app = await start_daemon(config)
         try:
-            await wait_for(lambda: app.coordinator.snapshot.link_up, 5.0, "link up")
-            await wait_for(lambda: world.base.watchdog_armed, 5.0, "watchdog armed")
+            await eventually(lambda: app.coordinator.snapshot.link_up, 5.0, "link up")
+            await eventually(lambda: world.base.watchdog_armed, 5.0, "watchdog armed")
             world.base.set_pad_load(1500, contacts_seated=True)  # a pack the charger cannot talk to
-            await wait_for(lambda: app.station.telemetry().charger.contact, what="contacts")
+            await eventually(lambda: app.station.telemetry().charger.contact, what="contacts")
             polls = app.coordinator.polls
             result = await run(app.station, "start_charging")
             assert result.status is Status.FAILED

@@ -5,11 +5,12 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from bs_helpers import Rig, rig_at, run, start_daemon, station_config, stop_daemon, wait_for
+from bs_helpers import Rig, rig_at, run, start_daemon, station_config, stop_daemon
 
 from base_station.events import EventKind
 from base_station.plc import FaultBit
 from base_station.station import Status
+from tests.polling import eventually
 
 
 def kinds(rig: Rig) -> list[EventKind]:
@@ -40,7 +41,7 @@ async def _drain(events):  # type: ignore[no-untyped-def]
 
 async def test_estop_mid_motion_stops_and_fails_the_command(rig: Rig) -> None:
     motion = asyncio.ensure_future(run(rig.station, "open_panels"))
-    await wait_for(lambda: rig.world.base.panels.position > 0.2, what="panels moving")
+    await eventually(lambda: rig.world.base.panels.position > 0.2, what="panels moving")
     await rig.inject("/faults/estop", {"on": True})
     result = await motion
     assert result.status is Status.FAILED and "E-stop" in result.reason
@@ -85,11 +86,11 @@ async def test_link_freeze_is_detected_by_timeout_and_motion_refused(rig: Rig) -
 async def test_link_cut_mid_motion_fails_it_and_the_plc_watchdog_stops_the_motor() -> None:
     async with rig_at(speed=3.0) as rig:  # panels take 4 s wall: longer than the watchdog
         motion = asyncio.ensure_future(run(rig.station, "open_panels"))
-        await wait_for(lambda: rig.world.base.panels.moving, what="panels moving")
+        await eventually(lambda: rig.world.base.panels.moving, what="panels moving")
         await rig.inject("/faults/link", {"mode": "cut"})
         result = await motion
         assert result.status is Status.FAILED and "PLC link lost" in result.reason
-        await wait_for(lambda: not rig.world.base.panels.moving, 5.0, "PLC stops the motor")
+        await eventually(lambda: not rig.world.base.panels.moving, 5.0, "PLC stops the motor")
         assert rig.world.base.fault_bits() & FaultBit.WATCHDOG, rig.world.base.ground_truth()
         assert rig.world.base.panels.position < 1.0
 
@@ -98,7 +99,7 @@ async def test_link_cut_mid_motion_fails_it_and_the_plc_watchdog_stops_the_motor
 async def test_watchdog_expires_when_the_daemon_freezes() -> None:
     async with rig_at(speed=3.0) as rig:
         motion = asyncio.ensure_future(run(rig.station, "open_panels"))
-        await wait_for(lambda: rig.world.base.panels.moving, what="panels moving")
+        await eventually(lambda: rig.world.base.panels.moving, what="panels moving")
         rig.app.coordinator.watchdog.pause()  # the daemon stops feeding the PLC
         result = await motion
         assert result.status is Status.FAILED and "WATCHDOG latched" in result.reason
@@ -110,14 +111,14 @@ async def test_watchdog_expires_when_the_daemon_freezes() -> None:
         wd = rig.app.coordinator.watchdog
         writes = wd.writes
         wd.resume()
-        await wait_for(lambda: wd.writes > writes, what="watchdog fed again")
+        await eventually(lambda: wd.writes > writes, what="watchdog fed again")
         assert (await run(rig.station, "reset_faults")).status is Status.SUCCEEDED
         assert rig.world.base.fault_bits() == 0
 
 
 async def test_restart_mid_state_starts_no_motion(rig: Rig) -> None:
     motion = asyncio.ensure_future(run(rig.station, "open_panels"))
-    await wait_for(lambda: rig.world.base.panels.position > 0.3, what="panels 30 % open")
+    await eventually(lambda: rig.world.base.panels.position > 0.3, what="panels 30 % open")
     await run(rig.station, "stop")
     await motion
     before = rig.commands()
@@ -125,7 +126,7 @@ async def test_restart_mid_state_starts_no_motion(rig: Rig) -> None:
     await rig.app.coordinator.stop()
     rig.app = await start_daemon(station_config(rig.world.ports["plc"]))
     await rig.link_up()
-    await wait_for(lambda: rig.app.coordinator.polls >= 10, what="ten polls")
+    await eventually(lambda: rig.app.coordinator.polls >= 10, what="ten polls")
     snap = rig.app.coordinator.snapshot
     assert snap.plc.pending_commands == () and not snap.plc.panels_moving
     assert not snap.plc.lift_moving and rig.commands() == before
@@ -135,14 +136,14 @@ async def test_restart_mid_state_starts_no_motion(rig: Rig) -> None:
 async def test_restart_while_moving_starts_nothing_new() -> None:
     async with rig_at(speed=3.0) as rig:
         motion = asyncio.ensure_future(run(rig.station, "open_panels"))
-        await wait_for(lambda: rig.world.base.panels.moving, what="panels moving")
+        await eventually(lambda: rig.world.base.panels.moving, what="panels moving")
         motion.cancel()
         await rig.app.coordinator.stop()  # crash mid-motion
         old = rig.app
         rig.app = await start_daemon(station_config(rig.world.ports["plc"], 3.0))
         await stop_daemon(old)
         await rig.link_up()
-        await wait_for(lambda: rig.app.coordinator.polls >= 5, what="five polls")
+        await eventually(lambda: rig.app.coordinator.polls >= 5, what="five polls")
         assert rig.commands() == ["PANELS_OPEN"]
         assert rig.station.telemetry().panels.state in ("moving", "opening", "open")
         replay = await run(rig.station, "open_panels")  # replayed by a reconnecting server
@@ -152,7 +153,7 @@ async def test_restart_while_moving_starts_nothing_new() -> None:
 
 async def test_plc_cpu_halt_is_seen_through_the_frozen_heartbeat(rig: Rig) -> None:
     motion = asyncio.ensure_future(run(rig.station, "open_panels"))
-    await wait_for(lambda: rig.world.base.panels.moving, what="panels moving")
+    await eventually(lambda: rig.world.base.panels.moving, what="panels moving")
     await rig.inject("/faults/cpu_halt", {"on": True})
     result = await motion  # outputs drop: the motion fails whichever is seen first
     assert result.status is Status.FAILED

@@ -5,10 +5,11 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from bs_helpers import Rig, run, wait_for
+from bs_helpers import Rig, run
 
 from base_station.events import EventKind
 from base_station.station import Progress, Result, Status
+from tests.polling import eventually
 
 
 @pytest.mark.slow
@@ -34,7 +35,7 @@ async def test_full_open_then_close_cycle_with_progress(rig: Rig) -> None:
 
 async def test_lift_up_refused_by_daemon_with_panels_partly_open(rig: Rig) -> None:
     rig.world.base.panels.position = 0.4  # stopped mid-way
-    await wait_for(lambda: rig.app.coordinator.snapshot.plc.panel_position_pct == 40.0)
+    await eventually(lambda: rig.app.coordinator.snapshot.plc.panel_position_pct == 40.0)
     async with rig.station.subscribe() as events:
         result = await run(rig.station, "lift_up")
         assert result.status is Status.REJECTED
@@ -54,11 +55,11 @@ async def test_close_panels_refused_by_daemon_with_lift_up(rig: Rig) -> None:
 
 async def test_motion_refused_while_estop_and_while_fault_latched(rig: Rig) -> None:
     await rig.inject("/faults/estop", {"on": True})
-    await wait_for(lambda: rig.app.coordinator.snapshot.plc.estop_active)
+    await eventually(lambda: rig.app.coordinator.snapshot.plc.estop_active)
     result = await run(rig.station, "open_panels")
     assert result.status is Status.REJECTED and "E-stop active" in result.reason
     await rig.inject("/faults/estop", {"on": False})
-    await wait_for(lambda: not rig.app.coordinator.snapshot.plc.estop_active)
+    await eventually(lambda: not rig.app.coordinator.snapshot.plc.estop_active)
     result = await run(rig.station, "open_panels")
     assert result.status is Status.REJECTED and "faults latched: ESTOP" in result.reason
     result = await run(rig.station, "reset_faults")
@@ -69,7 +70,7 @@ async def test_motion_refused_while_estop_and_while_fault_latched(rig: Rig) -> N
 
 async def test_duplicate_command_does_not_start_a_second_motion(rig: Rig) -> None:
     first = asyncio.ensure_future(run(rig.station, "open_panels"))
-    await wait_for(lambda: rig.world.base.panels.moving, what="panels moving")
+    await eventually(lambda: rig.world.base.panels.moving, what="panels moving")
     second = await run(rig.station, "open_panels")
     assert second.status is Status.REJECTED and "busy: open_panels in progress" in second.reason
     assert (await first).status is Status.SUCCEEDED
@@ -80,7 +81,7 @@ async def test_duplicate_command_does_not_start_a_second_motion(rig: Rig) -> Non
 
 async def test_command_refused_when_axis_already_moving_from_elsewhere(rig: Rig) -> None:
     rig.world.base.write_coils(0, [True])  # someone else started the panels
-    await wait_for(lambda: rig.app.coordinator.snapshot.plc.panels_moving)
+    await eventually(lambda: rig.app.coordinator.snapshot.plc.panels_moving)
     result = await run(rig.station, "open_panels")
     assert result.status is Status.REJECTED and "panels already moving" in result.reason
     assert rig.commands() == ["PANELS_OPEN"]
@@ -88,14 +89,14 @@ async def test_command_refused_when_axis_already_moving_from_elsewhere(rig: Rig)
 
 async def test_stop_mid_motion_and_in_every_state(rig: Rig) -> None:
     motion = asyncio.ensure_future(run(rig.station, "open_panels"))
-    await wait_for(lambda: rig.world.base.panels.position > 0.2, what="panels 20 % open")
+    await eventually(lambda: rig.world.base.panels.position > 0.2, what="panels 20 % open")
     stop = await run(rig.station, "stop")
     assert stop.status is Status.SUCCEEDED
     result = await motion
     assert result.status is Status.FAILED and "stopped by operator" in result.reason
     assert not rig.world.base.panels.moving and 0 < rig.world.base.panels.position < 1
     await rig.inject("/faults/estop", {"on": True})
-    await wait_for(lambda: rig.app.coordinator.snapshot.plc.estop_active)
+    await eventually(lambda: rig.app.coordinator.snapshot.plc.estop_active)
     assert (await run(rig.station, "stop")).status is Status.SUCCEEDED  # stop under E-stop too
 
 

@@ -10,11 +10,12 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from bs_helpers import Rig, rig_at, run, start_daemon, station_config, wait_for
+from bs_helpers import Rig, rig_at, run, start_daemon, station_config
 
 from base_station.events import EventKind
 from base_station.plc import FaultBit
 from base_station.station import Status
+from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # the PLC's watchdog takes 2 s of wall time to expire
 
@@ -24,11 +25,11 @@ MOTION = {"PANELS_OPEN", "PANELS_CLOSE", "LIFT_UP", "LIFT_DOWN"}
 async def _kill_mid_open(rig: Rig) -> None:
     """Open the panels, kill the daemon at ~30 %, wait for the PLC to latch its watchdog."""
     motion = asyncio.ensure_future(run(rig.station, "open"))
-    await wait_for(lambda: rig.world.base.panels.position > 0.3, what="panels 30 % open")
+    await eventually(lambda: rig.world.base.panels.position > 0.3, what="panels 30 % open")
     motion.cancel()
     await rig.app.coordinator.stop()  # killed: no MOTION_STOP, no more watchdog values
     base = rig.world.base
-    await wait_for(lambda: base.fault_bits() & FaultBit.WATCHDOG, 5.0, "the PLC's watchdog latch")
+    await eventually(lambda: base.fault_bits() & FaultBit.WATCHDOG, 5.0, "the PLC's watchdog latch")
     assert not base.panels.moving and not base.lift.moving
 
 
@@ -40,7 +41,7 @@ async def test_a_daemon_restarted_after_a_kill_mid_open_clears_the_latch_and_can
         rig.app = await start_daemon(station_config(rig.world.ports["plc"], speed))
         await rig.link_up()
         base = rig.world.base
-        await wait_for(lambda: base.fault_bits() == 0, 5.0, "the latch cleared by the daemon")
+        await eventually(lambda: base.fault_bits() == 0, 5.0, "the latch cleared by the daemon")
         written = [c.coil for c in base.command_log[before:]]
         assert written == ["FAULT_RESET"], written  # recovery moves nothing by itself
         assert not base.panels.moving and 0.0 < base.panels.position < 1.0
@@ -71,7 +72,7 @@ async def test_a_stall_latched_with_the_watchdog_is_left_for_a_person() -> None:
         before = len(rig.world.base.command_log)
         rig.app = await start_daemon(station_config(rig.world.ports["plc"], speed))
         await rig.link_up()
-        await wait_for(lambda: rig.app.coordinator.watchdog.writes >= 8, what="watchdog fed 2 s")
+        await eventually(lambda: rig.app.coordinator.watchdog.writes >= 8, what="watchdog fed 2 s")
         closed = await run(rig.station, "close")
         assert closed.status is Status.REJECTED and "LIFT_STALL" in closed.reason, closed.reason
         assert [c.coil for c in rig.world.base.command_log[before:]] == []  # no FAULT_RESET
@@ -87,6 +88,6 @@ async def test_an_estop_keeps_the_watchdog_latch() -> None:
         before = len(rig.world.base.command_log)
         rig.app = await start_daemon(station_config(rig.world.ports["plc"], speed))
         await rig.link_up()
-        await wait_for(lambda: rig.app.coordinator.watchdog.writes >= 8, what="watchdog fed 2 s")
+        await eventually(lambda: rig.app.coordinator.watchdog.writes >= 8, what="watchdog fed 2 s")
         assert [c.coil for c in rig.world.base.command_log[before:]] == []
         assert (await run(rig.station, "close")).status is Status.REJECTED

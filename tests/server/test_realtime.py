@@ -20,6 +20,7 @@ from protocol.messages import EventPayload
 from protocol.telemetry_payloads import Battery, Position, UavTelemetry
 from server.deps import services_of
 from tests.conftest import LiveServer, Tenant, test_settings
+from tests.polling import eventually
 
 
 def _cfg(asset: dict, password: str = "asset-password-123"):  # type: ignore[no-untyped-def]
@@ -32,19 +33,6 @@ def _sample(i: int) -> UavTelemetry:
         battery=Battery(percent=90.0, voltage_v=16.4, current_a=1.0),
         armed=False,
     )
-
-
-async def _wait(predicate, limit_s: float = 15.0, what: str = "condition"):  # type: ignore[no-untyped-def]
-    deadline = time.monotonic() + limit_s
-    while True:
-        value = predicate()
-        if asyncio.iscoroutine(value):
-            value = await value
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        await asyncio.sleep(0.02)
 
 
 async def _count(server_url: str, tenant: Tenant, asset_id: str) -> list:
@@ -162,7 +150,7 @@ async def test_command_round_trip_and_status_history(live_server, tenant: Tenant
                 body = (await c.get(f"/api/v1/commands/{cid}", headers=tenant.h("viewer"))).json()
                 return body if body["status"] == "succeeded" else None
 
-            body = await _wait(final, what="command result")
+            body = await eventually(final, what="command result")
     finally:
         await link.stop()
     assert [h["status"] for h in body["history"]] == ["queued", "sent", "succeeded"]
@@ -184,7 +172,7 @@ async def test_unanswered_command_times_out(live_server, tenant: Tenant):
             body = (await c.get(f"/api/v1/commands/{cid}", headers=tenant.h("viewer"))).json()
             return body if body["status"] == "timed_out" else None
 
-        body = await _wait(timed_out, what="timed_out")
+        body = await eventually(timed_out, what="timed_out")
     assert "deadline" in body["reason"]
 
 

@@ -21,6 +21,3 @@ async def world() -> AsyncIterator[World]:
     """A world at 20x speed on free ports."""
     async with World(WorldConfig.for_tests(speed=20.0, seed=7)) as w:
         yield w
-
-
-wait_until = eventually  # the vehicle tests' old name; goes once they import `eventually`

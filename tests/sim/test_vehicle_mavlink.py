@@ -20,7 +20,7 @@ from sim.vehicle.copter import CopterConfig
 from sim.vehicle.part import VehiclePart
 from sim.vehicle.server import VehicleServer, run_vehicle
 from sim.world import World, WorldConfig
-from tests.sim.conftest import wait_until
+from tests.polling import eventually
 
 
 class Peer:
@@ -215,7 +215,7 @@ async def test_vehicle_in_the_world_sits_on_the_closed_base() -> None:
         assert world.base.pad_mass_g > 0 and world.base.contacts_seated
         assert world.base.charger.uav_soc == 1.0  # the vehicle's battery sits on the contacts
         world.base.set_uav_battery(0.5)  # as if the base's charger had a half-full pack
-        await wait_until(
+        await eventually(
             lambda: abs(world.parts[0].server.copter.dyn.state.battery_pct - 50) < 0.1, 5
         )
         peer = Peer(f"udpout:127.0.0.1:{world.ports['mavlink_udp']}")
@@ -262,17 +262,17 @@ async def test_guided_global_target_and_condition_yaw(sim: VehicleServer, peer: 
     assert (await peer.recv("COMMAND_ACK", command=400)).result == 0
     peer.conn.mav.command_long_send(1, 1, 22, 0, 0, 0, 0, 0, 0, 0, 5)
     assert (await peer.recv("COMMAND_ACK", command=22)).result == 0
-    await wait_until(lambda: c.dyn.state.altitude > 4.5, 10, "takeoff")
+    await eventually(lambda: c.dyn.state.altitude > 4.5, 10, "takeoff")
     peer.conn.mav.command_long_send(1, 1, 115, 0, 90, 0, 1, 0, 0, 0, 0)  # CONDITION_YAW east
     assert (await peer.recv("COMMAND_ACK", command=115)).result == 0
-    await wait_until(lambda: abs(c.dyn.state.yaw - math.pi / 2) < 0.02, 10, "facing east")
+    await eventually(lambda: abs(c.dyn.state.yaw - math.pi / 2) < 0.02, 10, "facing east")
     lat, lon, _ = c.origin.to_geodetic(-10.0, 5.0, 0.0)
     mask = 0b0000_1101_1111_1000  # position only, keep the yaw
     peer.conn.mav.set_position_target_global_int_send(
         0, 1, 1, 6, mask, round(lat * 1e7), round(lon * 1e7), 8.0, 0, 0, 0, 0, 0, 0, 0, 0
     )
     # the autopilot flies its estimate: the estimated position reaches the target
-    await wait_until(
+    await eventually(
         lambda: (
             math.dist(c.estimated_position()[:2], (-10.0, 5.0)) < 0.5 and c.dyn.state.altitude > 7.5
         ),

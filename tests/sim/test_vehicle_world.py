@@ -12,7 +12,7 @@ from protocol.rtcm import build_frame
 from sim.plc.model import LIFT_UP, PANELS_OPEN
 from sim.vehicle.part import VehiclePart
 from sim.world import World, WorldConfig
-from tests.sim.conftest import wait_until
+from tests.polling import eventually
 
 
 @pytest.mark.slow
@@ -39,7 +39,7 @@ async def test_leave_the_open_base_and_land_back_on_the_pad() -> None:
         feeder = asyncio.create_task(corrections())
         try:
             await ap.wait_link(10)
-            await wait_until(lambda: ap.state.fix_type == 6, 15, "RTK fixed")
+            await eventually(lambda: ap.state.fix_type == 6, 15, "RTK fixed")
             await ap.set_mode("GUIDED")
             try:
                 await ap.arm()
@@ -47,17 +47,17 @@ async def test_leave_the_open_base_and_land_back_on_the_pad() -> None:
             except CommandRejected as err:
                 assert "Base closed" in err.detail
             base.write_coils(PANELS_OPEN, [True])
-            await wait_until(
+            await eventually(
                 lambda: base.panels.at_high and not base.panels.moving, 20, "panels open"
             )
             base.write_coils(LIFT_UP, [True])
-            await wait_until(base.can_vehicle_leave, 20, "lift up")
+            await eventually(base.can_vehicle_leave, 20, "lift up")
             await ap.arm()
             await ap.takeoff(6)
-            await wait_until(lambda: copter.dyn.state.altitude > 5.5, 20, "took off")
+            await eventually(lambda: copter.dyn.state.altitude > 5.5, 20, "took off")
             assert base.pad_mass_g == 0 and not base.contacts_seated
             await ap.return_to_base()
-            await wait_until(lambda: not copter.armed, 60, "landed and disarmed")
+            await eventually(lambda: not copter.armed, 60, "landed and disarmed")
         finally:
             feeder.cancel()
             with contextlib.suppress(asyncio.CancelledError):
