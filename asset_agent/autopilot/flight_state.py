@@ -21,10 +21,11 @@ Mission completion (`MissionWatch`): the mission counts as finished once, until 
 or a restart in AUTO on an earlier item, when
 - MISSION_ITEM_REACHED names its last navigation item (ArduPilot sends it when the item is
   verified: a waypoint on arrival, a NAV_LAND / RTL item at touchdown, ModeAuto::verify_RTL), or
-- the vehicle, in AUTO, starts its last item and that item is NAV_RETURN_TO_LAUNCH or NAV_LAND:
-  the survey is over, the vehicle is heading home (ArduPilot reports COMPLETE only after the
-  touchdown, and never if the run switches to RTL meanwhile: a mode change stops AP_Mission,
-  whose MISSION_CURRENT.mission_state then reads NOT_STARTED), or
+- the vehicle, in AUTO, having flown an earlier item since the upload (not a stale
+  MISSION_CURRENT of the last flight), starts its last item and that item is
+  NAV_RETURN_TO_LAUNCH or NAV_LAND: the survey is over, the vehicle is heading home (ArduPilot
+  reports COMPLETE only after the touchdown, and never if the run switches to RTL meanwhile: a
+  mode change stops AP_Mission, whose MISSION_CURRENT.mission_state then reads NOT_STARTED), or
 - MISSION_CURRENT.mission_state says COMPLETE (ArduPilot 4.4+, PX4 1.14+).
 For autopilots that do not report mission_state (before ArduPilot 4.4) also when
 - the vehicle, in AUTO on the last item, disarms (a LAND / RTL last item ends on the ground), or
@@ -127,6 +128,7 @@ class MissionWatch:
         self.total: int | None = None  # items without home
         self.commands: list[int] = []  # the uploaded mission's MAV_CMDs, server index order
         self.finished: str | None = None  # why the mission counts as finished, once
+        self.progressed = False  # seen flying an item before the last since the upload
         self._asked_mode_at = -1e9
 
     def uploaded(self, count: int, commands: Sequence[int] = ()) -> None:
@@ -134,6 +136,7 @@ class MissionWatch:
         self.total = count
         self.commands = list(commands)
         self.finished = None
+        self.progressed = False
 
     def asked_mode(self, now: float) -> None:
         """The agent itself changed the mode now."""
@@ -164,22 +167,17 @@ class MissionWatch:
         total = cur.mission_total or self.total
         last = self.last_nav_index(total)
         if self.finished is not None:
-            restarted = (
-                cur.mode == "AUTO"
-                and cur.armed
-                and cur.mission_current is not None
-                and last is not None
-                and cur.mission_current < last
-            )
-            if not restarted:
+            if not _before(cur, last):
                 return replace(cur, mission_state="COMPLETE")
-            self.finished = None
+            self.finished = None  # restarted
             cur = replace(cur, mission_state="ACTIVE")
+        self.progressed = self.progressed or _before(prev, last) or _before(cur, last)
         if cur.mission_state == "COMPLETE":
             return self._finish(cur, "the autopilot reports it complete")
         command = self.command_at(cur.mission_current)
-        if (
-            cur.mode == "AUTO"
+        if (  # a stale MISSION_CURRENT (the last flight's last item) at the start is not it
+            self.progressed
+            and cur.mode == "AUTO"
             and cur.armed
             and last is not None
             and cur.mission_current == last
@@ -201,6 +199,7 @@ class MissionWatch:
     def _finish(self, s: UavState, why: str) -> UavState:
         if self.finished is None:
             self.finished = why
+            self.progressed = False
             log.info("mission finished: %s", why)
         return replace(s, mission_state="COMPLETE")
 
@@ -208,3 +207,10 @@ class MissionWatch:
         if cur.mode == "AUTO" and cur.armed and cur.mission_state in ("UNKNOWN", "NOT_STARTED"):
             return replace(cur, mission_state="ACTIVE")
         return cur
+
+
+def _before(s: UavState, last: int | None) -> bool:
+    """Flying the mission (armed, AUTO) on an item before `last`."""
+    if s.mode != "AUTO" or not s.armed or s.mission_current is None or last is None:
+        return False
+    return s.mission_current < last

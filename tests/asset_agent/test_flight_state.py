@@ -165,12 +165,25 @@ def test_a_final_land_item_starting_finishes_it_but_a_last_waypoint_or_an_earlie
     w = MissionWatch()
     w.uploaded(4, [22, 16, 16, 21])
     on_land = replace(ON_RTL, mission_current=3, mission_total=4)
-    assert w.on_change(on_land, on_land, 1.0).mission_state == "COMPLETE"
+    before = replace(on_land, mission_current=2)
+    assert w.on_change(before, before, 1.0).mission_state == "ACTIVE"
+    assert w.on_change(before, on_land, 2.0).mission_state == "COMPLETE"
     w = MissionWatch()
     w.uploaded(4, [22, 20, 16, 16])
     for current in (1, 3):  # an RTL in the middle; the last waypoint, flown to
         s = replace(ON_RTL, mission_current=current, mission_total=4)
         assert w.on_change(s, s, 1.0).mission_state == "ACTIVE"
+
+
+def test_a_stale_last_item_at_the_start_of_a_new_flight_is_not_the_end():
+    # the autopilot still names the last flight's last item when AUTO starts the new upload
+    w = MissionWatch()
+    w.uploaded(6, SURVEY)
+    on_the_lift = replace(ON_RTL, mode="GUIDED", alt_rel=0.0, mission_state="NOT_STARTED")
+    assert w.on_change(on_the_lift, ON_RTL, 1.0).mission_state == "ACTIVE"
+    first = replace(ON_RTL, mission_current=0)
+    assert w.on_change(ON_RTL, first, 1.5).mission_state == "ACTIVE"
+    assert w.finished is None
 
 
 def test_the_last_navigation_item_counts_not_trailing_do_commands():
@@ -195,7 +208,8 @@ def test_finished_stays_finished_until_a_restart_or_a_new_upload():
     w = MissionWatch()
     w.uploaded(6, SURVEY)
     w.reported = True
-    assert w.on_change(ON_RTL, ON_RTL, 1.0).mission_state == "COMPLETE"
+    last_leg = replace(ON_RTL, mission_current=4)
+    assert w.on_change(last_leg, ON_RTL, 1.0).mission_state == "COMPLETE"
     # the run switches to RTL: ArduPilot stops AP_Mission, MISSION_CURRENT says NOT_STARTED
     rtl = replace(ON_RTL, mode="RTL", mission_state="NOT_STARTED")
     assert w.on_change(ON_RTL, rtl, 2.0).mission_state == "COMPLETE"
