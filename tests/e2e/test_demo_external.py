@@ -94,14 +94,14 @@ def run_demo(folder: Path, habits: str) -> tuple[str, list[str]]:
     assert "precland: active" in agent, agent
     sent = re.search(r"precland: inactive \((\d+) LANDING_TARGET sent\)", agent)
     assert sent and int(sent.group(1)) > 0, agent
-    # the survey's last item is RTL: its start is the mission's end (the run then sends RTL)
+    # the survey's last item is RTL: its start is the mission's end (the agent lets it land)
     assert "mission finished: the last item (RTL) started" in agent, agent
     return out, names
 
 
 def test_demo_flies_an_external_ardupilot_4_with_precision_landing(tmp_path):
-    # EXTENDED_SYS_STATE and MISSION_CURRENT.mission_state, which never says COMPLETE: the run
-    # switches to RTL before the mission's own RTL has landed
+    # EXTENDED_SYS_STATE and MISSION_CURRENT.mission_state, which says COMPLETE only once the RTL
+    # item has landed (and never if anything switches to RTL meanwhile): the end is its start
     run_demo(tmp_path, "ardupilot-4")
 
 
