@@ -67,11 +67,13 @@ class ActionsMixin:
         await self.set_mode("AUTO")
 
     async def return_to_base(self) -> None:
-        """Return to launch (the base) and land there."""
+        """Return to launch (the base) and land there (RTL mode: our own mode change)."""
+        self.mission_watch.asked_mode(time.monotonic())
         await self.command(CMD_NAV_RETURN_TO_LAUNCH)
 
     async def land(self) -> None:
-        """Land where the vehicle is (LAND mode)."""
+        """Land where the vehicle is (LAND mode: our own mode change)."""
+        self.mission_watch.asked_mode(time.monotonic())
         await self.command(CMD_NAV_LAND)
 
     async def abort(self) -> str:

@@ -198,7 +198,8 @@ class Autopilot(ActionsMixin, SetpointsMixin):
         elif kind == "MISSION_CURRENT" and getattr(msg, "mission_state", 0):
             self.mission_watch.reported = True
         if not self.extended_state_seen and kind in ("HEARTBEAT", "GLOBAL_POSITION_INT"):
-            landed = infer_landed_state(prev.landed_state, cur, self.thresholds)
+            command = self.mission_watch.command_at(cur.mission_current)
+            landed = infer_landed_state(prev.landed_state, cur, self.thresholds, command)
             cur = replace(cur, landed_state=landed)
         return self.mission_watch.on_change(prev, cur, now)
 
@@ -365,11 +366,10 @@ class Autopilot(ActionsMixin, SetpointsMixin):
             log.warning("stream negotiation failed", exc_info=True)
         self.streams_requested.set()
 
-    def mission_uploaded(self, count: int) -> None:
-        """A mission of `count` items is on the autopilot: mission progress starts afresh."""
-        self.mission_watch.uploaded(count)
-        if not self.mission_watch.reported:
-            self.state = replace(self.state, mission_total=count, mission_state="NOT_STARTED")
+    def mission_uploaded(self, items: list[MissionItem]) -> None:
+        """`items` are on the autopilot: mission progress starts afresh."""
+        self.mission_watch.uploaded(len(items), [item.command for item in items])
+        self.state = replace(self.state, mission_total=len(items), mission_state="NOT_STARTED")
 
     async def set_message_interval(self, msg_id: int, hz: float) -> None:
         """MAV_CMD_SET_MESSAGE_INTERVAL: `hz` > 0 sets the rate, 0 stops the message."""

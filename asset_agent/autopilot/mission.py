@@ -134,7 +134,7 @@ async def upload(
                     progress("upload", seq, len(items))
                 highest = max(highest, seq)
     log.info("mission uploaded: %d items", len(items))
-    ap.mission_uploaded(len(items))
+    ap.mission_uploaded(items)
     if progress is not None:
         progress("upload", len(items), len(items))
     if verify:

@@ -4,8 +4,11 @@ While the autopilot lands, the camera's frames, the IR beacon's readings and the
 feed a `PrecisionLandingLoop` (loop.py), whose LANDING_TARGET fields go to the autopilot
 (ArduPilot PLND_TYPE=1 style, MAV_FRAME_BODY_FRD) at the configured rate.
 
-Active while the autopilot reports it is landing (EXTENDED_SYS_STATE landed_state LANDING — LAND
-mode, RTL's or a mission's final descent — or mode LAND) below `activation_height_m`. The camera is
+Active while the autopilot is landing (landed_state LANDING — LAND mode, RTL's or a mission's final
+descent — or mode LAND) below `activation_height_m`. landed_state is the autopilot's own
+EXTENDED_SYS_STATE when it sends one; for those that send none (ArduPilot 3.x) the adapter infers
+it (autopilot/flight_state.py): a descent in LAND mode or on a mission's NAV_LAND item, or an
+RTL descent within 5 m of home — never a climb, and never a descent on the way home. The camera is
 streamed only then (a frame server renders only for subscribers); the IR sensor is subscribed all
 along. Every source is optional and may be unreachable: then nothing is sent and the autopilot
 lands on GNSS alone. The autopilot's states are stamped with the `SensorClock` (clock.py), so the

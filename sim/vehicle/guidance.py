@@ -365,10 +365,11 @@ class Guidance:
         return IN_AIR
 
     def reported_mission_state(self) -> int:
-        """MISSION_STATE for MISSION_CURRENT."""
+        """MISSION_STATE for MISSION_CURRENT, as GCS_MAVLINK::mission_state: a mission stopped by
+        leaving AUTO (kept here as PAUSED, to resume at its item) reads NOT_STARTED."""
         if len(self.c.items) <= 1:
             return MISSION_NONE
-        if self.mission_state == MISSION_NONE:
+        if self.mission_state in (MISSION_NONE, MISSION_PAUSED):
             return MISSION_NOT_STARTED
         return self.mission_state
 

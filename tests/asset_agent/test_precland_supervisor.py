@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from types import SimpleNamespace
 
 import pytest
 
+from asset_agent.autopilot.flight_state import infer_landed_state
+from asset_agent.autopilot.state import UavState
 from asset_agent.config import PreclandSection
 from asset_agent.precland.supervisor import (
     ATTITUDE,
@@ -57,3 +60,28 @@ def test_stream_rates_ask_for_the_states_the_loop_needs() -> None:
     rates = stream_rates(section)
     assert set(rates) == {ATTITUDE, LOCAL_POSITION_NED, EXTENDED_SYS_STATE}
     assert rates[ATTITUDE] == section.state_rate_hz
+
+
+def test_an_autopilot_without_extended_state_activates_it_by_the_inferred_landing() -> None:
+    # ArduPilot 3.7 sends no EXTENDED_SYS_STATE: the landed state the adapter infers drives the
+    # supervisor, through an RTL as the run flies it (climb, return, final descent over home)
+    home = (41.178, -8.596)
+    north = 1.0 / 111_320  # degrees per metre
+    flight = [  # (mode, metres north of home, height, vd, active?)
+        ("AUTO", 60.0, 6.0, 0.0, False),  # surveying low
+        ("RTL", 60.0, 7.0, -2.0, False),  # climbing to RTL_ALT
+        ("RTL", 30.0, 7.0, 1.0, False),  # a descent on the way home, below the activation height
+        ("RTL", 0.5, 15.0, 0.0, False),  # over home, loitering
+        ("RTL", 0.5, 12.0, 1.5, False),  # final descent, above the activation height
+        ("RTL", 0.3, 7.0, 1.0, True),  # ... below it
+        ("RTL", 0.2, 4.0, 0.05, True),  # descent held (off the target): still landing
+    ]
+    landed = "IN_AIR"
+    for mode, north_m, height, vd, active in flight:
+        s = UavState(
+            link_up=True, armed=True, system_status=4, mode=mode, alt_rel=height, vd=vd,
+            lat=home[0] + north_m * north, lon=home[1], home_lat=home[0], home_lon=home[1],
+        )  # fmt: skip
+        landed = infer_landed_state(landed, s)
+        s = replace(s, landed_state=landed)
+        assert landing_now(s, 8.0) is active, (mode, north_m, height, vd, landed)

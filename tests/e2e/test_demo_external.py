@@ -6,6 +6,7 @@ and 3.7 (no SET_MESSAGE_INTERVAL, no EXTENDED_SYS_STATE: the world and the agent
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -82,23 +83,29 @@ def run_demo(folder: Path, habits: str) -> tuple[str, list[str]]:
     assert "closing (the base's scale confirms the UAV on the lift)" in timeline, timeline
     events = next(line for line in out.splitlines() if "UAV events:" in line)
     names = events.split("UAV events: ")[1].split(", ")
-    assert names.index("took_off") < names.index("landed"), events
+    # the flight as the agent told it: the mission's end reported before the landing
+    assert names.index("took_off") < names.index("mission_finished") < names.index("landed"), events
     world = (folder / "demo" / "world.log").read_text()
     assert "the vehicle's home (the pad) is (41.178, -8.596, 120.0)" in world, world
     follower = [line for line in world.splitlines() if "follower:" in line]
     assert "seated on the pad" in follower[-1], follower  # where the world saw it land
+    # precision landing flew it: LANDING_TARGET from the rendered camera and IR went to the autopilot
+    agent = (folder / "demo" / "agent.log").read_text()
+    assert "precland: active" in agent, agent
+    sent = re.search(r"precland: inactive \((\d+) LANDING_TARGET sent\)", agent)
+    assert sent and int(sent.group(1)) > 0, agent
+    # the survey's last item is RTL: its start is the mission's end (the agent lets it land)
+    assert "mission finished: the last item (RTL) started" in agent, agent
     return out, names
 
 
 def test_demo_flies_an_external_ardupilot_4_with_precision_landing(tmp_path):
+    # EXTENDED_SYS_STATE and MISSION_CURRENT.mission_state, which says COMPLETE only once the RTL
+    # item has landed (and never if anything switches to RTL meanwhile): the end is its start
     run_demo(tmp_path, "ardupilot-4")
-    # precision landing flew it: LANDING_TARGET from the rendered camera and IR went to the autopilot
-    agent = (tmp_path / "demo" / "agent.log").read_text()
-    assert "precland: active" in agent and "LANDING_TARGET sent" in agent, agent
 
 
 def test_demo_flies_an_external_ardupilot_3_7_that_reports_no_landed_state(tmp_path):
-    _, events = run_demo(tmp_path, "ardupilot-3.7")
-    # the landed state and the mission's end inferred (no EXTENDED_SYS_STATE, no mission_state)
-    assert events.index("took_off") < events.index("landed"), events
-    assert "mission_finished" in events, events
+    # the landed state and the mission's end inferred (no EXTENDED_SYS_STATE, no mission_state),
+    # and precision landing switched on by the inferred landing over home
+    run_demo(tmp_path, "ardupilot-3.7")

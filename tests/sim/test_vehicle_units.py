@@ -223,3 +223,34 @@ def test_gnss_bias_moves_the_landing_point() -> None:
     n, e, _ = c.dyn.state.position
     assert abs(n + 2.0) < 0.1 and abs(e) < 0.1  # landed 2 m south of the pad, off it
     assert pad.mass_g == 0 and not pad.contacts_seated
+
+
+def test_leaving_auto_stops_the_mission_as_ardupilot_reports_it() -> None:
+    # ModeAuto::exit stops AP_Mission (MISSION_STOPPED), which GCS_MAVLINK::mission_state reports
+    # NOT_STARTED; Copter says PAUSED only for a DO_PAUSE_CONTINUE pause in AUTO. AUTO resumes it
+    from sim.vehicle.constants import MISSION_ACTIVE, MISSION_COMPLETE, MISSION_NOT_STARTED
+    from sim.vehicle.copter import Copter, CopterConfig
+    from sim.vehicle.standalone import OpenPad
+
+    c = Copter(OpenPad(), CopterConfig(seed=2))
+    lat, lon = round(41.1780 * 1e7), round(-8.5960 * 1e7)
+    c.items = [
+        c.home_item(),
+        ms.Item(1, 3, ms.NAV_TAKEOFF, z=5),
+        ms.Item(2, 3, ms.NAV_WAYPOINT, x=lat + 900, y=lon, z=5),  # 10 m north
+        ms.Item(3, 2, ms.NAV_RETURN_TO_LAUNCH),
+    ]
+    assert c.guidance.reported_mission_state() == MISSION_NOT_STARTED
+    assert c.set_mode(4) and c.arm() == 0 and c.set_mode(3)
+    while c.mission_current < 2:
+        c.tick(0.05, 0.0)
+    assert c.guidance.reported_mission_state() == MISSION_ACTIVE
+    assert c.set_mode(5)  # LOITER
+    assert c.guidance.reported_mission_state() == MISSION_NOT_STARTED
+    assert c.set_mode(3)
+    assert c.mission_current == 2 and c.guidance.reported_mission_state() == MISSION_ACTIVE
+    for _ in range(4000):
+        c.tick(0.05, 0.0)
+        if not c.armed:
+            break
+    assert c.guidance.reported_mission_state() == MISSION_COMPLETE
