@@ -7,7 +7,7 @@ import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
-from fastapi import FastAPI
+from fastapi import Depends, FastAPI
 from fastapi.middleware.cors import CORSMiddleware
 from fastapi.middleware.gzip import GZipMiddleware
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
@@ -24,6 +24,7 @@ from server.kit import metrics
 from server.kit.bodylimit import LimitBody
 from server.kit.db import make_engine, make_sessionmaker
 from server.kit.errors import RejectNulBytes, install_error_handlers
+from server.kit.query import known_query_only
 from server.kit.security import Passwords
 from server.missions.endpoints import router as missions_router
 from server.organizations.endpoints import router as organizations_router
@@ -127,6 +128,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         description="REST API of the Aerobase drone-in-a-box platform. See frontend_api.md.",
         # `/path/` answers 404 rather than a 307 to an absolute http:// URL (wrong behind TLS)
         redirect_slashes=False,
+        dependencies=[Depends(known_query_only)],
     )
     # the last added runs first: CORS headers go on every answer, refusals included
     app.add_middleware(GZipMiddleware, minimum_size=2048)

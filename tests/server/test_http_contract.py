@@ -107,3 +107,21 @@ def test_a_superuser_without_an_organisation_sees_every_organisation(
     # an ordinary member still sees only their own
     mine = api.get("/api/v1/organizations", headers=one.h("viewer")).json()
     assert [o["id"] for o in mine] == [one.id]
+
+
+def test_an_unknown_query_parameter_is_refused_naming_it(api, tenant):
+    r = api.get("/api/v1/runs", params={"limt": 10}, headers=tenant.h("viewer"))
+    assert r.status_code == 422, r.text
+    error = r.json()["error"]
+    assert error["code"] == "validation_error" and "limt" in error["message"]
+    assert error["details"] == [
+        {
+            "loc": ["query", "limt"],
+            "msg": "not a parameter of this route",
+            "type": "extra_forbidden",
+        }
+    ]
+    # the declared ones still work, and a route's dependencies' parameters count as declared
+    assert (
+        api.get("/api/v1/runs", params={"limit": 10}, headers=tenant.h("viewer")).status_code == 200
+    )
