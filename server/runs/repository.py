@@ -12,6 +12,7 @@ from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.commands.models import AssetCommand
 from server.kit import metrics
+from server.kit.errors import NotFound
 from server.kit.scope import ScopedRepository, scoped
 from server.runs.machine import FINAL, Action
 from server.runs.models import Run, RunStepCommand, RunTransition
@@ -58,12 +59,22 @@ class RunRepository(ScopedRepository[Run]):
         )
         return (await self.db.execute(stmt)).scalar_one_or_none()
 
-    async def timeline(self, run_id: uuid.UUID) -> list[RunTransition]:
-        """The transitions of a run already resolved through `get`."""
+    async def with_timeline(self, run_id: uuid.UUID) -> tuple[Run, list[RunTransition]]:
+        """A run and its transitions read in ONE statement, so one snapshot: two reads under READ
+        COMMITTED could return the run before a commit and its timeline after it (a new timeline
+        entry beside the reason it replaced). NotFound outside the caller's organisation."""
         stmt = (
-            select(RunTransition).where(RunTransition.run_id == run_id).order_by(RunTransition.at)
-        )  # unscoped: run checked by get()
-        return list((await self.db.execute(stmt)).scalars())
+            self.select()
+            .where(Run.id == run_id)
+            .outerjoin(RunTransition, RunTransition.run_id == Run.id)
+            .add_columns(RunTransition)
+            .order_by(RunTransition.at)
+            .execution_options(populate_existing=True)
+        )
+        rows = (await self.db.execute(stmt)).all()
+        if not rows:
+            raise NotFound(f"{self.noun} {run_id} not found")
+        return rows[0][0], [t for _, t in rows if t is not None]
 
     async def landing_events(self, run: Run) -> tuple[AssetEvent | None, AssetEvent | None]:
         """The UAV's last `landed` and the base's first `landing_confirmed` event of a run's flight."""

@@ -102,11 +102,11 @@ def _flight_time(run: Run) -> float | None:
     return max(0.0, (end - start).total_seconds())
 
 
-async def report(runs: RunRepository, store: Any, run: Run) -> RunReport:
+async def report(runs: RunRepository, store: Any, run_id: uuid.UUID) -> RunReport:
     """Timeline, flight track from telemetry, battery used, landing error, outcome and cause."""
     from server.telemetry.store import Query
 
-    timeline = await runs.timeline(run.id)
+    run, timeline = await runs.with_timeline(run_id)
     end = run.finished_at or utcnow()
     rows = await store.query(
         Query(
@@ -227,8 +227,7 @@ class RunService(Service):
 
     async def with_timeline(self, run_id: uuid.UUID) -> RunOut:
         """A run with its timeline."""
-        run = await self.repo.get(run_id)
-        return run_out(run, await self.repo.timeline(run.id))
+        return run_out(*await self.repo.with_timeline(run_id))
 
     async def abort(self, run_id: uuid.UUID, reason: str | None) -> Run:
         """Ask the run to stop safely (the engine acts on it)."""
@@ -243,7 +242,7 @@ class RunService(Service):
 
     async def report(self, run_id: uuid.UUID, store: Any) -> RunReport:
         """The flight history of a run."""
-        return await report(self.repo, store, await self.repo.get(run_id))
+        return await report(self.repo, store, run_id)
 
     async def fleet(self, start: datetime | None, end: datetime | None) -> FleetReport:
         """Runs in [start, end) (default: the last 30 days), summed up."""
