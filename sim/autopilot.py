@@ -26,6 +26,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from sim.vehicle.__main__ import parse_args as vehicle_args
+from sim.vehicle.__main__ import run as vehicle_run
 from sim.vehicle.__main__ import setup as vehicle_setup
 from sim.vehicle.copter import Copter
 from sim.vehicle.server import VehicleServer
@@ -101,28 +102,9 @@ def setup(args: argparse.Namespace) -> TwoPortServer:
 
 
 async def serve(server: TwoPortServer, control_port: int) -> None:
-    """Serve until cancelled."""
-    await server.start()
+    """Serve until cancelled: `python -m sim.vehicle`'s loop, announcing both TCP ports."""
     h = server.host
-    print(
-        f"simulated autopilot: MAVLink tcp:{h}:{server.tcp_port} tcp:{h}:{server.tcp_port2}",
-        flush=True,
-    )
-    try:
-        if control_port:
-            import uvicorn
-            from fastapi import FastAPI
-
-            from sim.vehicle.control import vehicle_router
-
-            app = FastAPI(title="simulated autopilot")
-            app.include_router(vehicle_router(server))
-            config = uvicorn.Config(app, host=h, port=control_port, log_level="warning")
-            await uvicorn.Server(config).serve()
-        else:
-            await asyncio.Event().wait()
-    finally:
-        await server.close()
+    await vehicle_run(server, control_port, f"tcp:{h}:{server.tcp_port} tcp:{h}:{server.tcp_port2}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Awaitable, Callable
 
 from asset_agent.autopilot.flight_state import MissionWatch
 from asset_agent.autopilot.state import MODE_NUMBERS, UavState
@@ -20,15 +21,7 @@ class ActionsMixin:
     state: UavState
     mission_watch: MissionWatch
 
-    async def command(
-        self,
-        command: int,
-        *params: float,
-        ack_timeout_s: float | None = None,
-        retries: int | None = None,
-    ) -> int:
-        """COMMAND_LONG awaiting its ACK (implemented by Autopilot)."""
-        raise NotImplementedError
+    command: Callable[..., Awaitable[int]]  # COMMAND_LONG awaiting its ACK (Autopilot.command)
 
     async def set_mode(self, mode: str | int) -> None:
         """Change the flight mode by Copter name ("GUIDED") or number."""

@@ -42,7 +42,7 @@ from server.runs.machine import (
     Transition,
     advance,
 )
-from server.runs.models import Run, RunStepCommand, RunTransition
+from server.runs.models import Run, RunStepCommand
 from server.runs.settle import settle
 from server.services import Services
 
@@ -165,16 +165,7 @@ class RunEngine:
         if settled is None:
             return False
         now = utcnow()
-        db.add(
-            RunTransition(
-                run_id=run.id,
-                at=now,
-                from_state=run.state,
-                to_state=run.state,
-                reason=settled.note,
-                cause=settled.cause,
-            )
-        )
+        repo.note(db, run, run.state, settled.note, settled.cause, now)
         run.reason, run.alert, run.updated_at = settled.reason, run.alert or settled.alert, now
         await repo.replace_step_commands(db, run.id, [])
         log.log(
@@ -189,16 +180,7 @@ class RunEngine:
     async def _record(self, db: Any, run: Run, transition: Transition) -> None:
         """The transition in the timeline, the run in its new step, the step's commands pending."""
         now = utcnow()
-        db.add(
-            RunTransition(
-                run_id=run.id,
-                at=now,
-                from_state=run.state,
-                to_state=transition.to.value,
-                reason=transition.reason,
-                cause=transition.cause,
-            )
-        )
+        repo.note(db, run, transition.to.value, transition.reason, transition.cause, now)
         if transition.cause == "operator_abort":
             run.aborting = True
         if run.state == State.flying.value:

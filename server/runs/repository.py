@@ -99,6 +99,21 @@ class RunRepository(ScopedRepository[Run]):
         )
 
 
+def note(db: AsyncSession, run: Run, to_state: str, reason: str, cause: str, at: datetime) -> None:
+    """Add an entry to a run's timeline, from the state it is in now (to the same state for a
+    note that is not a step: a settled close, a lease takeover)."""
+    db.add(
+        RunTransition(
+            run_id=run.id,
+            at=at,
+            from_state=run.state,
+            to_state=to_state,
+            reason=reason,
+            cause=cause,
+        )
+    )
+
+
 async def claim(
     db: AsyncSession, owner: str, now: datetime, until: datetime, limit: int = 50
 ) -> list[uuid.UUID]:
@@ -123,16 +138,13 @@ async def claim(
         if run.lease_owner not in (None, owner):
             # the holder died (a clean stop hands its leases back): say so in the run's timeline
             metrics.LEASE_TAKEOVERS.inc()
-            db.add(
-                RunTransition(
-                    run_id=run.id,
-                    at=now,
-                    from_state=run.state,
-                    to_state=run.state,
-                    reason=f"replica {owner} took the run over from {run.lease_owner}, whose "
-                    "lease ran out",
-                    cause="lease_takeover",
-                )
+            note(
+                db,
+                run,
+                run.state,
+                f"replica {owner} took the run over from {run.lease_owner}, whose lease ran out",
+                "lease_takeover",
+                now,
             )
         run.lease_owner, run.lease_until = owner, until
     return [r.id for r in runs]

@@ -82,14 +82,12 @@ def setup(args: argparse.Namespace) -> VehicleServer:
     )
 
 
-async def run(server: VehicleServer, control_port: int) -> None:
-    """Serve until cancelled."""
+async def run(server: VehicleServer, control_port: int, ports: str | None = None) -> None:
+    """Serve until cancelled; the start line names `ports` (default: its TCP and UDP ports)."""
     await server.start()
     log.info("autopilot habits: %s", server.copter.config.habits)
-    print(
-        f"simulated autopilot: MAVLink tcp:{server.host}:{server.tcp_port} udp:{server.udp_port}",
-        flush=True,
-    )
+    ports = ports or f"tcp:{server.host}:{server.tcp_port} udp:{server.udp_port}"
+    print(f"simulated autopilot: MAVLink {ports}", flush=True)
     try:
         if control_port:
             import uvicorn

@@ -12,6 +12,19 @@ from tests.conftest import free_port
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
 
+# what the demo prints as the run walks its eight steps
+DEMO_STEPS = (
+    "[1/8] Checking",
+    "[2/8] Opening",
+    "[3/8] Uploading",
+    "[4/8] Flying",
+    "[5/8] Returning",
+    "[6/8] Confirming",
+    "[7/8] Closing",
+    "[8/8] Starting to charge",
+)
+
+
 def test_demo_runs_a_scheduled_survey_to_completion(tmp_path):
     r = subprocess.run(
         [
@@ -31,17 +44,7 @@ def test_demo_runs_a_scheduled_survey_to_completion(tmp_path):
     )
     out = r.stdout + r.stderr
     assert r.returncode == 0, out
-    for step in (
-        "[1/8] Checking",
-        "[2/8] Opening",
-        "[3/8] Uploading",
-        "[4/8] Flying",
-        "[5/8] Returning",
-        "[6/8] Confirming",
-        "[7/8] Closing",
-        "[8/8] Starting to charge",
-        "Completed",
-    ):
+    for step in (*DEMO_STEPS, "Completed"):
         assert step in out, (step, out)
     assert out.count("[2/8] Opening") == 1  # each step once
     assert "stopping every process" in out

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import free_port, reachable
+from tests.e2e.test_demo import DEMO_STEPS
 from tests.polling import wait_for
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
@@ -63,17 +64,7 @@ def run_demo(folder: Path, habits: str) -> tuple[str, list[str]]:
         proc.wait(10)
     out = r.stdout + r.stderr
     assert r.returncode == 0, out
-    for step in (
-        "[1/8] Checking",
-        "[2/8] Opening",
-        "[3/8] Uploading",
-        "[4/8] Flying",
-        "[5/8] Returning",
-        "[6/8] Confirming",
-        "[7/8] Closing",
-        "[8/8] Starting to charge",
-        "Completed: ",
-    ):
+    for step in (*DEMO_STEPS, "Completed: "):
         assert step in out, (step, out)
     # The run completes either way; the charging contacts seat only within 5 cm of the pad centre.
     # Precision landing from the followed pose usually lands 6-24 mm off, but one CI-like run in
