@@ -22,7 +22,7 @@ def _service(uow: UoW, principal: Viewer, services: ServicesDep) -> TelemetrySer
 Telemetry = Annotated[TelemetryService, Depends(_service)]
 
 
-@router.get("/api/v1/assets/{asset_id}/telemetry")
+@router.get("/api/v1/assets/{asset_id}/telemetry", operation_id="listTelemetry")
 async def telemetry(
     asset_id: uuid.UUID,
     samples: Telemetry,
@@ -38,13 +38,15 @@ async def telemetry(
     return await samples.samples(asset_id, start, end, wanted, every, agg, limit)
 
 
-@router.get("/api/v1/assets/{asset_id}/telemetry/latest")
+@router.get("/api/v1/assets/{asset_id}/telemetry/latest", operation_id="getLatestTelemetry")
 async def telemetry_latest(asset_id: uuid.UUID, samples: Telemetry) -> dict[str, Any]:
     """The newest sample of an asset."""
     return await samples.latest(asset_id)
 
 
-@router.get("/api/v1/assets/{asset_id}/events", response_model=list[EventOut])
+@router.get(
+    "/api/v1/assets/{asset_id}/events", response_model=list[EventOut], operation_id="listEvents"
+)
 async def events(
     asset_id: uuid.UUID,
     samples: Telemetry,
