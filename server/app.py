@@ -12,7 +12,7 @@ from fastapi.middleware.cors import CORSMiddleware
 from fastapi.middleware.gzip import GZipMiddleware
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
-from server import migrate
+from server import api_fields, migrate
 from server.assets.endpoints import router as assets_router
 from server.audit.endpoints import router as audit_router
 from server.auth.endpoints import router as auth_router
@@ -172,7 +172,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     ):
         app.include_router(router)
 
-    openapi.install(app)
+    openapi.install(app, api_fields.FIELDS, api_fields.OVERRIDES)
 
     # the caster's router exists before the lifespan builds the services: it reads them per request
     def services() -> Services:

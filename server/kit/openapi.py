@@ -8,7 +8,8 @@ An operation's error responses come from three places, merged:
   however deeply; a new shared mechanism (say an `If-Match` check answering 412) is declared once,
   on its dependency, and every route using it documents it;
 - its shape: a path parameter names a resource of the caller's organisation (404, also for one of
-  another organisation); a request body may be refused for its size (413) or its content (422);
+  another organisation); a request body may be refused as unreadable (400: not UTF-8), for its
+  size (413) or its content (422);
 - what only its service knows (409 name taken, a run already ended...): `errors(...)` in the
   route's `responses`.
 
@@ -18,7 +19,7 @@ FastAPI then renders them (and its own 422 schema is never used: ours is declare
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from typing import Any, TypeVar
 
 from fastapi import FastAPI
@@ -26,7 +27,7 @@ from fastapi.dependencies.models import Dependant
 from fastapi.routing import APIRoute, iter_route_contexts
 from pydantic import BaseModel, ConfigDict, Field
 
-from server.kit.errors import AppError, NotFound, TooLarge, Unprocessable
+from server.kit.errors import AppError, BadRequest, NotFound, TooLarge, Unprocessable
 
 F = TypeVar("F", bound=Callable[..., Any])
 MARK = "__openapi_errors__"
@@ -65,8 +66,12 @@ def operation_id(route: APIRoute) -> str:
     return head + "".join(word.capitalize() for word in rest)
 
 
-def install(app: FastAPI) -> None:
-    """Make the app's document the contract: error responses declared per operation."""
+Glossary = Mapping[str, tuple[str, Any]]  # field name or "Schema.field" -> (description, example)
+
+
+def install(app: FastAPI, fields: Glossary, overrides: Glossary) -> None:
+    """Make the app's document the contract: error responses declared per operation, every field
+    described (from `overrides`, then `fields`, unless the model describes it itself)."""
     build = app.openapi
     documented = False
 
@@ -75,6 +80,7 @@ def install(app: FastAPI) -> None:
         schema = build()  # FastAPI's, cached on the app
         if not documented:
             document_errors(app, schema)
+            describe_fields(schema, fields, overrides)
             documented = True
         return schema
 
@@ -132,7 +138,7 @@ def derived_errors(route: APIRoute) -> list[type[AppError]]:
     if route.dependant.path_params:
         found.append(NotFound)
     if route.body_field is not None or "requestBody" in (route.openapi_extra or {}):
-        found.append(TooLarge)
+        found += [BadRequest, TooLarge]  # a body that is not text (not UTF-8); over the limit
     return found
 
 
@@ -183,3 +189,17 @@ def document_errors(app: FastAPI, schema: dict[str, Any]) -> dict[str, Any]:
         if f"/{name}'" not in text:
             components.pop(name, None)
     return schema
+
+
+def describe_fields(schema: dict[str, Any], fields: Glossary, overrides: Glossary) -> None:
+    """Give every property of every component schema a description and, when the glossary has
+    one, an example; what the model says itself is kept."""
+    for name, component in schema.get("components", {}).get("schemas", {}).items():
+        for field, prop in component.get("properties", {}).items():
+            found = overrides.get(f"{name}.{field}") or fields.get(field)
+            if found is None:
+                continue
+            description, example = found
+            prop.setdefault("description", description)
+            if example is not None and "examples" not in prop and "$ref" not in prop:
+                prop["examples"] = [example]

@@ -92,16 +92,16 @@ async def create_mission(body: MissionCreate, missions: MissionsOperator) -> Mis
     return _out(mission)
 
 
+WPL_FILE = {"type": "string", "format": "binary", "description": "a QGC WPL 110 waypoint file"}
 IMPORT_BODY = {
     "required": True,
     "content": {
         "application/json": {
             "schema": {"type": "object", "description": "a QGroundControl .plan file"}
         },
-        "text/plain": {"schema": {"type": "string", "description": "a QGC WPL 110 waypoint file"}},
-        wpl.MEDIA_TYPE: {
-            "schema": {"type": "string", "description": "a QGC WPL 110 waypoint file"}
-        },
+        # the file's bytes as uploaded (UTF-8 text); `binary` so generated clients send them as is
+        "text/plain": {"schema": WPL_FILE},
+        wpl.MEDIA_TYPE: {"schema": WPL_FILE},
     },
 }
 
