@@ -25,7 +25,7 @@ from typing import Any, TypeVar
 from fastapi import FastAPI
 from fastapi.dependencies.models import Dependant
 from fastapi.routing import APIRoute, iter_route_contexts
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
 from server.kit.errors import AppError, BadRequest, NotFound, TooLarge, Unprocessable
 
@@ -36,7 +36,6 @@ MARK = "__openapi_errors__"
 class ErrorInfo(BaseModel):
     """What went wrong: a stable code for programs, a sentence for people, details when useful."""
 
-    model_config = ConfigDict(title="ErrorInfo")
     code: str = Field(
         description="stable machine-readable code; see frontend_api.md for the list",
         examples=["not_found"],
