@@ -4,9 +4,7 @@ world and its daemons, follow its state to the end, read its timeline and its re
 
 from __future__ import annotations
 
-import asyncio
 import json
-import time
 import uuid
 
 import pytest
@@ -15,6 +13,7 @@ from tests.conftest import Tenant
 from tests.e2e.harness import platform
 from tests.e2e.test_autonomous_run import WHOLE_SEQUENCE
 from tests.openapi_client import generate, part
+from tests.polling import eventually
 from tests.server.test_missions_formats import SIMPLE_SQUARE_PLAN
 
 pytestmark = pytest.mark.slow  # a whole flight: not in the fast lane
@@ -63,13 +62,12 @@ async def test_a_generated_client_flies_a_run_from_login_to_report(
         )
         get_run = part(c, "api.runs.get_run")
         final = {models.RunState.COMPLETED, models.RunState.ABORTED, models.RunState.FAILED}
-        seen: list[object] = []
-        deadline = time.monotonic() + 150
-        while run.state not in final and time.monotonic() < deadline:
-            await asyncio.sleep(0.2)
-            run = await get_run.asyncio(client=pilot, run_id=run.id)
-            if not seen or seen[-1] != run.state:
-                seen.append(run.state)
+
+        async def finished() -> object:
+            read = await get_run.asyncio(client=pilot, run_id=run.id)
+            return read if read.state in final else None
+
+        run = await eventually(finished, 150, "the run to finish", interval=0.2)
         assert run.state is models.RunState.COMPLETED, (run.reason, run.timeline)
         assert run.outcome is models.RunOutcome.COMPLETED
         assert [t.to_state.value for t in run.timeline] == [*WHOLE_SEQUENCE, "completed"]
