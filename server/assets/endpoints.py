@@ -13,6 +13,8 @@ from server.assets.schemas import AssetCreate, AssetCreated, AssetOut, AssetUpda
 from server.assets.service import AssetService
 from server.deps import Admin, SettingsDep, UoW, Viewer
 from server.kit.download import attachment
+from server.kit.errors import Conflict, NotFound
+from server.kit.openapi import errors
 
 router = APIRouter(tags=["assets"])
 
@@ -40,7 +42,12 @@ async def list_assets(
     return [AssetOut.model_validate(a) for a in await assets.list_assets(limit, offset, kind)]
 
 
-@router.post("/api/v1/assets", status_code=201, response_model=AssetCreated)
+@router.post(
+    "/api/v1/assets",
+    status_code=201,
+    response_model=AssetCreated,
+    responses=errors(NotFound, Conflict),  # base_id of no base here; the name is taken
+)
 async def create_asset(body: AssetCreate, assets: AssetsAdmin) -> AssetCreated:
     """Register an asset; answers with its encrypted configuration file (admins only)."""
     asset, data = await assets.register(
@@ -61,7 +68,7 @@ async def get_asset(asset_id: uuid.UUID, assets: Assets) -> AssetOut:
     return AssetOut.model_validate(await assets.get(asset_id))
 
 
-@router.patch("/api/v1/assets/{asset_id}", response_model=AssetOut)
+@router.patch("/api/v1/assets/{asset_id}", response_model=AssetOut, responses=errors(Conflict))
 async def update_asset(asset_id: uuid.UUID, body: AssetUpdate, assets: AssetsAdmin) -> AssetOut:
     """Rename an asset, describe it, bind a UAV to a base (admins only)."""
     return AssetOut.model_validate(

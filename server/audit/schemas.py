@@ -2,11 +2,21 @@
 
 from __future__ import annotations
 
+import enum
 import uuid
 from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict
+
+
+class ActorKind(enum.StrEnum):
+    """Who did it: a user, an asset, the server itself, or the `aerobase admin` command line."""
+
+    user = "user"
+    asset = "asset"
+    system = "system"
+    cli = "cli"
 
 
 class AuditEventOut(BaseModel):
@@ -15,7 +25,7 @@ class AuditEventOut(BaseModel):
     model_config = ConfigDict(from_attributes=True)
     id: uuid.UUID
     at: datetime
-    actor_kind: str
+    actor_kind: ActorKind
     actor_id: str | None
     action: str
     target: str | None

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import enum
 import uuid
 from datetime import datetime
 from typing import Any
@@ -9,6 +10,20 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.kit.types import Name
+
+
+class CommandStatus(enum.StrEnum):
+    """Where a command stands; `succeeded`, `rejected`, `failed`, `canceled` and `timed_out` are
+    final (the wire vocabulary's `CommandStatus`, protocol/vocabulary.py)."""
+
+    queued = "queued"
+    sent = "sent"
+    in_progress = "in_progress"
+    succeeded = "succeeded"
+    rejected = "rejected"
+    failed = "failed"
+    canceled = "canceled"
+    timed_out = "timed_out"
 
 
 class CommandCreate(BaseModel):
@@ -25,7 +40,7 @@ class StatusChangeOut(BaseModel):
 
     model_config = ConfigDict(from_attributes=True)
     at: datetime
-    status: str
+    status: CommandStatus
     reason: str
     progress: dict[str, Any] | None
 
@@ -38,7 +53,7 @@ class CommandOut(BaseModel):
     asset_id: uuid.UUID
     name: str
     params: dict[str, Any]
-    status: str
+    status: CommandStatus
     reason: str
     result: dict[str, Any] | None
     deadline: datetime

@@ -6,8 +6,12 @@ AppError                      {"error": {"code", "message", "details"}}
 ├── Forbidden         403   logged in, but the role does not allow it
 ├── NotFound          404   also for resources of another organisation
 ├── Conflict          409   name taken, live session, state clash
+├── TooLarge          413   a request body over the route's limit (server/kit/bodylimit.py)
+├── UnsupportedMediaType 415 a body of a content type the route does not read
 ├── Unprocessable     422   well-formed but invalid
 └── RateLimited       429   with Retry-After
+
+Each operation's OpenAPI entry declares the statuses it can answer (server/kit/openapi.py).
 """
 
 from __future__ import annotations
@@ -72,6 +76,18 @@ class Conflict(AppError):
     status, code = 409, "conflict"
 
 
+class TooLarge(AppError):
+    """The request body is over this route's limit."""
+
+    status, code = 413, "too_large"
+
+
+class UnsupportedMediaType(AppError):
+    """The request body's content type is not one this route reads."""
+
+    status, code = 415, "unsupported_media_type"
+
+
 class Unprocessable(AppError):
     """Well-formed but semantically invalid."""
 
@@ -79,7 +95,7 @@ class Unprocessable(AppError):
 
 
 class RateLimited(AppError):
-    """Too many attempts; retry after the given number of seconds."""
+    """Too many attempts; retry after the number of seconds in `Retry-After`."""
 
     status, code = 429, "rate_limited"
 

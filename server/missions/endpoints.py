@@ -11,7 +11,8 @@ from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import JSONResponse
 
 from server.deps import Operator, SettingsDep, UoW, Viewer
-from server.kit.errors import AppError
+from server.kit.errors import Conflict, UnsupportedMediaType
+from server.kit.openapi import errors
 from server.missions import qgc, wpl
 from server.missions.models import Mission, MissionKind
 from server.missions.schemas import (
@@ -27,12 +28,6 @@ from server.missions.validate import Problem
 router = APIRouter(tags=["missions"])
 JSON_TYPES = {"application/json"}
 WPL_TYPES = {"text/plain", wpl.MEDIA_TYPE}
-
-
-class UnsupportedMediaType(AppError):
-    """The request body's content type is not one we read."""
-
-    status, code = 415, "unsupported_media_type"
 
 
 def _service(uow: UoW, principal: Viewer, settings: SettingsDep) -> MissionService:
@@ -97,16 +92,16 @@ async def create_mission(body: MissionCreate, missions: MissionsOperator) -> Mis
     return _out(mission)
 
 
+WPL_FILE = {"type": "string", "format": "binary", "description": "a QGC WPL 110 waypoint file"}
 IMPORT_BODY = {
     "required": True,
     "content": {
         "application/json": {
             "schema": {"type": "object", "description": "a QGroundControl .plan file"}
         },
-        "text/plain": {"schema": {"type": "string", "description": "a QGC WPL 110 waypoint file"}},
-        wpl.MEDIA_TYPE: {
-            "schema": {"type": "string", "description": "a QGC WPL 110 waypoint file"}
-        },
+        # the file's bytes as uploaded (UTF-8 text); `binary` so generated clients send them as is
+        "text/plain": {"schema": WPL_FILE},
+        wpl.MEDIA_TYPE: {"schema": WPL_FILE},
     },
 }
 
@@ -141,6 +136,7 @@ def _read_import(body: bytes, content_type: str) -> tuple[qgc.Imported, str]:
     status_code=201,
     response_model=MissionOut,
     openapi_extra={"requestBody": IMPORT_BODY},
+    responses=errors(UnsupportedMediaType),
 )
 async def import_mission(
     missions: MissionsOperator,
@@ -179,7 +175,12 @@ async def update_mission(
     return _out(await missions.update(mission_id, changes, body))
 
 
-@router.delete("/api/v1/missions/{mission_id}", status_code=204, response_class=Response)
+@router.delete(
+    "/api/v1/missions/{mission_id}",
+    status_code=204,
+    response_class=Response,
+    responses=errors(Conflict),  # runs still refer to it
+)
 async def delete_mission(mission_id: uuid.UUID, missions: MissionsOperator) -> Response:
     """Delete a mission (operators)."""
     await missions.delete(mission_id)

@@ -17,6 +17,8 @@ from server.deps import (
     Viewer,
     require,
 )
+from server.kit.errors import Conflict, Forbidden
+from server.kit.openapi import declares, errors
 from server.kit.principal import Principal, Role
 from server.organizations.models import Membership, User
 from server.organizations.schemas import (
@@ -32,6 +34,7 @@ router = APIRouter(tags=["organizations"])
 _viewer = require(Role.viewer)
 
 
+@declares(Forbidden)
 async def _viewer_or_superuser(principal: CurrentPrincipal) -> Principal:
     """A viewer of an organisation, or a superuser logged in without one (sees every organisation)."""
     if principal.kind == "user" and principal.is_superuser:
@@ -78,7 +81,12 @@ Limit = Annotated[int, Query(ge=1, le=1000)]
 Offset = Annotated[int, Query(ge=0, le=10**9)]
 
 
-@router.post("/api/v1/organizations", status_code=201, response_model=OrganizationOut)
+@router.post(
+    "/api/v1/organizations",
+    status_code=201,
+    response_model=OrganizationOut,
+    responses=errors(Conflict),
+)
 async def create_organization(body: OrganizationCreate, orgs: OrgsSuper) -> OrganizationOut:
     """Create an organisation (platform superusers only)."""
     return OrganizationOut.model_validate(await orgs.create_organization(body.name))
@@ -104,7 +112,7 @@ async def list_users(orgs: Orgs, limit: Limit = 100, offset: Offset = 0) -> list
     return [_user_out(m, u) for m, u in await orgs.users(limit, offset)]
 
 
-@router.post("/api/v1/users", status_code=201, response_model=UserOut)
+@router.post("/api/v1/users", status_code=201, response_model=UserOut, responses=errors(Conflict))
 async def create_user(body: UserCreate, orgs: OrgsAdmin, passwords: PasswordsDep) -> UserOut:
     """Create a user in the caller's organisation (admins only)."""
     m, user = await orgs.create_user(
@@ -119,13 +127,18 @@ async def get_user(user_id: uuid.UUID, orgs: Orgs) -> UserOut:
     return _user_out(*await orgs.user(user_id))
 
 
-@router.patch("/api/v1/users/{user_id}", response_model=UserOut)
+@router.patch("/api/v1/users/{user_id}", response_model=UserOut, responses=errors(Conflict))
 async def update_user(user_id: uuid.UUID, body: UserUpdate, orgs: OrgsAdmin) -> UserOut:
     """Change a member's role or disable them in this organisation (admins only)."""
     return _user_out(*await orgs.update_user(user_id, role=body.role, is_active=body.is_active))
 
 
-@router.delete("/api/v1/users/{user_id}", status_code=204, response_class=Response)
+@router.delete(
+    "/api/v1/users/{user_id}",
+    status_code=204,
+    response_class=Response,
+    responses=errors(Conflict),
+)
 async def remove_user(user_id: uuid.UUID, orgs: OrgsAdmin) -> Response:
     """Remove a member from the caller's organisation and end their sessions there (admins only)."""
     await orgs.remove_user(user_id)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import enum
 import uuid
 from datetime import datetime
 from typing import Any
@@ -9,6 +10,15 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.kit.types import Text
+from server.runs.machine import RunState
+
+
+class RunOutcome(enum.StrEnum):
+    """How a finished run ended (its final state)."""
+
+    completed = "completed"
+    aborted = "aborted"
+    failed = "failed"
 
 
 class RunCreate(BaseModel):
@@ -32,8 +42,8 @@ class TransitionOut(BaseModel):
 
     model_config = ConfigDict(from_attributes=True)
     at: datetime
-    from_state: str
-    to_state: str
+    from_state: RunState
+    to_state: RunState
     reason: str
     cause: str
 
@@ -48,11 +58,11 @@ class RunOut(BaseModel):
     base_id: uuid.UUID
     schedule_id: uuid.UUID | None
     scheduled_for: datetime | None
-    state: str
+    state: RunState
     step: int = 0
     total_steps: int = 0
     label: str = ""
-    outcome: str | None
+    outcome: RunOutcome | None
     cause: str | None
     reason: str
     alert: bool

@@ -8,6 +8,8 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Query, Response
 
 from server.deps import Operator, UoW, Viewer
+from server.kit.errors import NotFound
+from server.kit.openapi import errors
 from server.schedules.schemas import ScheduleCreate, ScheduleOut, ScheduleUpdate
 from server.schedules.service import ScheduleService
 
@@ -26,7 +28,12 @@ Schedules = Annotated[ScheduleService, Depends(_service)]
 SchedulesOperator = Annotated[ScheduleService, Depends(_operator_service)]
 
 
-@router.post("/api/v1/schedules", status_code=201, response_model=ScheduleOut)
+@router.post(
+    "/api/v1/schedules",
+    status_code=201,
+    response_model=ScheduleOut,
+    responses=errors(NotFound),  # mission_id, uav_id or base_id of nothing here
+)
 async def create_schedule(body: ScheduleCreate, schedules: SchedulesOperator) -> ScheduleOut:
     """Create a schedule bound to a mission, a UAV and a base."""
     return ScheduleOut.model_validate(await schedules.create(body))

@@ -2,13 +2,29 @@
 
 from __future__ import annotations
 
+import enum
 import uuid
 from datetime import datetime
-from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.kit.types import Name
+
+
+class ScheduleKind(enum.StrEnum):
+    """`once` at a time; `interval` every `interval_s` seconds; `cron` by a cron expression."""
+
+    once = "once"
+    interval = "interval"
+    cron = "cron"
+
+
+class MissedPolicy(enum.StrEnum):
+    """What a schedule does about due times missed while the server was down: `skip` them, or
+    `run_once` for all of them."""
+
+    skip = "skip"
+    run_once = "run_once"
 
 
 class ScheduleCreate(BaseModel):
@@ -19,12 +35,12 @@ class ScheduleCreate(BaseModel):
     mission_id: uuid.UUID
     uav_id: uuid.UUID
     base_id: uuid.UUID
-    kind: Literal["once", "interval", "cron"]
+    kind: ScheduleKind
     at: datetime | None = None
     interval_s: int | None = Field(default=None, ge=60, le=366 * 86400)
     cron: str | None = Field(default=None, max_length=120)
     timezone: str = Field(default="UTC", max_length=64)
-    missed_policy: Literal["skip", "run_once"] = "skip"
+    missed_policy: MissedPolicy = MissedPolicy.skip
     enabled: bool = True
 
 
@@ -34,7 +50,7 @@ class ScheduleUpdate(BaseModel):
     model_config = ConfigDict(extra="forbid")
     name: Name | None = None
     enabled: bool | None = None
-    missed_policy: Literal["skip", "run_once"] | None = None
+    missed_policy: MissedPolicy | None = None
 
 
 class ScheduleOut(BaseModel):
@@ -46,12 +62,12 @@ class ScheduleOut(BaseModel):
     mission_id: uuid.UUID
     uav_id: uuid.UUID
     base_id: uuid.UUID
-    kind: str
+    kind: ScheduleKind
     at: datetime | None
     interval_s: int | None
     cron: str | None
     timezone: str
-    missed_policy: str
+    missed_policy: MissedPolicy
     enabled: bool
     next_due_at: datetime | None
     last_fired_at: datetime | None

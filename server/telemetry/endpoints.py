@@ -9,7 +9,7 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Depends, Query
 
 from server.deps import ServicesDep, UoW, Viewer
-from server.telemetry.schemas import EventOut
+from server.telemetry.schemas import EventOut, TelemetrySample
 from server.telemetry.service import TelemetryService
 
 router = APIRouter(tags=["telemetry"])
@@ -22,7 +22,11 @@ def _service(uow: UoW, principal: Viewer, services: ServicesDep) -> TelemetrySer
 Telemetry = Annotated[TelemetryService, Depends(_service)]
 
 
-@router.get("/api/v1/assets/{asset_id}/telemetry")
+@router.get(
+    "/api/v1/assets/{asset_id}/telemetry",
+    response_model=list[TelemetrySample],
+    operation_id="listTelemetry",
+)
 async def telemetry(
     asset_id: uuid.UUID,
     samples: Telemetry,
@@ -38,13 +42,19 @@ async def telemetry(
     return await samples.samples(asset_id, start, end, wanted, every, agg, limit)
 
 
-@router.get("/api/v1/assets/{asset_id}/telemetry/latest")
+@router.get(
+    "/api/v1/assets/{asset_id}/telemetry/latest",
+    response_model=TelemetrySample,
+    operation_id="getLatestTelemetry",
+)
 async def telemetry_latest(asset_id: uuid.UUID, samples: Telemetry) -> dict[str, Any]:
     """The newest sample of an asset."""
     return await samples.latest(asset_id)
 
 
-@router.get("/api/v1/assets/{asset_id}/events", response_model=list[EventOut])
+@router.get(
+    "/api/v1/assets/{asset_id}/events", response_model=list[EventOut], operation_id="listEvents"
+)
 async def events(
     asset_id: uuid.UUID,
     samples: Telemetry,

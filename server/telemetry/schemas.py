@@ -6,7 +6,12 @@ import uuid
 from datetime import datetime
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, RootModel
+
+
+class TelemetrySample(RootModel[dict[str, Any]]):
+    """One sample: `ts` (when the asset measured it) and the asset's fields by dotted name, e.g.
+    {"ts": "2026-11-22T10:00:00Z", "gnss.fix": "rtk_fixed", "battery.pct": 87.5}."""
 
 
 class EventOut(BaseModel):
