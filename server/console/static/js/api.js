@@ -1,0 +1,71 @@
+// The REST client: the bearer token, one error shape, and what a dead session means.
+
+const KEY = "aerobase.session";
+let session = JSON.parse(sessionStorage.getItem(KEY) || "null");
+const listeners = new Set();
+
+export class ApiError extends Error {
+  constructor(status, code, message, details) {
+    super(message);
+    this.status = status;
+    this.code = code;
+    this.details = details;
+  }
+}
+
+export const ENDED = {
+  session_ended: "Your session ended: another login took this session over, or it was logged out " +
+    "(one live session per account). Sign in again to continue here.",
+  session_expired: "Your session expired. Sign in again.",
+  unauthorized: "You are signed out. Sign in again.",
+  account_disabled: "Your account was disabled in this organisation.",
+};
+
+export function token() { return session && session.token; }
+export function current() { return session; }
+
+export function setSession(value) {
+  session = value;
+  if (value) sessionStorage.setItem(KEY, JSON.stringify(value));
+  else sessionStorage.removeItem(KEY);
+}
+
+// called with a reason when the server says the session is over
+export function onSignedOut(fn) { listeners.add(fn); }
+export function signedOut(reason) {
+  if (!session) return;
+  setSession(null);
+  for (const fn of listeners) fn(reason);
+}
+
+export async function api(method, path, body, { raw = false, contentType, headers = {} } = {}) {
+  const init = { method, headers: { ...headers } };
+  if (token()) init.headers.Authorization = `Bearer ${token()}`;
+  if (body !== undefined) {
+    if (contentType) {
+      init.headers["Content-Type"] = contentType;
+      init.body = body;
+    } else {
+      init.headers["Content-Type"] = "application/json";
+      init.body = JSON.stringify(body);
+    }
+  }
+  let r;
+  try {
+    r = await fetch(`/api/v1${path}`, init);
+  } catch (err) {
+    throw new ApiError(0, "network", "the server cannot be reached", null);
+  }
+  if (r.ok) {
+    if (raw) return r;
+    if (r.status === 204) return null;
+    return r.json();
+  }
+  let error = { code: "error", message: r.statusText, details: null };
+  try { error = (await r.json()).error || error; } catch (_) { /* not JSON */ }
+  if (r.status === 401 && path !== "/auth/login") signedOut(ENDED[error.code] || ENDED.unauthorized);
+  throw new ApiError(r.status, error.code, error.message, error.details);
+}
+
+export const get = (path) => api("GET", path);
+export const post = (path, body) => api("POST", path, body);

@@ -1,0 +1,61 @@
+"""The console is served at `/` from the package: its page, its modules, caching and compression,
+without touching the API's own routes and 404s."""
+
+from __future__ import annotations
+
+import gzip
+import re
+
+import httpx
+
+from server.console.endpoints import STATIC, load
+
+
+def _assets(page: str) -> list[str]:
+    return re.findall(r'(?:href|src)="(/console/[^"]+)"', page)
+
+
+def test_the_page_is_served_revalidated_with_a_strict_policy(api: httpx.Client):
+    r = api.get("/")
+    assert r.status_code == 200
+    assert r.headers["content-type"].startswith("text/html")
+    assert r.headers["cache-control"] == "no-cache" and r.headers["etag"]
+    policy = r.headers["content-security-policy"]
+    assert "default-src 'self'" in policy and "connect-src 'self'" in policy
+    assert "{{ASSETS}}" not in r.text
+    again = api.get("/", headers={"If-None-Match": r.headers["etag"]})
+    assert again.status_code == 304 and not again.content
+
+
+def test_modules_are_immutable_under_the_digest_and_compressed(api: httpx.Client):
+    page = api.get("/").text
+    assets = _assets(page)
+    digest, files = load()
+    assert assets and all(a.startswith(f"/console/{digest}/") for a in assets)
+    r = api.get(f"/console/{digest}/js/app.js", headers={"Accept-Encoding": "gzip"})
+    assert r.status_code == 200
+    assert r.headers["content-type"].startswith("text/javascript")
+    assert r.headers["cache-control"] == "public, max-age=31536000, immutable"
+    assert r.headers["content-encoding"] == "gzip"
+    assert r.content == (STATIC / "js" / "app.js").read_bytes()  # httpx decoded the gzip
+    # an older page asking for an older release is answered, but not cached for long
+    old = api.get("/console/000000000000/js/app.js")
+    assert old.status_code == 200 and old.headers["cache-control"] == "no-cache"
+    # the whole console compresses under the page-weight target (300 kB first load)
+    compressed = sum(len(gzip.compress(a.body)) for a in files.values())
+    assert compressed < 300_000, compressed
+
+
+def test_unknown_files_and_api_paths_keep_their_json_404(api: httpx.Client):
+    digest, _ = load()
+    for path in (f"/console/{digest}/js/nope.js", f"/console/{digest}/index.html", "/api/v1/nope"):
+        r = api.get(path)
+        assert r.status_code == 404, path
+        assert r.json()["error"]["code"] == "not_found", path
+    assert api.get("/api/v1/missions/").json()["error"]["message"].endswith(
+        "API paths have no trailing slash (/api/v1/missions)"
+    )
+    # the console is a client of the API, not part of its document
+    paths = api.get("/api/openapi.json").json()["paths"]
+    assert "/" not in paths and not any(p.startswith("/console") for p in paths)
+    assert api.get("/api/docs").status_code == 200
