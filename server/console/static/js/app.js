@@ -166,7 +166,7 @@ function signInPage() {
     h("label", { for: "email" }, "E-mail"), email,
     h("label", { for: "password" }, "Password"), password,
     orgPick, button, error);
-  clear(main, h("section", { class: "card", style: "max-width:520px;margin:2rem auto" },
+  clear(main, h("section", { class: "card signin" },
     h("h1", { id: "signin-title" }, "Sign in to Aerobase"),
     signedOutReason ? h("p", { role: "alert", class: "error" }, signedOutReason) : null,
     form));

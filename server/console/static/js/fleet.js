@@ -123,13 +123,12 @@ export function render(main, ctx) {
   const uavs = ctx.assets.filter((a) => a.kind === "uav");
   const bases = ctx.assets.filter((a) => a.kind === "landing_base");
   const cards = new Map([...bases, ...uavs].map((a) => [a.id, card(ctx, a)]));
-  main.append(
+  clear(main,
     h("h1", {}, "Fleet"),
     ctx.assets.length ? null : h("p", {}, "This organisation has no assets yet."),
-    bases.length ? h("h2", {}, "Landing bases") : null,
-    h("div", { class: "grid" }, bases.map((a) => cards.get(a.id).section)),
-    uavs.length ? h("h2", {}, "UAVs") : null,
-    h("div", { class: "grid" }, uavs.map((a) => cards.get(a.id).section)),
+    h("div", { class: "fleet" },
+      bases.length ? h("div", {}, h("h2", {}, "Landing bases"), h("div", { class: "stack-cards" }, bases.map((a) => cards.get(a.id).section))) : null,
+      uavs.length ? h("div", {}, h("h2", {}, "UAVs"), h("div", { class: "stack-cards" }, uavs.map((a) => cards.get(a.id).section))) : null),
   );
   for (const c of cards.values()) c.update();
   // what the socket has not brought yet: the newest stored sample and the last availability check

@@ -7,7 +7,7 @@ import { clear, h, num, when } from "./ui.js";
 export function render(main, ctx) {
   const summary = h("div");
   const table = h("div");
-  main.append(h("h1", {}, "History"), summary, table);
+  clear(main, h("h1", {}, "History"), summary, table);
   const name = (id) => (ctx.byId.get(id) || { name: "?" }).name;
   (async () => {
     const [fleet, runs] = await Promise.all([get("/reports/fleet"), get("/runs?limit=200")]);

@@ -12,7 +12,7 @@ const NAMES = {
   177: "DO_JUMP", 178: "DO_CHANGE_SPEED", 181: "DO_SET_RELAY", 183: "DO_SET_SERVO", 195: "DO_SET_ROI_LOCATION",
   197: "DO_SET_ROI_NONE", 201: "DO_SET_ROI", 203: "DO_DIGICAM_CONTROL", 205: "DO_MOUNT_CONTROL",
   206: "DO_SET_CAM_TRIGG_DIST", 530: "SET_CAMERA_MODE", 2000: "IMAGE_START_CAPTURE", 2001: "IMAGE_STOP_CAPTURE",
-  2500: "VIDEO_START_CAPTURE", 2501: "VIDEO_STOP_CAPTURE",
+  2500: "VIDEO_START_CAPTURE", 2501: "VIDEO_STOP_CAPTURE", 30: "CONTINUE_AND_CHANGE_ALT", 84: "NAV_VTOL_TAKEOFF", 85: "NAV_VTOL_LAND",
 };
 const POSITIONAL = new Set([16, 17, 18, 19, 21, 22, 82]);
 
@@ -103,7 +103,7 @@ function detail(ctx, m) {
 export function render(main, ctx, args) {
   const list = h("div");
   const right = h("div");
-  main.append(h("h1", {}, "Missions"),
+  clear(main, h("h1", {}, "Missions"),
     h("div", { class: "cols" }, h("div", {}, ctx.canOperate ? importForm((id) => { location.hash = `#/missions/${id}`; }) : null, list), right));
   (async () => {
     const missions = await get("/missions?limit=1000");

@@ -88,7 +88,7 @@ export function trackMap({ title, track = [], mission = [], uav = null, minSpan 
   }
   svg.append(s("rect", { x: cx - 5, y: cy - 5, width: 10, height: 10, class: "base" }));
   if (uav) svg.append(s("circle", { cx: X(uav), cy: Y(uav), r: 5, class: "uav" }));
-  const far = Math.max(0, ...track.map((p) => Math.hypot(p.north, p.east)));
+  const far = Math.max(0, ...track.map((p) => Math.hypot(p.north, p.east)), ...mission.map((p) => Math.hypot(p.north, p.east)));
   svg.setAttribute("aria-label",
     `${title}: ${track.length} track points, ${mission.length} mission points, ` +
     `farthest ${fmt(far)} m from the base` + (uav ? `; UAV ${fmt(uav.north)} m north, ${fmt(uav.east)} m east` : ""));

@@ -19,7 +19,7 @@ function before(rows, t) {
 
 export function render(main, ctx, args) {
   const box = h("div", {}, h("p", {}, "Loading the run's telemetry…"));
-  main.append(h("h1", {}, "Replay"), box);
+  clear(main, h("h1", {}, "Replay"), box);
   (async () => {
     const f = await loadFlight(ctx, args[0]);
     const { run, track, t0, t1 } = f;

@@ -13,7 +13,7 @@ function figure(caption, svg) {
 
 export function render(main, ctx, args) {
   const box = h("div", {}, h("p", {}, "Loading the report…"));
-  main.append(h("h1", {}, "Run report"), box);
+  clear(main, h("h1", {}, "Run report"), box);
   (async () => {
     const f = await loadFlight(ctx, args[0]);
     const { report, run, track, t0, t1 } = f;

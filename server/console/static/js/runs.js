@@ -197,7 +197,7 @@ export function render(main, ctx, args) {
   const list = h("div");
   const left = h("div", {}, formBox, list);
   const right = h("div", { "aria-live": "polite" });
-  main.append(h("h1", {}, "Runs"), h("div", { class: "cols" }, left, right));
+  clear(main, h("h1", {}, "Runs"), h("div", { class: "cols" }, left, right));
   let missions = [];
   let timer = null;
 

@@ -1,0 +1,168 @@
+"""The operator console in a real browser (Debian's Chromium) against the whole platform: the
+simulated world, both daemons and the server, every boundary real."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import re
+from datetime import UTC, datetime, timedelta
+
+import pytest
+
+from tests.conftest import Tenant
+from tests.console.browser import launch, open_page, shot, sign_in
+from tests.e2e.harness import FINAL, platform
+from tests.polling import eventually
+
+pytestmark = pytest.mark.slow  # a browser and the whole platform: not in the fast lane
+
+PAGE_WEIGHT_LIMIT = 300_000  # bytes transferred, compressed, for the first load (issue 18)
+
+
+@pytest.fixture(scope="module")
+async def browser():
+    async for b in launch():
+        yield b
+
+
+def _bad_plan(lat: float, lon: float) -> bytes:
+    """A QGroundControl plan with one good item and one the platform refuses (a VTOL take-off)."""
+    item = {
+        "type": "SimpleItem", "autoContinue": True, "frame": 3, "AltitudeMode": 1, "Altitude": 20,
+        "AMSLAltAboveTerrain": None,
+    }  # fmt: skip
+    items = [
+        {**item, "command": 22, "doJumpId": 1, "params": [0, 0, 0, None, lat, lon, 20]},
+        {**item, "command": 84, "doJumpId": 2, "params": [0, 0, 0, None, lat, lon, 20]},
+    ]
+    plan = {
+        "fileType": "Plan", "version": 1, "groundStation": "QGroundControl",
+        "mission": {"version": 2, "firmwareType": 3, "vehicleType": 2, "cruiseSpeed": 15,
+                    "hoverSpeed": 5, "items": items, "plannedHomePosition": [lat, lon, 100]},
+        "geoFence": {"circles": [], "polygons": [], "version": 2},
+        "rallyPoints": {"points": [], "version": 2},
+    }  # fmt: skip
+    return json.dumps(plan).encode()
+
+
+async def _numbers(locator) -> float | None:  # type: ignore[no-untyped-def]
+    text = await locator.inner_text()
+    m = re.search(r"-?\d+(?:\.\d+)?", text)
+    return float(m.group()) if m else None
+
+
+async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_reads_its_report(
+    live_server, tenant: Tenant, tmp_path, browser
+):
+    from playwright.async_api import expect
+
+    async with platform(live_server.url, tenant, tmp_path) as p:
+        uav = (await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}", headers=tenant.h())).json()
+        base = (await p.api.get(f"/api/v1/assets/{p.ids['base_id']}", headers=tenant.h())).json()
+        page, traffic = await open_page(browser, live_server.url + "/")
+        await shot(page, "sign-in")
+        # the harness holds a live session for the operator: the page explains the one-session rule
+        await sign_in(page, tenant.emails["operator"], Tenant.PASSWORD)
+
+        # the fleet: both assets with live state
+        uav_card = page.get_by_role("region", name=f"UAV {uav['name']}")
+        base_card = page.get_by_role("region", name=f"Landing base {base['name']}")
+        await expect(uav_card).to_contain_text("connected")
+        await expect(uav_card).to_contain_text(re.compile(r"GNSS fix\s*(3d|dgps|rtk_float|rtk_fixed)"))
+        await expect(uav_card).to_contain_text(re.compile(r"Battery\s*\d+ %"))
+        await expect(base_card).to_contain_text(re.compile(r"PLC link\s*up"))
+        await expect(base_card).to_contain_text(re.compile(r"Panels\s*closed"))
+        await expect(base_card).to_contain_text(re.compile(r"Weather\s*wind \d"))
+        # a go/no-go needs a check: the operator asks for one, confirms, and sees the outcome
+        await base_card.get_by_role("button", name=f"Check availability: {base['name']}").click()
+        dialog = page.get_by_role("dialog", name="Check availability")
+        await dialog.get_by_role("button", name="Check availability").click()
+        await expect(base_card.get_by_role("status")).to_contain_text("succeeded", timeout=30_000)
+        await expect(base_card).to_contain_text(re.compile(r"Go / no-go\s*GO all conditions met"))
+        weight = traffic.total()
+        await shot(page, "fleet")
+
+        # a mission file with a refused item: every problem is named by item
+        await page.get_by_role("link", name="Missions").click()
+        await page.get_by_label("QGroundControl .plan or waypoint file").set_input_files(
+            {"name": "vtol.plan", "mimeType": "application/json", "buffer": _bad_plan(41.0, -8.0)}
+        )
+        await page.get_by_role("button", name="Import").click()
+        problems = page.get_by_role("table", name=re.compile("problem"))
+        await expect(problems).to_contain_text("84 NAV_VTOL_TAKEOFF")
+        await expect(problems).to_contain_text("unsupported command")
+        await page.get_by_role("link", name="Open mission pad square").click()
+        await expect(page.get_by_role("img", name=re.compile("Mission pad square"))).to_be_visible()
+        await shot(page, "missions")
+
+        # schedule a one-shot run a few seconds ahead, from the mission
+        await page.get_by_role("link", name="Runs").click()
+        await expect(page.get_by_role("heading", name="Runs", exact=True)).to_be_visible()
+        await page.get_by_label("Mission", exact=True).select_option(label="pad square")
+        await page.get_by_label("UAV", exact=True).select_option(label=uav["name"])
+        await page.get_by_label("When", exact=True).select_option("once")
+        at = datetime.now(UTC) + timedelta(seconds=6)
+        await page.get_by_label("At (your local time)").fill(at.strftime("%Y-%m-%dT%H:%M:%S"))
+        await page.get_by_role("button", name="Start or schedule").click()
+        await expect(page.get_by_role("table", name="Schedules")).to_contain_text("once at")
+        # the scheduler starts it; the page shows it without a reload
+        open_run = page.get_by_role("link", name=re.compile("^Open run of"))
+        await expect(open_run.first).to_be_visible(timeout=60_000)
+        await open_run.first.click()
+        steps = page.get_by_role("list", name="Steps of the run")
+        await expect(steps.locator('[aria-current="step"]')).to_contain_text(
+            "Flying the mission", timeout=90_000
+        )
+        await shot(page, "run-live")
+        run_url = page.url
+
+        # the fleet page follows the flight: the altitude changes without a reload
+        await page.get_by_role("link", name="Fleet").click()
+        altitude = uav_card.get_by_role("definition").nth(6)
+        seen = set()
+
+        async def climbing() -> bool:
+            value = await _numbers(altitude)
+            if value is not None and value > 1:
+                seen.add(value)
+            return len(seen) >= 3
+
+        await eventually(climbing, 60, "three different altitudes on the fleet page")
+        await shot(page, "fleet-flying")
+
+        # back to the run: its timeline reaches completed
+        await page.goto(run_url)
+        run_title = page.get_by_role("heading", name=re.compile("^Run of"))
+        await expect(run_title).to_be_visible()
+        detail = page.get_by_role("region", name=re.compile("^Run of"))
+        await expect(detail.get_by_text("completed", exact=True)).to_be_visible(timeout=150_000)
+        await expect(detail.get_by_role("table", name="Timeline")).to_contain_text("charging → completed")
+        assert await steps.locator('[aria-current="step"]').count() == 0
+
+        # its report: figures and the five plots, drawn from the stored telemetry
+        await detail.get_by_role("link", name="Open the run report").click()
+        await expect(page.get_by_role("heading", name="Run report")).to_be_visible()
+        for name in ("Altitude", "Battery", "Ground speed", "Landing error", "Flight track"):
+            plot = page.get_by_role("img", name=re.compile(f"^{name}: "))
+            await expect(plot).to_have_attribute("aria-label", re.compile(r"\d+ (samples|track points)"))
+            assert "no samples" not in (await plot.get_attribute("aria-label")), name
+        await shot(page, "report")
+        await page.get_by_role("link", name="Replay this run").click()
+        slider = page.get_by_label("Time in the run")
+        await slider.focus()
+        for _ in range(40):
+            await slider.press("ArrowRight")
+        await expect(page.get_by_role("definition").first).not_to_have_text("pending")
+        await shot(page, "replay")
+        await page.get_by_role("link", name="History").click()
+        await expect(page.get_by_role("table", name=re.compile("Past runs"))).to_contain_text("completed")
+        await shot(page, "history")
+
+        assert not [u for u in traffic.urls if u.startswith("pageerror")], traffic.urls
+        assert traffic.off_origin(live_server.url) == [], traffic.off_origin(live_server.url)
+        print(f"first load to a live fleet: {weight} bytes transferred")
+        assert weight < PAGE_WEIGHT_LIMIT, weight
+        body = await p.run_state((await p.api.get("/api/v1/runs", headers=tenant.h())).json()[0]["id"])
+        assert body["state"] == "completed" and body["schedule_id"], body["state"]
+        await page.context.close()
