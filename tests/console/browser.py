@@ -35,11 +35,12 @@ class Traffic:
     """What a page asked for and how many bytes came over the wire (headers and compressed bodies)."""
 
     urls: list[str] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)  # uncaught exceptions of the page's scripts
     transferred: dict[str, int] = field(default_factory=dict)
 
     def off_origin(self, origin: str) -> list[str]:
         host = urlsplit(origin).netloc
-        return [u for u in self.urls if urlsplit(u).netloc != host or u.startswith("data:")]
+        return [u for u in self.urls if urlsplit(u).netloc != host]
 
     def total(self) -> int:
         return sum(self.transferred.values())
@@ -62,7 +63,7 @@ async def open_page(browser: Any, url: str) -> tuple[Any, Traffic]:
             ids.get(e["requestId"], e["requestId"]), int(e["encodedDataLength"])
         ),
     )
-    page.on("pageerror", lambda err: traffic.urls.append(f"pageerror:{err}"))
+    page.on("pageerror", lambda err: traffic.errors.append(str(err)))
     await page.goto(url)
     return page, traffic
 

@@ -159,10 +159,121 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
         await expect(page.get_by_role("table", name=re.compile("Past runs"))).to_contain_text("completed")
         await shot(page, "history")
 
-        assert not [u for u in traffic.urls if u.startswith("pageerror")], traffic.urls
+        assert traffic.errors == []
         assert traffic.off_origin(live_server.url) == [], traffic.off_origin(live_server.url)
         print(f"first load to a live fleet: {weight} bytes transferred")
         assert weight < PAGE_WEIGHT_LIMIT, weight
         body = await p.run_state((await p.api.get("/api/v1/runs", headers=tenant.h())).json()[0]["id"])
         assert body["state"] == "completed" and body["schedule_id"], body["state"]
         await page.context.close()
+
+
+async def test_abort_in_flight_from_the_page_while_a_viewer_sees_no_controls_and_another_organisation_sees_nothing(
+    live_server, api, superuser_email, tenant: Tenant, tmp_path, browser
+):
+    from playwright.async_api import expect
+
+    # at 3x the mission lasts long enough for a person (and a browser) to abort it in the air
+    async with platform(live_server.url, tenant, tmp_path, speed=3.0) as p:
+        uav = (await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}", headers=tenant.h())).json()
+        r = await p.api.post("/api/v1/runs", json=p.ids, headers=tenant.h("admin"))
+        assert r.status_code == 201, r.text
+        run_id = r.json()["id"]
+        run_url = f"{live_server.url}/#/runs/{run_id}"
+
+        viewer, viewer_traffic = await open_page(browser, live_server.url + "/")
+        await sign_in(viewer, tenant.emails["viewer"], Tenant.PASSWORD)
+        operator, operator_traffic = await open_page(browser, live_server.url + "/")
+        await sign_in(operator, tenant.emails["operator"], Tenant.PASSWORD)
+        for page in (viewer, operator):
+            await page.goto(run_url)
+            steps = page.get_by_role("list", name="Steps of the run")
+            await expect(steps.locator('[aria-current="step"]')).to_contain_text(
+                "Flying the mission", timeout=90_000
+            )
+        # the viewer: the same run, live, without a control
+        await expect(viewer.get_by_role("heading", name=re.compile("^Run of"))).to_be_visible()
+        assert await viewer.locator("main").get_by_role("button").count() == 0
+        await shot(viewer, "run-viewer")
+        await eventually(
+            lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
+        )
+        # the operator aborts in flight, with a confirmation and a reason
+        await operator.get_by_role("button", name="Abort run").click()
+        dialog = operator.get_by_role("dialog", name="Abort the run")
+        await dialog.get_by_label("Reason (written in the timeline)").fill("airspace closed")
+        await dialog.get_by_role("button", name="Abort the run").click()
+        detail = operator.get_by_role("region", name=re.compile("^Run of"))
+        await expect(detail.get_by_role("button", name="Abort requested")).to_be_disabled()
+        # meanwhile the viewer finds no control on any page
+        for link in ("Fleet", "Missions", "History"):
+            await viewer.get_by_role("link", name=link, exact=True).click()
+            await expect(viewer.get_by_role("heading", name=link, exact=True)).to_be_visible()
+            if link == "Fleet":
+                uav_card = viewer.get_by_role("region", name=f"UAV {uav['name']}")
+                await expect(uav_card).to_contain_text("connected")
+            assert await viewer.locator("main").get_by_role("button").count() == 0, link
+        assert await viewer.get_by_label("QGroundControl .plan or waypoint file").count() == 0
+        await expect(detail.get_by_text("aborted", exact=True)).to_be_visible(timeout=150_000)
+        timeline = detail.get_by_role("table", name="Timeline")
+        await expect(timeline).to_contain_text("flying → landing")
+        await expect(timeline).to_contain_text("airspace closed")
+        await expect(timeline).to_contain_text("→ aborted")
+        await shot(operator, "run-aborted")
+        # (the console took the viewer's session over: read as the admin)
+        body = (await p.api.get(f"/api/v1/runs/{run_id}", headers=tenant.h("admin"))).json()
+        assert body["state"] == "aborted" and body["cause"] == "operator_abort", body["timeline"]
+
+        # a user of another organisation: none of this organisation's assets, runs or missions
+        other = await asyncio.to_thread(Tenant, api, superuser_email, "other")
+        stranger, stranger_traffic = await open_page(browser, live_server.url + "/")
+        await sign_in(stranger, other.emails["operator"], Tenant.PASSWORD)
+        await expect(stranger.locator("main")).to_contain_text("This organisation has no assets yet.")
+        await stranger.goto(run_url)
+        await expect(stranger.get_by_role("heading", name="Runs", exact=True)).to_be_visible()
+        await expect(stranger.locator("main")).to_contain_text("No runs yet.")
+        await stranger.goto(f"{live_server.url}/#/report/{run_id}")
+        await expect(stranger.get_by_role("alert")).to_contain_text("could not be loaded")
+        await stranger.get_by_role("link", name="Missions").click()
+        await expect(stranger.locator("main")).to_contain_text("No missions yet.")
+        text = await stranger.locator("body").inner_text()
+        assert uav["name"] not in text and "pad square" not in text
+        for traffic in (viewer_traffic, operator_traffic, stranger_traffic):
+            assert traffic.off_origin(live_server.url) == [], traffic.urls
+            assert traffic.errors == []
+        for page in (viewer, operator, stranger):
+            await page.context.close()
+
+
+async def test_the_console_reconnects_by_itself_after_a_server_restart_and_marks_stale_data(
+    database_url, superuser_email, tmp_path, browser
+):
+    import httpx
+    from playwright.async_api import expect
+
+    from tests.conftest import LiveServer, test_settings
+
+    server = LiveServer(test_settings(database_url)).start()
+    restarted = None
+    try:
+        with httpx.Client(base_url=server.url) as sync_api:
+            tenant = await asyncio.to_thread(Tenant, sync_api, superuser_email, "restart")
+            async with platform(server.url, tenant, tmp_path) as p:
+                uav = (await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}", headers=tenant.h())).json()
+                page, _ = await open_page(browser, server.url + "/")
+                await sign_in(page, tenant.emails["operator"], Tenant.PASSWORD)
+                link = page.get_by_role("status").filter(has_text=re.compile("Live|Connect"))
+                card = page.get_by_role("region", name=f"UAV {uav['name']}")
+                await expect(page.locator("#link")).to_have_text("Live")
+                await expect(card).to_contain_text("connected")
+                await asyncio.to_thread(server.stop)
+                await expect(page.locator("#link")).to_contain_text("reconnecting", timeout=20_000)
+                await expect(card).to_contain_text("stale: last data")
+                await shot(page, "fleet-reconnecting")
+                restarted = await asyncio.to_thread(server.restarted)
+                await expect(page.locator("#link")).to_have_text("Live", timeout=30_000)
+                await expect(card).to_contain_text("connected", timeout=30_000)
+                assert await link.count() == 1
+                await page.context.close()
+    finally:
+        await asyncio.to_thread((restarted or server).stop)

@@ -32,5 +32,5 @@ export function render(main, ctx) {
         h("td", {}, h("a", { href: `#/report/${r.id}`, "aria-label": `Report of the run started ${when(r.created_at)}` }, "Report")),
         h("td", {}, h("a", { href: `#/replay/${r.id}`, "aria-label": `Replay of the run started ${when(r.created_at)}` }, "Replay"))))))
       : h("p", {}, "No finished runs yet."));
-  })();
+  })().catch((err) => clear(table, h("p", { role: "alert", class: "error" }, `Could not be loaded: ${err.message}`)));
 }

@@ -116,5 +116,5 @@ export function render(main, ctx, args) {
       : h("p", {}, "No missions yet."));
     const chosen = missions.find((m) => m.id === args[0]);
     if (chosen) clear(right, detail(ctx, chosen));
-  })();
+  })().catch((err) => clear(list, h("p", { role: "alert", class: "error" }, `Could not be loaded: ${err.message}`)));
 }

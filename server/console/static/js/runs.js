@@ -25,10 +25,12 @@ export function stateBadge(run) {
 export function stepList(run) {
   const reached = new Set((run.timeline || []).map((t) => t.to_state));
   const names = STEPS.map(([n]) => n);
-  let stopped = null; // the step a failed or aborted run ended in
+  let stopped = null; // the step a failed or aborted run was in when its cause arose
   if (run.state === "failed" || run.state === "aborted") {
-    const last = [...(run.timeline || [])].reverse().find((t) => t.to_state === run.state);
-    stopped = last ? last.from_state : null;
+    const tl = run.timeline || [];
+    const first = run.cause ? tl.find((t) => t.cause === run.cause) : null;
+    const last = [...tl].reverse().find((t) => t.to_state === run.state);
+    stopped = (first || last || {}).from_state || null;
   }
   return h("ol", { class: "steps", "aria-label": "Steps of the run" }, STEPS.map(([name, label], i) => {
     const current = !FINAL.has(run.state) && run.state === name;
@@ -208,8 +210,12 @@ export function render(main, ctx, args) {
       runs.length ? runsTable(ctx, runs, selected, "Recent runs (newest first)") : h("p", {}, "No runs yet."),
       schedulesTable(ctx, schedules, refresh));
     if (selected) {
-      const run = await get(`/runs/${selected}`);
-      clear(right, runDetail(ctx, run, refresh));
+      try {
+        clear(right, runDetail(ctx, await get(`/runs/${selected}`), refresh));
+      } catch (err) {
+        if (err.status !== 404) throw err;
+        clear(right, h("p", { role: "alert" }, "No such run in your organisation."));
+      }
     } else clear(right, h("p", { class: "muted" }, "Start a run to see its timeline here."));
   }
   const soon = () => { clearTimeout(timer); timer = setTimeout(() => refresh().catch(() => {}), 150); };
@@ -222,7 +228,7 @@ export function render(main, ctx, args) {
       })));
     }
     await refresh();
-  })();
+  })().catch((err) => clear(right, h("p", { role: "alert", class: "error" }, `Runs could not be loaded: ${err.message}`)));
   const offs = [on("run_progress", soon), on("reconnected", soon)];
   // schedules fire on the server: a slow poll notices a new run before its first progress message
   const poll = setInterval(soon, 10000);
