@@ -12,7 +12,7 @@ import pytest
 
 from tests.conftest import Tenant
 from tests.console.browser import launch, open_page, shot, sign_in
-from tests.e2e.harness import FINAL, platform
+from tests.e2e.harness import platform
 from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # a browser and the whole platform: not in the fast lane
@@ -69,7 +69,9 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
         uav_card = page.get_by_role("region", name=f"UAV {uav['name']}")
         base_card = page.get_by_role("region", name=f"Landing base {base['name']}")
         await expect(uav_card).to_contain_text("connected")
-        await expect(uav_card).to_contain_text(re.compile(r"GNSS fix\s*(3d|dgps|rtk_float|rtk_fixed)"))
+        await expect(uav_card).to_contain_text(
+            re.compile(r"GNSS fix\s*(3d|dgps|rtk_float|rtk_fixed)")
+        )
         await expect(uav_card).to_contain_text(re.compile(r"Battery\s*\d+ %"))
         await expect(base_card).to_contain_text(re.compile(r"PLC link\s*up"))
         await expect(base_card).to_contain_text(re.compile(r"Panels\s*closed"))
@@ -129,6 +131,8 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
             return len(seen) >= 3
 
         await eventually(climbing, 60, "three different altitudes on the fleet page")
+        item = uav_card.get_by_role("definition").nth(7)
+        await expect(item).to_have_text(re.compile("^[345] of 5"), timeout=30_000)
         await shot(page, "fleet-flying")
 
         # back to the run: its timeline reaches completed
@@ -137,7 +141,9 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
         await expect(run_title).to_be_visible()
         detail = page.get_by_role("region", name=re.compile("^Run of"))
         await expect(detail.get_by_text("completed", exact=True)).to_be_visible(timeout=150_000)
-        await expect(detail.get_by_role("table", name="Timeline")).to_contain_text("charging → completed")
+        await expect(detail.get_by_role("table", name="Timeline")).to_contain_text(
+            "charging → completed"
+        )
         assert await steps.locator('[aria-current="step"]').count() == 0
 
         # its report: figures and the five plots, drawn from the stored telemetry
@@ -145,7 +151,9 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
         await expect(page.get_by_role("heading", name="Run report")).to_be_visible()
         for name in ("Altitude", "Battery", "Ground speed", "Landing error", "Flight track"):
             plot = page.get_by_role("img", name=re.compile(f"^{name}: "))
-            await expect(plot).to_have_attribute("aria-label", re.compile(r"\d+ (samples|track points)"))
+            await expect(plot).to_have_attribute(
+                "aria-label", re.compile(r"\d+ (samples|track points)")
+            )
             assert "no samples" not in (await plot.get_attribute("aria-label")), name
         await shot(page, "report")
         await page.get_by_role("link", name="Replay this run").click()
@@ -156,14 +164,26 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
         await expect(page.get_by_role("definition").first).not_to_have_text("pending")
         await shot(page, "replay")
         await page.get_by_role("link", name="History").click()
-        await expect(page.get_by_role("table", name=re.compile("Past runs"))).to_contain_text("completed")
+        await expect(page.get_by_role("table", name=re.compile("Past runs"))).to_contain_text(
+            "completed"
+        )
         await shot(page, "history")
+        # a tablet held upright: one column, nothing wider than the screen
+        for name in ("Fleet", "Runs", "History"):
+            await page.set_viewport_size({"width": 768, "height": 1024})
+            await page.get_by_role("link", name=name, exact=True).click()
+            await expect(page.get_by_role("heading", name=name, exact=True)).to_be_visible()
+            wide = await page.evaluate("document.documentElement.scrollWidth - innerWidth")
+            assert wide <= 0, (name, wide)
+        await shot(page, "history-tablet")
 
         assert traffic.errors == []
         assert traffic.off_origin(live_server.url) == [], traffic.off_origin(live_server.url)
         print(f"first load to a live fleet: {weight} bytes transferred")
         assert weight < PAGE_WEIGHT_LIMIT, weight
-        body = await p.run_state((await p.api.get("/api/v1/runs", headers=tenant.h())).json()[0]["id"])
+        body = await p.run_state(
+            (await p.api.get("/api/v1/runs", headers=tenant.h())).json()[0]["id"]
+        )
         assert body["state"] == "completed" and body["schedule_id"], body["state"]
         await page.context.close()
 
@@ -228,12 +248,16 @@ async def test_abort_in_flight_from_the_page_while_a_viewer_sees_no_controls_and
         other = await asyncio.to_thread(Tenant, api, superuser_email, "other")
         stranger, stranger_traffic = await open_page(browser, live_server.url + "/")
         await sign_in(stranger, other.emails["operator"], Tenant.PASSWORD)
-        await expect(stranger.locator("main")).to_contain_text("This organisation has no assets yet.")
+        await expect(stranger.locator("main")).to_contain_text(
+            "This organisation has no assets yet."
+        )
         await stranger.goto(run_url)
         await expect(stranger.get_by_role("heading", name="Runs", exact=True)).to_be_visible()
         await expect(stranger.locator("main")).to_contain_text("No runs yet.")
         await stranger.goto(f"{live_server.url}/#/report/{run_id}")
-        await expect(stranger.get_by_role("alert")).to_contain_text("could not be loaded")
+        await expect(stranger.get_by_role("heading", name="Run report")).to_be_visible()
+        refused = stranger.get_by_role("alert").filter(has_text="could not be loaded")
+        await expect(refused).to_contain_text("not found")
         await stranger.get_by_role("link", name="Missions").click()
         await expect(stranger.locator("main")).to_contain_text("No missions yet.")
         text = await stranger.locator("body").inner_text()
@@ -259,7 +283,9 @@ async def test_the_console_reconnects_by_itself_after_a_server_restart_and_marks
         with httpx.Client(base_url=server.url) as sync_api:
             tenant = await asyncio.to_thread(Tenant, sync_api, superuser_email, "restart")
             async with platform(server.url, tenant, tmp_path) as p:
-                uav = (await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}", headers=tenant.h())).json()
+                uav = (
+                    await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}", headers=tenant.h())
+                ).json()
                 page, _ = await open_page(browser, server.url + "/")
                 await sign_in(page, tenant.emails["operator"], Tenant.PASSWORD)
                 link = page.get_by_role("status").filter(has_text=re.compile("Live|Connect"))
@@ -277,3 +303,36 @@ async def test_the_console_reconnects_by_itself_after_a_server_restart_and_marks
                 await page.context.close()
     finally:
         await asyncio.to_thread((restarted or server).stop)
+
+
+async def test_a_member_of_two_organisations_chooses_one_and_is_told_when_another_login_ends_the_session(
+    live_server, api, superuser_email, database_url, browser
+):
+    from playwright.async_api import expect
+
+    from server.kit.principal import Role
+    from tests.conftest import login
+    from tests.server.test_login_hardening import _join
+
+    a = await asyncio.to_thread(Tenant, api, superuser_email, "first")
+    b = await asyncio.to_thread(Tenant, api, superuser_email, "second")
+    email = a.emails["operator"]
+    await _join(database_url, email, b.id, Role.viewer)
+    page, traffic = await open_page(browser, live_server.url + "/")
+    await page.get_by_label("E-mail").fill(email)
+    await page.get_by_label("Password").fill(Tenant.PASSWORD)
+    await page.get_by_role("button", name="Sign in").click()
+    await page.get_by_role("button", name="Sign in and end the other session").click()
+    await page.get_by_label("Organisation").select_option(label=f"{b.name} (viewer)")
+    await page.get_by_role("button", name="Continue").click()
+    await expect(page.get_by_role("heading", name="Fleet", exact=True)).to_be_visible()
+    await expect(page.get_by_role("banner")).to_contain_text(f"{b.name} · viewer")
+    await expect(page.locator("#link")).to_have_text("Live")
+    # another login takes the session over: the console says so, at once, without a click
+    await asyncio.to_thread(login, api, email, Tenant.PASSWORD, force=True)
+    ended = page.get_by_role("alert").filter(has_text="Your session ended: another login took this session over.")
+    await expect(ended).to_be_visible(timeout=10_000)
+    await expect(page.get_by_role("heading", name="Sign in to Aerobase")).to_be_visible()
+    await shot(page, "session-taken-over")
+    assert traffic.errors == [] and traffic.off_origin(live_server.url) == []
+    await page.context.close()

@@ -52,8 +52,10 @@ def test_unknown_files_and_api_paths_keep_their_json_404(api: httpx.Client):
         r = api.get(path)
         assert r.status_code == 404, path
         assert r.json()["error"]["code"] == "not_found", path
-    assert api.get("/api/v1/missions/").json()["error"]["message"].endswith(
-        "API paths have no trailing slash (/api/v1/missions)"
+    assert (
+        api.get("/api/v1/missions/")
+        .json()["error"]["message"]
+        .endswith("API paths have no trailing slash (/api/v1/missions)")
     )
     # the console is a client of the API, not part of its document
     paths = api.get("/api/openapi.json").json()["paths"]

@@ -21,6 +21,17 @@ export const ENDED = {
   account_disabled: "Your account was disabled in this organisation.",
 };
 
+// what to tell the person whose session the server ended, in the server's words
+export function endedBecause(error) {
+  if (error.code !== "session_ended") return ENDED[error.code] || ENDED.unauthorized;
+  const why = (error.message || "").replace(/^session ended: /, "");
+  if (!why) return ENDED.session_ended;
+  const rule = /another login/.test(why)
+    ? " Aerobase allows one live session per account: signing in here again ends the other one."
+    : "";
+  return `Your session ended: ${why}.${rule}`;
+}
+
 export function token() { return session && session.token; }
 export function current() { return session; }
 
@@ -63,7 +74,7 @@ export async function api(method, path, body, { raw = false, contentType, header
   }
   let error = { code: "error", message: r.statusText, details: null };
   try { error = (await r.json()).error || error; } catch (_) { /* not JSON */ }
-  if (r.status === 401 && path !== "/auth/login") signedOut(ENDED[error.code] || ENDED.unauthorized);
+  if (r.status === 401 && path !== "/auth/login") signedOut(endedBecause(error));
   throw new ApiError(r.status, error.code, error.message, error.details);
 }
 
