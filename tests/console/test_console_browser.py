@@ -131,6 +131,9 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
             return len(seen) >= 3
 
         await eventually(climbing, 60, "three different altitudes on the fleet page")
+        # the UAV's events arrive on the same page as they happen
+        events = page.get_by_role("table", name="Recent events (newest first)")
+        await expect(events).to_contain_text(uav["name"])
         item = uav_card.get_by_role("definition").nth(7)
         await expect(item).to_have_text(re.compile("^[345] of 5"), timeout=30_000)
         await shot(page, "fleet-flying")

@@ -3,17 +3,12 @@
 import { get } from "./api.js";
 import { commandButton } from "./commands.js";
 import { freshness, noteAvailability, on, state } from "./live.js";
+import { missionPoints, originOf } from "./geo.js";
 import { trackMap } from "./plot.js";
-import { ago, badge, clear, h, metres, num } from "./ui.js";
+import { ago, badge, clear, clock, h, metres, num } from "./ui.js";
 
 const trails = new Map(); // uav id -> [{north, east}] seen since the console opened
-
-export function originOf(ctx, uav) {
-  const base = uav && uav.base_id ? ctx.byId.get(uav.base_id) : ctx.assets.find((a) => a.kind === "landing_base");
-  const a = base ? base.attributes || {} : {};
-  if (Number.isFinite(a.latitude) && Number.isFinite(a.longitude)) return { lat: a.latitude, lon: a.longitude };
-  return null;
-}
+const flying = new Map(); // uav id -> the mission of its unfinished run, in metres around its base
 
 function linkRow(asset) {
   const f = freshness(asset.id);
@@ -111,24 +106,55 @@ function card(ctx, asset) {
       const trail = trails.get(asset.id) || [];
       const here = origin && v["position.lat"] !== undefined ? metres(origin, v["position.lat"], v["position.lon"]) : null;
       clear(mapBox, origin
-        ? h("figure", {}, h("figcaption", {}, "Live track, metres around the base"),
-          trackMap({ title: `Live track of ${asset.name}`, track: trail, uav: here }))
+        ? h("figure", {}, h("figcaption", {}, flying.has(asset.id) ? "Live track and the current run's mission (dashed), metres around the base" : "Live track, metres around the base"),
+          trackMap({ title: `Live track of ${asset.name}`, track: trail, uav: here, mission: flying.get(asset.id) || [] }))
         : h("p", { class: "muted" }, "No map: the base's position (attributes latitude, longitude) is unknown."));
     }
   };
   return { asset, section, update };
 }
 
+function eventsTable(ctx) {
+  const name = (id) => (ctx.byId.get(id) || { name: "?" }).name;
+  const rows = state.events.slice(0, 15);
+  if (!rows.length) return h("p", { class: "muted" }, "No events in the last hour.");
+  const tone = { critical: "bad", warning: "warn", info: "" };
+  return h("table", {},
+    h("caption", {}, "Recent events (newest first)"),
+    h("thead", {}, h("tr", {}, ["Time", "Asset", "Severity", "Event"].map((c) => h("th", { scope: "col" }, c)))),
+    h("tbody", {}, rows.map((e) => h("tr", {},
+      h("td", {}, clock(new Date(e.ts).toISOString())), h("td", {}, name(e.asset_id)),
+      h("td", {}, badge(e.severity, tone[e.severity] || "")), h("td", {}, e.message || e.name)))));
+}
+
+let eventsLoaded = false; // the last hour's events are read once per sign-in; the socket adds the rest
+on("stopped", () => { eventsLoaded = false; trails.clear(); });
+
 export function render(main, ctx) {
   const uavs = ctx.assets.filter((a) => a.kind === "uav");
   const bases = ctx.assets.filter((a) => a.kind === "landing_base");
   const cards = new Map([...bases, ...uavs].map((a) => [a.id, card(ctx, a)]));
+  const events = h("div", { "aria-live": "polite" });
+  const showEvents = () => clear(events, eventsTable(ctx));
+  showEvents();
+  if (!eventsLoaded && ctx.assets.length) {
+    eventsLoaded = true;
+    const since = encodeURIComponent(new Date(Date.now() - 3600e3).toISOString());
+    Promise.all(ctx.assets.map((a) => get(`/assets/${a.id}/events?start=${since}`).catch(() => []))).then((lists) => {
+      const known = new Set(state.events.map((e) => `${e.asset_id}|${e.name}|${e.ts}`));
+      const stored = lists.flat().map((e) => ({ ...e, ts: Date.parse(e.ts) }))
+        .filter((e) => !known.has(`${e.asset_id}|${e.name}|${e.ts}`));
+      state.events = [...state.events, ...stored].sort((x, y) => y.ts - x.ts).slice(0, 50);
+      showEvents();
+    });
+  }
   clear(main,
     h("h1", {}, "Fleet"),
     ctx.assets.length ? null : h("p", {}, "This organisation has no assets yet."),
     h("div", { class: "fleet" },
       bases.length ? h("div", {}, h("h2", {}, "Landing bases"), h("div", { class: "stack-cards" }, bases.map((a) => cards.get(a.id).section))) : null,
       uavs.length ? h("div", {}, h("h2", {}, "UAVs"), h("div", { class: "stack-cards" }, uavs.map((a) => cards.get(a.id).section))) : null),
+    ctx.assets.length ? h("section", { "aria-labelledby": "events-title" }, h("h2", { id: "events-title" }, "Events"), events) : null,
   );
   for (const c of cards.values()) c.update();
   // what the socket has not brought yet: the newest stored sample and the last availability check
@@ -147,6 +173,19 @@ export function render(main, ctx) {
       }).catch(() => {});
     }
   }
+  // the mission of each UAV's unfinished run, drawn under its live track
+  const missions = async () => {
+    for (const u of uavs) {
+      const [run] = await get(`/runs?uav_id=${u.id}&limit=1`).catch(() => []);
+      const origin = originOf(ctx, u);
+      if (run && !["completed", "aborted", "failed"].includes(run.state) && origin) {
+        const m = await get(`/missions/${run.mission_id}`).catch(() => null);
+        if (m) flying.set(u.id, missionPoints(m, origin));
+      } else flying.delete(u.id);
+      cards.get(u.id).update();
+    }
+  };
+  missions();
   let pending = new Set();
   let frame = null;
   const offs = [
@@ -166,6 +205,8 @@ export function render(main, ctx) {
       frame = frame || requestAnimationFrame(() => { frame = null; for (const x of pending) x.update(); pending = new Set(); });
     }),
     on("availability", (id) => cards.get(id) && cards.get(id).update()),
+    on("event", showEvents),
+    on("run_progress", (p) => { if (p.state === "checking" || p.final) missions(); }),
     on("tick", () => { for (const c of cards.values()) c.update(); }),
   ];
   return () => { offs.forEach((f) => f()); if (frame) cancelAnimationFrame(frame); };

@@ -1,7 +1,7 @@
 // What a run's report and replay share: loading the run's stored telemetry and deriving series.
 
 import { get } from "./api.js";
-import { originOf } from "./fleet.js";
+import { originOf } from "./geo.js";
 import { metres } from "./ui.js";
 
 export async function loadFlight(ctx, runId) {

@@ -62,6 +62,7 @@ export function stop() {
   state.availability.clear();
   state.events = [];
   setLink("offline");
+  emit("stopped");
 }
 
 // the outcome of a check_availability (from a run's check or an operator's) is the base's go/no-go

@@ -2,9 +2,9 @@
 // named, a mission's items on the local map, and export.
 
 import { api, ApiError, get } from "./api.js";
-import { originOf } from "./fleet.js";
+import { missionPoints, originOf } from "./geo.js";
 import { trackMap } from "./plot.js";
-import { clear, h, metres, notify, num, when } from "./ui.js";
+import { clear, h, notify, num, when } from "./ui.js";
 
 const NAMES = {
   16: "WAYPOINT", 17: "LOITER_UNLIM", 18: "LOITER_TURNS", 19: "LOITER_TIME", 20: "RETURN_TO_LAUNCH",
@@ -14,14 +14,6 @@ const NAMES = {
   206: "DO_SET_CAM_TRIGG_DIST", 530: "SET_CAMERA_MODE", 2000: "IMAGE_START_CAPTURE", 2001: "IMAGE_STOP_CAPTURE",
   2500: "VIDEO_START_CAPTURE", 2501: "VIDEO_STOP_CAPTURE", 30: "CONTINUE_AND_CHANGE_ALT", 84: "NAV_VTOL_TAKEOFF", 85: "NAV_VTOL_LAND",
 };
-const POSITIONAL = new Set([16, 17, 18, 19, 21, 22, 82]);
-
-export function missionPoints(mission, origin) {
-  return mission.items
-    .filter((it) => POSITIONAL.has(it.command) && (it.lat || it.lon))
-    .map((it) => metres(origin, it.lat, it.lon));
-}
-
 async function download(mission, format) {
   const r = await api("GET", `/missions/${mission.id}/export?format=${format}`, undefined, { raw: true });
   const blob = await r.blob();

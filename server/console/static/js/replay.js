@@ -3,7 +3,7 @@
 
 import { get } from "./api.js";
 import { loadFlight } from "./flight.js";
-import { missionPoints } from "./missions.js";
+import { missionPoints } from "./geo.js";
 import { lineChart, trackMap } from "./plot.js";
 import { STEPS } from "./runs.js";
 import { clear, h, num } from "./ui.js";

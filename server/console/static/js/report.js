@@ -2,7 +2,7 @@
 // distance from the pad during the landing, and the flight track around the base.
 
 import { loadFlight, entered } from "./flight.js";
-import { missionPoints } from "./missions.js";
+import { missionPoints } from "./geo.js";
 import { lineChart, trackMap } from "./plot.js";
 import { stateBadge, stepList, timelineTable } from "./runs.js";
 import { clear, h, num, when } from "./ui.js";
