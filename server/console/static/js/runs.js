@@ -77,7 +77,7 @@ function runDetail(ctx, run, refresh) {
   return h("section", { class: "card", "aria-labelledby": "run-title" },
     h("h2", { id: "run-title" }, `Run of ${name(run.uav_id)} from ${name(run.base_id)}`),
     h("p", {}, stateBadge(run), " ", run.label || "", run.alert ? badge("ALERT: a person should look", "bad") : null),
-    run.reason ? h("p", { class: "reason" }, run.reason) : null,
+    run.reason ? h("p", { class: "reason" }, FINAL.has(run.state) ? "" : "Last step: ", run.reason) : null,
     stepList(run),
     abort ? h("div", { class: "actions" }, abort) : null,
     timelineTable(run),
