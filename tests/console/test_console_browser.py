@@ -303,6 +303,22 @@ async def test_the_console_reconnects_by_itself_after_a_server_restart_and_marks
                 await expect(page.locator("#link")).to_have_text("Live", timeout=30_000)
                 await expect(card).to_contain_text("connected", timeout=30_000)
                 assert await link.count() == 1
+                # on the restarted server, commands still go out and come back with their outcome
+                base = page.get_by_role("region", name=re.compile("^Landing base "))
+                for command, panels in (
+                    ("Open base", "open · 100 %"),
+                    ("Close base", "closed · 0 %"),
+                ):
+                    await base.get_by_role("button", name=re.compile(f"^{command}: ")).click()
+                    await (
+                        page.get_by_role("dialog", name=command)
+                        .get_by_role("button", name=command)
+                        .click()
+                    )
+                    outcome = base.get_by_role("status")
+                    await expect(outcome).to_contain_text(f"{command}: succeeded", timeout=60_000)
+                    await expect(base).to_contain_text(f"Panels{panels}")
+                assert p.world.base.contacts_seated  # closed over the UAV, which never moved
                 await page.context.close()
     finally:
         await asyncio.to_thread((restarted or server).stop)
@@ -333,7 +349,9 @@ async def test_a_member_of_two_organisations_chooses_one_and_is_told_when_anothe
     await expect(page.locator("#link")).to_have_text("Live")
     # another login takes the session over: the console says so, at once, without a click
     await asyncio.to_thread(login, api, email, Tenant.PASSWORD, force=True)
-    ended = page.get_by_role("alert").filter(has_text="Your session ended: another login took this session over.")
+    ended = page.get_by_role("alert").filter(
+        has_text="Your session ended: another login took this session over."
+    )
     await expect(ended).to_be_visible(timeout=10_000)
     await expect(page.get_by_role("heading", name="Sign in to Aerobase")).to_be_visible()
     await shot(page, "session-taken-over")
