@@ -357,3 +357,46 @@ async def test_a_member_of_two_organisations_chooses_one_and_is_told_when_anothe
     await shot(page, "session-taken-over")
     assert traffic.errors == [] and traffic.off_origin(live_server.url) == []
     await page.context.close()
+
+
+async def test_an_open_console_renews_its_session_before_it_expires(
+    database_url, superuser_email, browser
+):
+    import time
+
+    import httpx
+    from playwright.async_api import expect
+
+    from tests.conftest import LiveServer, test_settings
+
+    server = LiveServer(test_settings(database_url, session_ttl_s=60)).start()
+    try:
+        with httpx.Client(base_url=server.url) as sync_api:
+            tenant = await asyncio.to_thread(Tenant, sync_api, superuser_email, "renew")
+            tenant.create_asset("landing_base")
+        page, traffic = await open_page(browser, server.url + "/")
+        await sign_in(page, tenant.emails["operator"], Tenant.PASSWORD)
+        signed_in = time.monotonic()
+
+        first = await _stored_session(page)
+        await eventually(
+            lambda: _renewed(page, first), 60, "the console to renew its token before expiry"
+        )
+        # past the first token's 60 s lifetime the console still works, its socket live again
+        await eventually(lambda: time.monotonic() - signed_in > 62, 70, "the first expiry")
+        await page.get_by_role("link", name="Runs").click()
+        await expect(page.get_by_role("heading", name="Runs", exact=True)).to_be_visible()
+        await expect(page.get_by_role("heading", name="Sign in to Aerobase")).to_have_count(0)
+        await expect(page.locator("#link")).to_have_text("Live")
+        assert traffic.errors == []
+        await page.context.close()
+    finally:
+        await asyncio.to_thread(server.stop)
+
+
+async def _stored_session(page) -> str:  # type: ignore[no-untyped-def]
+    return str(await page.evaluate("sessionStorage.getItem('aerobase.session')"))
+
+
+async def _renewed(page, first: str) -> bool:  # type: ignore[no-untyped-def]
+    return await _stored_session(page) not in (first, "None")

@@ -51,7 +51,8 @@ export function signedOut(reason) {
 
 export async function api(method, path, body, { raw = false, contentType, headers = {} } = {}) {
   const init = { method, headers: { ...headers } };
-  if (token()) init.headers.Authorization = `Bearer ${token()}`;
+  const used = token();
+  if (used) init.headers.Authorization = `Bearer ${used}`;
   if (body !== undefined) {
     if (contentType) {
       init.headers["Content-Type"] = contentType;
@@ -74,9 +75,25 @@ export async function api(method, path, body, { raw = false, contentType, header
   }
   let error = { code: "error", message: r.statusText, details: null };
   try { error = (await r.json()).error || error; } catch (_) { /* not JSON */ }
-  if (r.status === 401 && path !== "/auth/login") signedOut(endedBecause(error));
+  if (r.status === 401 && path !== "/auth/login") {
+    // a request that left with the token a renewal has just replaced is sent again with the new one
+    await renewed();
+    if (token() && used !== token()) return api(method, path, body, { raw, contentType, headers });
+    signedOut(endedBecause(error));
+  }
   throw new ApiError(r.status, error.code, error.message, error.details);
 }
+
+// a new token for the same session before it expires; the server then closes the sockets opened
+// with the old token (4001), which reconnect with the new one once this has finished
+let renewal = null;
+export function renew() {
+  renewal = renewal || api("POST", "/auth/renew").then((r) => {
+    setSession({ ...session, token: r.access_token, expires_at: r.expires_at, issued_at: Date.now() });
+  }).finally(() => { renewal = null; });
+  return renewal;
+}
+export function renewed() { return renewal ? renewal.catch(() => {}) : Promise.resolve(); }
 
 export const get = (path) => api("GET", path);
 export const post = (path, body) => api("POST", path, body);

@@ -1,6 +1,6 @@
 // The console's shell: the session, the navigation between pages, the live-link indicator.
 
-import { api, ApiError, current, get, onSignedOut, setSession } from "./api.js";
+import { api, ApiError, current, get, onSignedOut, renew, setSession } from "./api.js";
 import { follow, on, state, stop } from "./live.js";
 import { clear, h, notify } from "./ui.js";
 
@@ -18,6 +18,18 @@ let ctx = null; // {me, assets, byId, canOperate}
 let cleanup = null;
 let signedOutReason = "";
 let keepAlive = null;
+let renewTimer = null;
+
+// renew when a quarter of the session's lifetime is left, so an open console never expires
+function scheduleRenewal() {
+  clearTimeout(renewTimer);
+  const s = current();
+  if (!s || !s.expires_at) return;
+  const end = Date.parse(s.expires_at);
+  const lifetime = end - (s.issued_at || Date.now());
+  const wait = Math.max(1000, end - lifetime / 4 - Date.now());
+  renewTimer = setTimeout(() => renew().then(scheduleRenewal, () => {}), Math.min(wait, 2 ** 31 - 1));
+}
 
 function route() {
   const [name, ...args] = location.hash.replace(/^#\/?/, "").split("/");
@@ -61,12 +73,14 @@ async function boot() {
   clearInterval(keepAlive);
   // a request a minute keeps an open console's session from idling out, and notices its end
   keepAlive = setInterval(() => get("/auth/me").catch(() => {}), 60000);
+  scheduleRenewal();
 }
 
 function reset() {
   ctx = null;
   stop();
   clearInterval(keepAlive);
+  clearTimeout(renewTimer);
   document.getElementById("nav").hidden = true;
   clear(document.getElementById("who"));
 }
@@ -127,7 +141,7 @@ function signInPage() {
     if (organization) body.organization_id = organization;
     try {
       const r = await api("POST", "/auth/login", body);
-      setSession({ token: r.access_token, expires_at: r.expires_at });
+      setSession({ token: r.access_token, expires_at: r.expires_at, issued_at: Date.now() });
       const me = await get("/auth/me");
       if (!organization && (me.memberships || []).length > 1) return chooseOrganisation(me);
       password.value = "";

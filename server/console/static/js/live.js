@@ -1,7 +1,7 @@
 // The /ws/operator socket: subscribe to the organisation's assets, keep the latest state of each,
 // reconnect by itself (server restart, a replica's death), and say when the data are stale.
 
-import { ENDED, get, signedOut, token } from "./api.js";
+import { ENDED, get, renewed, signedOut, token } from "./api.js";
 import { flatten } from "./ui.js";
 
 export const STALE_MS = 5000; // UAVs report at 5 Hz, bases at 1-5 Hz: 5 s of silence is stale
@@ -105,7 +105,8 @@ function open() {
     socket = null;
     if (e.code === 4001) {
       // ask why: the server's answer to the ended token names the reason (a take-over, a logout)
-      get("/auth/me").then(() => { if (wanted) open(); }, () => signedOut(ENDED.session_ended));
+      // (after our own renewal the new token answers, and the socket reopens with it)
+      renewed().then(() => get("/auth/me")).then(() => { if (wanted) open(); }, () => signedOut(ENDED.session_ended));
       return;
     }
     if (e.code === 4401) return signedOut(ENDED.unauthorized);
