@@ -171,7 +171,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         schedules_router,
     ):
         app.include_router(router)
-    app.include_router(console_router())
+    app.include_router(console_router(tile_url=settings.map_tile_url))
 
     # the caster's router exists before the lifespan builds the services: it reads them per request
     def services() -> Services:

@@ -9,8 +9,10 @@ No route here is in the OpenAPI document: the console is a client of the API, no
 from __future__ import annotations
 
 import hashlib
+import html
 from dataclasses import dataclass
 from pathlib import Path
+from urllib.parse import urlsplit
 
 from fastapi import APIRouter, Request, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
@@ -63,19 +65,29 @@ def _answer(request: Request, asset: Asset, cache: str, extra: dict[str, str]) -
     return Response(asset.body, media_type=asset.media_type, headers=headers)
 
 
-def console_router(root: Path = STATIC) -> APIRouter:
-    """The console's two routes over the files under `root`."""
+def _page_config(tile_url: str | None) -> tuple[bytes, str]:
+    """The page's settings (a <meta> the modules read) and the image sources its policy allows."""
+    if not tile_url:
+        return b"", "'self' data: blob:"
+    meta = f'<meta name="aerobase-map-tiles" content="{html.escape(tile_url)}">'.encode()
+    parts = urlsplit(tile_url)
+    origin = f"{parts.scheme}://{parts.netloc}" if parts.netloc else ""
+    return meta, " ".join(x for x in ("'self' data: blob:", origin) if x)
+
+
+def console_router(root: Path = STATIC, tile_url: str | None = None) -> APIRouter:
+    """The console's two routes over the files under `root`; `tile_url`: the map's tiles."""
     digest, files = load(root)
     base = f"/console/{digest}"
     index = files["index.html"]
-    page = Asset(
-        index.body.replace(b"{{ASSETS}}", base.encode()),
-        index.media_type,
-        '"' + digest + index.etag.strip('"')[:8] + '"',
-    )
+    meta, images = _page_config(tile_url)
+    body = index.body.replace(b"{{ASSETS}}", base.encode()).replace(b"{{CONFIG}}", meta)
+    page = Asset(body, index.media_type, '"' + hashlib.sha256(body).hexdigest()[:20] + '"')
     router = APIRouter(include_in_schema=False)
     security = {
-        "Content-Security-Policy": POLICY,
+        "Content-Security-Policy": POLICY.replace(
+            "img-src 'self' data: blob:", f"img-src {images}"
+        ),
         "X-Content-Type-Options": "nosniff",
         "Referrer-Policy": "no-referrer",
     }

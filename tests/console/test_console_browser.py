@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import math
 import re
 from datetime import UTC, datetime, timedelta
 
@@ -400,3 +401,59 @@ async def _stored_session(page) -> str:  # type: ignore[no-untyped-def]
 
 async def _renewed(page, first: str) -> bool:  # type: ignore[no-untyped-def]
     return await _stored_session(page) not in (first, "None")
+
+
+async def test_the_map_draws_the_sites_tiles_when_a_tile_server_is_set(
+    database_url, superuser_email, browser
+):
+    import threading
+    from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+
+    import httpx
+    from playwright.async_api import expect
+
+    from tests.conftest import LiveServer, test_settings
+
+    asked: list[str] = []
+
+    class Tiles(BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            asked.append(self.path)
+            body = b'<svg xmlns="http://www.w3.org/2000/svg" width="256" height="256"/>'
+            self.send_response(200)
+            self.send_header("Content-Type", "image/svg+xml")
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *args: object) -> None:
+            pass
+
+    tile_server = ThreadingHTTPServer(("127.0.0.1", 0), Tiles)
+    threading.Thread(target=tile_server.serve_forever, daemon=True).start()
+    template = f"http://127.0.0.1:{tile_server.server_port}/{{z}}/{{x}}/{{y}}.svg"
+    server = LiveServer(test_settings(database_url, map_tile_url=template)).start()
+    try:
+        with httpx.Client(base_url=server.url) as sync_api:
+            tenant = await asyncio.to_thread(Tenant, sync_api, superuser_email, "tiles")
+            site = {"latitude": 41.178, "longitude": -8.598}
+            base = tenant.create_asset("landing_base", attributes=site)
+            uav = tenant.create_asset("uav", base_id=base["id"])
+        page, traffic = await open_page(browser, server.url + "/")
+        await sign_in(page, tenant.emails["operator"], Tenant.PASSWORD)
+        live_map = page.get_by_role("img", name=re.compile(f"^Live track of {uav['name']}"))
+        await expect(live_map).to_be_visible()
+        assert await live_map.locator("image").count() >= 1
+        await eventually(lambda: asked, 10, "the page to ask the tile server for tiles")
+        z = int(asked[0].strip("/").split("/")[0])
+        assert 15 <= z <= 19, asked  # a site-sized map: a few hundred metres across
+        # among the tiles: the one holding the base (web mercator of 41.178 N, 8.598 W)
+        n, lat = 2**z, math.radians(41.178)
+        x = int((-8.598 + 180) / 360 * n)
+        y = int((1 - math.log(math.tan(lat) + 1 / math.cos(lat)) / math.pi) / 2 * n)
+        assert f"/{z}/{x}/{y}.svg" in asked, asked
+        assert traffic.errors == []
+        await page.context.close()
+    finally:
+        await asyncio.to_thread(server.stop)
+        tile_server.shutdown()

@@ -61,3 +61,41 @@ def test_unknown_files_and_api_paths_keep_their_json_404(api: httpx.Client):
     paths = api.get("/api/openapi.json").json()["paths"]
     assert "/" not in paths and not any(p.startswith("/console") for p in paths)
     assert api.get("/api/docs").status_code == 200
+
+
+def test_a_tile_server_is_named_to_the_page_and_allowed_by_its_policy_only_when_set():
+    import pytest
+    from fastapi import FastAPI
+    from fastapi.testclient import TestClient
+    from pydantic import ValidationError
+
+    from server.config import Settings
+    from server.console.endpoints import console_router
+
+    def page(tile_url: str | None) -> httpx.Response:
+        app = FastAPI()
+        app.include_router(console_router(tile_url=tile_url))
+        return TestClient(app).get("/")
+
+    plain = page(None)
+    assert "aerobase-map-tiles" not in plain.text
+    assert "img-src 'self' data: blob:;" in plain.headers["content-security-policy"]
+    tiled = page("https://tiles.example.org/osm/{z}/{x}/{y}.png")
+    assert (
+        '<meta name="aerobase-map-tiles" content="https://tiles.example.org/osm/{z}/{x}/{y}.png">'
+        in tiled.text
+    )
+    policy = tiled.headers["content-security-policy"]
+    assert "img-src 'self' data: blob: https://tiles.example.org;" in policy
+    assert "connect-src 'self';" in policy  # tiles are images, nothing else may go there
+    assert tiled.headers["etag"] != plain.headers["etag"]
+    for bad in (
+        "ftp://t/{z}/{x}/{y}",
+        "//t/{z}/{x}/{y}",
+        "https://t/{z}/{x}",
+        'https://t/"{z}{x}{y}',
+    ):
+        with pytest.raises(ValidationError):
+            Settings(map_tile_url=bad)
+    assert Settings(map_tile_url="").map_tile_url is None
+    assert Settings(map_tile_url="/tiles/{z}/{x}/{y}.png").map_tile_url == "/tiles/{z}/{x}/{y}.png"

@@ -107,7 +107,7 @@ function card(ctx, asset) {
       const here = origin && v["position.lat"] !== undefined ? metres(origin, v["position.lat"], v["position.lon"]) : null;
       clear(mapBox, origin
         ? h("figure", {}, h("figcaption", {}, flying.has(asset.id) ? "Live track and the current run's mission (dashed), metres around the base" : "Live track, metres around the base"),
-          trackMap({ title: `Live track of ${asset.name}`, track: trail, uav: here, mission: flying.get(asset.id) || [] }))
+          trackMap({ title: `Live track of ${asset.name}`, track: trail, uav: here, mission: flying.get(asset.id) || [], geo: origin }))
         : h("p", { class: "muted" }, "No map: the base's position (attributes latitude, longitude) is unknown."));
     }
   };

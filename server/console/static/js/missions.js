@@ -83,7 +83,7 @@ function detail(ctx, m) {
       h("button", { type: "button", "aria-label": `Export ${m.name} as a QGroundControl plan`, onclick: () => download(m, "qgc") }, "Export .plan"),
       h("button", { type: "button", "aria-label": `Export ${m.name} as a waypoint file`, onclick: () => download(m, "wpl") }, "Export waypoints")),
     origin ? h("figure", {}, h("figcaption", {}, m.home ? "The mission in metres around its home" : "The mission in metres around the base"),
-      trackMap({ title: `Mission ${m.name}`, mission: missionPoints(m, origin) })) : null,
+      trackMap({ title: `Mission ${m.name}`, mission: missionPoints(m, origin), geo: origin })) : null,
     h("table", {},
       h("caption", {}, "Items"),
       h("thead", {}, h("tr", {}, ["#", "Command", "Frame", "Latitude", "Longitude", "Altitude"].map((c) => h("th", { scope: "col" }, c)))),

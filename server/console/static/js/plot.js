@@ -63,8 +63,50 @@ export function lineChart({ title, unit, points, t0, t1, cursor = null, marks = 
   return svg;
 }
 
-// track, mission: [{north, east}] in metres from the base at (0, 0); uav: {north, east} or null
-export function trackMap({ title, track = [], mission = [], uav = null, minSpan = 60 }) {
+const TILES = document.querySelector('meta[name="aerobase-map-tiles"]');
+const TILE_URL = TILES ? TILES.getAttribute("content") : null;
+const R = 6371008.8;
+
+function toLatLon(geo, north, east) {
+  const lat = geo.lat + (north / R) * 180 / Math.PI;
+  const lon = geo.lon + (east / (R * Math.cos(geo.lat * Math.PI / 180))) * 180 / Math.PI;
+  return { lat, lon };
+}
+
+// the site's map tiles (AEROBASE_MAP_TILE_URL, web mercator) under a square of `span` metres
+function tiles(geo, span, X, Y, W) {
+  const group = s("g", { class: "tiles", "aria-hidden": "true" });
+  const perPixel = span / W; // metres per drawn unit; tiles are 256 px
+  const z = Math.max(0, Math.min(19, Math.round(Math.log2((156543.03 * Math.cos(geo.lat * Math.PI / 180)) / perPixel))));
+  const n = 2 ** z;
+  const tx = (lon) => Math.floor(((lon + 180) / 360) * n);
+  const ty = (lat) => {
+    const r = lat * Math.PI / 180;
+    return Math.floor(((1 - Math.log(Math.tan(r) + 1 / Math.cos(r)) / Math.PI) / 2) * n);
+  };
+  const lonOf = (x) => (x / n) * 360 - 180;
+  const latOf = (y) => Math.atan(Math.sinh(Math.PI * (1 - (2 * y) / n))) * 180 / Math.PI;
+  const nw = toLatLon(geo, span / 2, -span / 2), se = toLatLon(geo, -span / 2, span / 2);
+  const [x0, x1, y0, y1] = [tx(nw.lon), tx(se.lon), ty(nw.lat), ty(se.lat)];
+  if ((x1 - x0 + 1) * (y1 - y0 + 1) > 64) return group;
+  const m = (lat, lon) => {
+    const north = ((lat - geo.lat) * Math.PI / 180) * R;
+    const east = ((lon - geo.lon) * Math.PI / 180) * R * Math.cos(geo.lat * Math.PI / 180);
+    return { north, east };
+  };
+  for (let x = x0; x <= x1; x++) {
+    for (let y = y0; y <= y1; y++) {
+      const a = m(latOf(y), lonOf(x)), b = m(latOf(y + 1), lonOf(x + 1));
+      const href = TILE_URL.replace("{z}", z).replace("{x}", x).replace("{y}", y);
+      group.append(s("image", { href, x: X(a), y: Y(a), width: X(b) - X(a), height: Y(b) - Y(a), preserveAspectRatio: "none" }));
+    }
+  }
+  return group;
+}
+
+// track, mission: [{north, east}] in metres from the base at (0, 0); uav: {north, east} or null;
+// geo: the base's {lat, lon}, for the site's map tiles when the server names a tile URL
+export function trackMap({ title, track = [], mission = [], uav = null, minSpan = 60, geo = null }) {
   const W = 420, M = 28;
   const all = [{ north: 0, east: 0 }, ...track, ...mission, ...(uav ? [uav] : [])];
   const span = Math.max(minSpan, ...all.map((p) => Math.max(Math.abs(p.north), Math.abs(p.east)) * 2.2));
@@ -72,6 +114,14 @@ export function trackMap({ title, track = [], mission = [], uav = null, minSpan 
   const cx = W / 2, cy = W / 2;
   const X = (p) => cx + p.east * scale, Y = (p) => cy - p.north * scale;
   const svg = s("svg", { viewBox: `0 0 ${W} ${W}`, class: "plot", role: "img" });
+  if (TILE_URL && geo) {
+    const clip = `clip-${Math.random().toString(36).slice(2)}`;
+    svg.append(s("clipPath", { id: clip }, undefined));
+    svg.lastChild.append(s("rect", { x: M, y: M, width: W - 2 * M, height: W - 2 * M }));
+    const layer = tiles(geo, span, X, Y, W - 2 * M);
+    layer.setAttribute("clip-path", `url(#${clip})`);
+    svg.append(layer);
+  }
   const step = niceStep(span, 6);
   for (let m = -Math.floor(span / 2 / step) * step; m <= span / 2; m += step) {
     svg.append(s("line", { x1: M, x2: W - M, y1: cy - m * scale, y2: cy - m * scale, class: "gridl" }));

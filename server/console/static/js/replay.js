@@ -40,7 +40,7 @@ export function render(main, ctx, args) {
       readout.textContent = `${Number(slider.value).toFixed(1)} s into the run`;
       const shown = track.filter((x) => x.t <= t);
       clear(view,
-        h("div", {}, f.origin ? trackMap({ title: "Track until this moment", track: shown, mission, uav: p && Number.isFinite(p.north) ? p : null }) : null),
+        h("div", {}, f.origin ? trackMap({ title: "Track until this moment", track: shown, mission, uav: p && Number.isFinite(p.north) ? p : null, geo: f.origin }) : null),
         h("div", {},
           h("dl", { class: "kv", "aria-label": "State at this moment" },
             h("dt", {}, "Run step"), h("dd", {}, s ? `${s.to_state}${label[s.to_state] ? ` — ${label[s.to_state]}` : ""}` : "pending"),

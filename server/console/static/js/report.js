@@ -43,7 +43,7 @@ export function render(main, ctx, args) {
         figure(`Horizontal distance from the pad while landing (m)${report.landing_error_m !== null ? `; measured at touchdown ${num(report.landing_error_m, 3, "m")}` : ""}`,
           lineChart({ title: "Landing error", unit: "m", points: nearPad })),
         f.origin ? figure("Flight track, metres around the base (mission dashed)",
-          trackMap({ title: "Flight track", track, mission: f.mission ? missionPoints(f.mission, f.origin) : [] })) : null),
+          trackMap({ title: "Flight track", track, mission: f.mission ? missionPoints(f.mission, f.origin) : [], geo: f.origin })) : null),
       timelineTable(run));
   })().catch((err) => clear(box, h("p", { role: "alert", class: "error" }, `The report could not be loaded: ${err.message}`)));
 }
