@@ -197,8 +197,8 @@ async def test_abort_in_flight_from_the_page_while_a_viewer_sees_no_controls_and
 ):
     from playwright.async_api import expect
 
-    # at 3x the mission lasts long enough for a person (and a browser) to abort it in the air
-    async with platform(live_server.url, tenant, tmp_path, speed=3.0) as p:
+    # at 2x the square lasts ~10 s wall: time for a browser (and a person) to abort it in the air
+    async with platform(live_server.url, tenant, tmp_path, speed=2.0) as p:
         uav = (await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}", headers=tenant.h())).json()
         r = await p.api.post("/api/v1/runs", json=p.ids, headers=tenant.h("admin"))
         assert r.status_code == 201, r.text
