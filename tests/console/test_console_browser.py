@@ -8,6 +8,7 @@ import json
 import math
 import re
 from datetime import UTC, datetime, timedelta
+from pathlib import Path
 
 import pytest
 
@@ -98,6 +99,13 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
         await page.get_by_role("link", name="Open mission pad square").click()
         await expect(page.get_by_role("img", name=re.compile("Mission pad square"))).to_be_visible()
         await shot(page, "missions")
+        async with page.expect_download() as download:
+            await page.get_by_role(
+                "button", name="Export pad square as a QGroundControl plan"
+            ).click()
+        saved = await (await download.value).path()
+        exported = json.loads(await asyncio.to_thread(Path(saved).read_text))
+        assert exported["fileType"] == "Plan" and len(exported["mission"]["items"]) == 5
 
         # schedule a one-shot run a few seconds ahead, from the mission
         await page.get_by_role("link", name="Runs").click()
@@ -149,6 +157,26 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
             "charging → completed"
         )
         assert await steps.locator('[aria-current="step"]').count() == 0
+
+        # schedules: a cron in a time zone; one that never fires is refused with the server's reason
+        await page.get_by_label("When", exact=True).select_option("cron")
+        await page.get_by_label("Schedule name").fill("dawn patrol")
+        await page.get_by_label("Cron (minute hour day month weekday)").fill("0 0 31 2 *")
+        await page.get_by_label("Time zone (IANA)").fill("Europe/Lisbon")
+        await page.get_by_role("button", name="Start or schedule").click()
+        form = page.get_by_role("form", name="Start or schedule a run")
+        await expect(form.get_by_role("alert")).to_contain_text("never fires")
+        await page.get_by_label("Cron (minute hour day month weekday)").fill("0 6 * * *")
+        await page.get_by_role("button", name="Start or schedule").click()
+        schedules = page.get_by_role("table", name="Schedules")
+        await expect(schedules).to_contain_text("cron 0 6 * * * (Europe/Lisbon)")
+        await schedules.get_by_role("button", name="Delete schedule dawn patrol").click()
+        await (
+            page.get_by_role("dialog", name="Delete the schedule")
+            .get_by_role("button", name="Delete")
+            .click()
+        )
+        await expect(schedules).not_to_contain_text("dawn patrol")
 
         # its report: figures and the five plots, drawn from the stored telemetry
         await detail.get_by_role("link", name="Open the run report").click()
