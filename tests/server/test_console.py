@@ -63,24 +63,25 @@ def test_unknown_files_and_api_paths_keep_their_json_404(api: httpx.Client):
     assert api.get("/api/docs").status_code == 200
 
 
-def test_a_tile_server_is_named_to_the_page_and_allowed_by_its_policy_only_when_set():
+async def test_a_tile_server_is_named_to_the_page_and_allowed_by_its_policy_only_when_set():
     import pytest
     from fastapi import FastAPI
-    from fastapi.testclient import TestClient
     from pydantic import ValidationError
 
     from server.config import Settings
     from server.console.endpoints import console_router
 
-    def page(tile_url: str | None) -> httpx.Response:
+    async def page(tile_url: str | None) -> httpx.Response:
         app = FastAPI()
         app.include_router(console_router(tile_url=tile_url))
-        return TestClient(app).get("/")
+        transport = httpx.ASGITransport(app=app)
+        async with httpx.AsyncClient(transport=transport, base_url="http://console") as client:
+            return await client.get("/")
 
-    plain = page(None)
+    plain = await page(None)
     assert "aerobase-map-tiles" not in plain.text
     assert "img-src 'self' data: blob:;" in plain.headers["content-security-policy"]
-    tiled = page("https://tiles.example.org/osm/{z}/{x}/{y}.png")
+    tiled = await page("https://tiles.example.org/osm/{z}/{x}/{y}.png")
     assert (
         '<meta name="aerobase-map-tiles" content="https://tiles.example.org/osm/{z}/{x}/{y}.png">'
         in tiled.text
