@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # System packages the tests run as real programs: nginx (the reverse proxy of the deployment
-# topology) and docker-compose (validates docker-compose.yml; no image is pulled). Idempotent.
+# topology), docker-compose (validates docker-compose.yml; no image is pulled) and chromium (the
+# console's browser tests drive Debian's headless Chromium; no browser is downloaded). Idempotent.
 set -euo pipefail
 need=()
 command -v nginx >/dev/null 2>&1 || [ -x /usr/sbin/nginx ] || need+=(nginx)
 command -v docker-compose >/dev/null 2>&1 || need+=(docker-compose)
+[ -x /usr/bin/chromium ] || need+=(chromium)
 if [ ${#need[@]} -eq 0 ]; then
     echo "system packages already installed"
     exit 0

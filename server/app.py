@@ -18,6 +18,7 @@ from server.audit.endpoints import router as audit_router
 from server.auth.endpoints import router as auth_router
 from server.commands.endpoints import router as commands_router
 from server.config import Settings
+from server.console.endpoints import console_router
 from server.deps import services_of, set_services
 from server.health import router as health_router
 from server.kit import metrics, openapi
@@ -171,6 +172,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         schedules_router,
     ):
         app.include_router(router)
+    app.include_router(console_router(tile_url=settings.map_tile_url))
 
     openapi.install(app, api_fields.FIELDS, api_fields.OVERRIDES)
 

@@ -38,6 +38,10 @@ class Settings(BaseSettings):
     # browsers' origins allowed to call the API (CORS), e.g. "https://ops.example.com,http://localhost:5173";
     # empty: no cross-origin browser access (same-origin front-ends and non-browser clients need none)
     cors_origins: Annotated[list[str], NoDecode] = Field(default_factory=list)
+    # the console's map: a slippy-map tile URL template with {z}, {x}, {y} for sites that have a tile
+    # server (e.g. "https://tiles.example.com/{z}/{x}/{y}.png" or a same-origin "/tiles/{z}/{x}/{y}.png");
+    # unset: the map is drawn in metres around the base with no tiles and no request leaves the origin
+    map_tile_url: str | None = None
     # request bodies over these sizes are refused with 413 before they are read
     max_body_bytes: int = Field(default=1024 * 1024, ge=1024)
     max_import_bytes: int = Field(default=5 * 1024 * 1024, ge=1024)
@@ -106,6 +110,21 @@ class Settings(BaseSettings):
             value = [v for v in (part.strip() for part in value.split(",")) if v]
         if isinstance(value, list):
             return [v.rstrip("/") if isinstance(v, str) and v != "*" else v for v in value]
+        return value
+
+    @field_validator("map_tile_url")
+    @classmethod
+    def _tile_template(cls, value: str | None) -> str | None:
+        """An http(s) URL or a same-origin path holding {z}, {x} and {y}; empty means none."""
+        if not value:
+            return None
+        if not value.startswith(("https://", "http://", "/")) or value.startswith("//"):
+            raise ValueError("map_tile_url must be an http(s):// URL or a path starting with /")
+        missing = [k for k in ("{z}", "{x}", "{y}") if k not in value]
+        if missing or any(c in value for c in '"<> '):
+            raise ValueError(
+                f"map_tile_url needs {{z}}, {{x}} and {{y}} and no quotes or spaces: {value!r}"
+            )
         return value
 
     @model_validator(mode="after")
