@@ -34,6 +34,7 @@ from asset_agent.autopilot.link import MavlinkLink
 from asset_agent.autopilot.setpoints import SetpointsMixin
 from asset_agent.autopilot.state import Notification, UavState
 from asset_agent.autopilot.streams import StreamKeeper, keep
+from asynckit.roundtrips import RoundTrips
 from asynckit.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
@@ -105,6 +106,7 @@ class Autopilot(ActionsMixin, SetpointsMixin):
         self.extended_state_seen = False  # EXTENDED_SYS_STATE arrived: no landed-state inference
         self._booted_at: float | None = None  # monotonic time the autopilot booted
         self.reboots = 0
+        self.round_trips = RoundTrips()  # COMMAND_LONG sent -> its final COMMAND_ACK
 
     # --- life cycle ------------------------------------------------------------------------
     async def start(self) -> None:
@@ -316,7 +318,8 @@ class Autopilot(ActionsMixin, SetpointsMixin):
             with self.tap(lambda m: self._ack_for_us(m, command)) as acks:
                 for confirmation in range(retries + 1):
                     self._link.send(partial(self._command_long, command, confirmation, p))
-                    deadline = time.monotonic() + timeout
+                    sent_at = time.monotonic()
+                    deadline = sent_at + timeout
                     while (left := deadline - time.monotonic()) > 0:
                         try:
                             ack = await asyncio.wait_for(acks.get(), left)
@@ -325,6 +328,7 @@ class Autopilot(ActionsMixin, SetpointsMixin):
                         if ack.result == MAV_RESULT_IN_PROGRESS:
                             deadline = time.monotonic() + timeout
                             continue
+                        self.round_trips.observe(time.monotonic() - sent_at)
                         if ack.result != MAV_RESULT_ACCEPTED:
                             raise CommandRejected(command, ack.result, self._reason_since(mark))
                         return ack.result

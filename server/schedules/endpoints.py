@@ -7,7 +7,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, Query, Response
 
-from server.deps import Operator, UoW, Viewer
+from server.deps import Operator, SettingsDep, UoW, Viewer
 from server.schedules.schemas import ScheduleCreate, ScheduleOut, ScheduleUpdate
 from server.schedules.service import ScheduleService
 
@@ -18,8 +18,8 @@ def _service(uow: UoW, principal: Viewer) -> ScheduleService:
     return ScheduleService(uow, principal)
 
 
-def _operator_service(uow: UoW, principal: Operator) -> ScheduleService:
-    return ScheduleService(uow, principal)
+def _operator_service(uow: UoW, principal: Operator, settings: SettingsDep) -> ScheduleService:
+    return ScheduleService(uow, principal, settings.schedule_min_interval_s)
 
 
 Schedules = Annotated[ScheduleService, Depends(_service)]

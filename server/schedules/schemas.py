@@ -21,7 +21,12 @@ class ScheduleCreate(BaseModel):
     base_id: uuid.UUID
     kind: Literal["once", "interval", "cron"]
     at: datetime | None = None
-    interval_s: int | None = Field(default=None, ge=60, le=366 * 86400)
+    interval_s: int | None = Field(
+        default=None,
+        ge=1,
+        le=366 * 86400,
+        description="seconds; at least the server's AEROBASE_SCHEDULE_MIN_INTERVAL_S (60 by default)",
+    )
     cron: str | None = Field(default=None, max_length=120)
     timezone: str = Field(default="UTC", max_length=64)
     missed_policy: Literal["skip", "run_once"] = "skip"
