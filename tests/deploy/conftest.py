@@ -1,8 +1,10 @@
-"""What the deployment tests share: a PostgreSQL database of each test's own."""
+"""What the deployment tests share: a PostgreSQL database of each test's own, and the programs
+the deployment runs (installed by .ci/install-system.sh)."""
 
 from __future__ import annotations
 
 import asyncio
+import shutil
 import uuid
 from collections.abc import AsyncIterator
 
@@ -14,9 +16,20 @@ from server import migrate
 from server.kit.db import make_engine, make_sessionmaker
 from server.kit.security import Passwords
 from server.organizations.service import create_user
-from tests.conftest import PG_URL_DEFAULT, SUPERUSER_PASSWORD, need_service
+from tests.conftest import IN_CI, PG_URL_DEFAULT, SUPERUSER_PASSWORD, need_service
 
 ROOT_EMAIL = "root@deploy.test"
+
+
+def program(name: str, package: str) -> str:
+    """The path of a program from a Debian package; missing, it fails in CI and skips elsewhere."""
+    found = shutil.which(name) or shutil.which(name, path="/usr/sbin:/sbin")
+    if found is None:
+        message = f"{name} is not installed (Debian's {package} package)"
+        if IN_CI:
+            pytest.fail(f"{message}; CI=true: .ci/install-system.sh installs it")
+        pytest.skip(f"{message}; in CI this fails instead")
+    return found
 
 
 @pytest.fixture
