@@ -21,6 +21,7 @@ import argparse
 import asyncio
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -169,12 +170,17 @@ async def bench(args: argparse.Namespace) -> dict[str, Any]:
     root = prepare(database_url)
     payloads = Payloads(args.assets)
     runs: dict[int, list[dict[str, Any]]] = {1: [], 2: []}
-    with tempfile.TemporaryDirectory(prefix="aerobase-scale-") as tmp:
+    tmp = tempfile.mkdtemp(prefix="aerobase-scale-")
+    try:
         for k in range(args.repeat):
             for count in (1, 2):
                 progress(f"run {k + 1}/{args.repeat}, {count} replica(s); {pressure()}")
                 folder = Path(tempfile.mkdtemp(prefix=f"run-{k}-{count}-", dir=tmp))
                 runs[count].append(await one_run(args, database_url, root, count, folder, payloads))
+    except BaseException:
+        progress(f"the servers' and nginx's logs are kept in {tmp}")
+        raise
+    shutil.rmtree(tmp, ignore_errors=True)
     one, two = medians(runs[1]), medians(runs[2])
     ratio = {
         key: None if one[key] in (None, 0) or two[key] is None else round(two[key] / one[key], 2)

@@ -188,3 +188,34 @@ async def test_a_presence_key_that_lapsed_is_claimed_again_by_the_live_connectio
     finally:
         await link.stop()
         await r.aclose()
+
+
+async def test_the_redis_broker_takes_more_concurrent_publishes_than_its_pool_has_connections():
+    """Every asset session publishes each message: 200 UAVs at 10 Hz put well over 100 publishes
+    in flight at once, which redis-py's default pool refused ("Too many connections"), failing
+    the sockets (bench/scale.py through nginx). Callers now wait for a connection."""
+    from server.realtime.broker import POOL_SIZE, RedisBroker
+    from tests.conftest import need_service
+
+    need_service("Redis", "127.0.0.1", 6379)
+    broker = RedisBroker(REDIS_URL, prefix=f"pool-{uuid.uuid4().hex[:8]}:")
+    await broker.start()
+    received: list[dict] = []  # type: ignore[type-arg]
+    broker.subscribe("flood", received.append)
+    try:
+
+        async def echoed() -> bool:  # the subscription is made by a task of its own
+            await broker.publish("flood", {"probe": True})
+            return bool(received)
+
+        await eventually(echoed, 5, "the subscription in place", interval=0.05)
+        count = 4 * POOL_SIZE
+        await asyncio.gather(*(broker.publish("flood", {"n": n}) for n in range(count)))
+
+        def numbered() -> list[int]:
+            return sorted(m["n"] for m in received if "n" in m)
+
+        await eventually(lambda: len(numbered()) >= count, 10, "every message back")
+        assert numbered() == list(range(count))
+    finally:
+        await broker.close()
