@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from asset_agent.autopilot import Autopilot, AutopilotConfig
-from asset_agent.autopilot.client import DEFAULT_STREAMS
+from asset_agent.autopilot.config import DEFAULT_STREAMS
 from asset_agent.availability import AvailabilityLimits
 from asset_agent.config import AgentConfig
 from asset_agent.events import EventLimits, EventTracker
