@@ -1,12 +1,15 @@
 #!/usr/bin/env bash
 # System packages the tests run as real programs: nginx (the reverse proxy of the deployment
-# topology), docker-compose (validates docker-compose.yml; no image is pulled) and chromium (the
-# console's browser tests drive Debian's headless Chromium; no browser is downloaded). Idempotent.
+# topology), docker-compose (validates docker-compose.yml; no image is pulled), chromium (the
+# console's browser tests drive Debian's headless Chromium; no browser is downloaded), janus and
+# coturn (the media services, started with the very configuration files compose mounts). Idempotent.
 set -euo pipefail
 need=()
 command -v nginx >/dev/null 2>&1 || [ -x /usr/sbin/nginx ] || need+=(nginx)
 command -v docker-compose >/dev/null 2>&1 || need+=(docker-compose)
 [ -x /usr/bin/chromium ] || need+=(chromium)
+command -v janus >/dev/null 2>&1 || need+=(janus)
+command -v turnserver >/dev/null 2>&1 || need+=(coturn)
 if [ ${#need[@]} -eq 0 ]; then
     echo "system packages already installed"
     exit 0
@@ -18,8 +21,9 @@ $SUDO apt-get update
 $SUDO apt-get install -y "${need[@]}"
 # the package's own nginx service would hold port 80 for nothing: the tests start their own
 if command -v systemctl >/dev/null 2>&1 && [ -d /run/systemd/system ]; then
-    $SUDO systemctl disable --now nginx >/dev/null 2>&1 || true
+    $SUDO systemctl disable --now nginx coturn >/dev/null 2>&1 || true
 elif command -v service >/dev/null 2>&1; then
     $SUDO service nginx stop >/dev/null 2>&1 || true
+    $SUDO service coturn stop >/dev/null 2>&1 || true
 fi
 echo "installed: ${need[*]}"

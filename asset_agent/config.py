@@ -83,6 +83,15 @@ class PreclandSection(PrecisionLandingConfig):
         )
 
 
+class MetricsSection(BaseModel):
+    """The agent's own Prometheus /metrics (assetlink/metrics.py): off unless a port is set;
+    on this machine only unless `host` says otherwise."""
+
+    model_config = ConfigDict(extra="forbid")
+    port: int = Field(default=0, ge=0, le=65535)  # e.g. 9102
+    host: str = "127.0.0.1"
+
+
 class AgentConfig(BaseModel):
     """All of agent.toml."""
 
@@ -92,6 +101,7 @@ class AgentConfig(BaseModel):
     telemetry: TelemetrySection = TelemetrySection()
     availability: AvailabilitySection = AvailabilitySection()
     precland: PreclandSection = PreclandSection()
+    metrics: MetricsSection = MetricsSection()
 
     @classmethod
     def load(cls, path: str | Path) -> AgentConfig:

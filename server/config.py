@@ -82,6 +82,10 @@ class Settings(BaseSettings):
     schedule_grace_s: float = Field(
         default=60.0, ge=0, description="a due time later than this is 'missed'"
     )
+    # the shortest `interval_s` a schedule may have; a flight every minute is already a lot, so
+    # lower it only to exercise the scheduler (tests/deploy/test_schedule_replicas.py fires 20
+    # due times 4 s apart on two replicas)
+    schedule_min_interval_s: int = Field(default=60, ge=1, le=86400)
 
     # mission validation limits
     mission_min_alt_m: float = Field(default=2.0, ge=0)

@@ -7,7 +7,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, Query, Response
 
-from server.deps import Operator, UoW, Viewer
+from server.deps import Operator, SettingsDep, UoW, Viewer
 from server.kit.errors import NotFound
 from server.kit.openapi import errors
 from server.schedules.schemas import ScheduleCreate, ScheduleOut, ScheduleUpdate
@@ -20,8 +20,8 @@ def _service(uow: UoW, principal: Viewer) -> ScheduleService:
     return ScheduleService(uow, principal)
 
 
-def _operator_service(uow: UoW, principal: Operator) -> ScheduleService:
-    return ScheduleService(uow, principal)
+def _operator_service(uow: UoW, principal: Operator, settings: SettingsDep) -> ScheduleService:
+    return ScheduleService(uow, principal, settings.schedule_min_interval_s)
 
 
 Schedules = Annotated[ScheduleService, Depends(_service)]

@@ -37,7 +37,12 @@ class ScheduleCreate(BaseModel):
     base_id: uuid.UUID
     kind: ScheduleKind
     at: datetime | None = None
-    interval_s: int | None = Field(default=None, ge=60, le=366 * 86400)
+    interval_s: int | None = Field(
+        default=None,
+        ge=1,
+        le=366 * 86400,
+        description="seconds; at least the server's AEROBASE_SCHEDULE_MIN_INTERVAL_S (60 by default)",
+    )
     cron: str | None = Field(default=None, max_length=120)
     timezone: str = Field(default="UTC", max_length=64)
     missed_policy: MissedPolicy = MissedPolicy.skip

@@ -17,6 +17,7 @@ from server.kit.periodic import Periodic
 from server.kit.principal import Principal, Role
 from server.kit.service import Service
 from server.kit.time import utcnow
+from server.kit.uow import UnitOfWork
 from server.missions.repository import MissionRepository
 from server.runs.repository import RunRepository
 from server.runs.service import create_run
@@ -47,6 +48,11 @@ def advance_schedule(s: Schedule, after: Any) -> None:
 class ScheduleService(Service):
     """Schedules of the caller's organisation."""
 
+    def __init__(self, uow: UnitOfWork, principal: Principal, min_interval_s: int = 60) -> None:
+        """`min_interval_s`: the shortest interval a schedule may have (a setting)."""
+        super().__init__(uow, principal)
+        self.min_interval_s = min_interval_s
+
     async def create(self, body: ScheduleCreate) -> Schedule:
         """A schedule bound to a mission, a UAV and a base, with its first due time."""
         await MissionRepository(self.db, self.principal).get(body.mission_id)
@@ -67,6 +73,10 @@ class ScheduleService(Service):
             elif body.kind == "interval":
                 if body.interval_s is None:
                     raise TimingError("an interval schedule needs `interval_s`")
+                if body.interval_s < self.min_interval_s:
+                    raise TimingError(
+                        f"interval_s must be at least {self.min_interval_s} s on this server"
+                    )
                 first = body.at or now + timedelta(seconds=body.interval_s)
             else:
                 check_cron(body.cron or "")
