@@ -6,13 +6,14 @@ import base64
 import uuid
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query, Response
+from fastapi import APIRouter, Depends, Response
 
 from server.assets.models import AssetKind
 from server.assets.schemas import AssetCreate, AssetCreated, AssetOut, AssetUpdate, ConfigRequest
 from server.assets.service import AssetService
 from server.deps import Admin, SettingsDep, UoW, Viewer
 from server.kit.download import attachment
+from server.kit.paging import PAGED, Paging
 
 router = APIRouter(tags=["assets"])
 
@@ -29,15 +30,14 @@ Assets = Annotated[AssetService, Depends(_service)]
 AssetsAdmin = Annotated[AssetService, Depends(_admin_service)]
 
 
-@router.get("/api/v1/assets", response_model=list[AssetOut])
+@router.get("/api/v1/assets", response_model=list[AssetOut], responses=PAGED)
 async def list_assets(
-    assets: Assets,
-    kind: AssetKind | None = None,
-    limit: int = Query(100, ge=1, le=1000),
-    offset: int = Query(0, ge=0, le=10**9),
+    assets: Assets, pages: Paging, kind: AssetKind | None = None
 ) -> list[AssetOut]:
-    """Assets of the caller's organisation."""
-    return [AssetOut.model_validate(a) for a in await assets.list_assets(limit, offset, kind)]
+    """Assets of the caller's organisation, oldest first."""
+    found = await assets.list_assets(pages.page, kind)
+    pages.respond(found.total)
+    return [AssetOut.model_validate(a) for a in found.items]
 
 
 @router.post("/api/v1/assets", status_code=201, response_model=AssetCreated)

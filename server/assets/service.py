@@ -13,6 +13,7 @@ from server.audit.service import record
 from server.auth.service import SessionService
 from server.config import Settings
 from server.kit.errors import Conflict, Unprocessable
+from server.kit.paging import Page, Paged
 from server.kit.principal import Principal
 from server.kit.security import new_secret, token_hash
 from server.kit.service import Service
@@ -30,9 +31,9 @@ class AssetService(Service):
         self.server_url = settings.effective_public_url
         self.scrypt_log_n = settings.config_scrypt_log_n
 
-    async def list_assets(self, limit: int, offset: int, kind: AssetKind | None) -> list[Asset]:
+    async def list_assets(self, page: Page, kind: AssetKind | None) -> Paged[Asset]:
         """Assets of the caller's organisation, optionally of one kind."""
-        return await self.repo.list_filtered(limit, offset, kind)
+        return await self.repo.list_filtered(page, kind)
 
     async def get(self, asset_id: uuid.UUID) -> Asset:
         """One asset of the caller's organisation (NotFound otherwise)."""

@@ -14,6 +14,7 @@ from sqlalchemy import Select, false, select
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.kit.errors import NotFound
+from server.kit.paging import Page, Paged, paginate
 from server.kit.principal import Principal
 
 M = TypeVar("M")
@@ -49,7 +50,7 @@ class ScopedRepository(Generic[M]):
             raise NotFound(f"{self.noun} {id_} not found")
         return row
 
-    async def list(self, limit: int = 100, offset: int = 0) -> list[M]:
-        """Rows of the caller's organisation, oldest first."""
-        stmt = self.select().order_by(self.model.created_at).limit(limit).offset(offset)  # type: ignore[attr-defined]
-        return list((await self.db.execute(stmt)).scalars())
+    async def list(self, page: Page) -> Paged[M]:
+        """Rows of the caller's organisation, oldest first, with their total."""
+        model: Any = self.model
+        return await paginate(self.db, self.select().order_by(model.created_at, model.id), page)

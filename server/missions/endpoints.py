@@ -12,6 +12,7 @@ from fastapi.responses import JSONResponse
 
 from server.deps import Operator, SettingsDep, UoW, Viewer
 from server.kit.errors import AppError
+from server.kit.paging import PAGED, Paging
 from server.missions import qgc, wpl
 from server.missions.models import Mission, MissionKind
 from server.missions.schemas import (
@@ -69,17 +70,15 @@ def _out(mission: Mission) -> MissionOut:
     )
 
 
-@router.get("/api/v1/missions", response_model=list[MissionOut])
+@router.get("/api/v1/missions", response_model=list[MissionOut], responses=PAGED)
 async def list_missions(
-    missions: Missions,
-    kind: MissionKind | None = None,
-    limit: int = Query(100, ge=1, le=1000),
-    offset: int = Query(0, ge=0, le=10**9),
+    missions: Missions, pages: Paging, kind: MissionKind | None = None
 ) -> list[MissionOut]:
     """Missions of the caller's organisation, oldest first."""
-    rows = await missions.list_missions(limit, offset, kind)
+    found = await missions.list_missions(pages.page, kind)
+    pages.respond(found.total)
     # validating and estimating many missions is CPU work: off the event loop
-    return await asyncio.to_thread(lambda: [_out(m) for m in rows])
+    return await asyncio.to_thread(lambda: [_out(m) for m in found.items])
 
 
 @router.post("/api/v1/missions", status_code=201, response_model=MissionOut)

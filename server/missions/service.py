@@ -12,6 +12,7 @@ from server.assets.models import Asset, AssetKind
 from server.assets.repository import AssetRepository
 from server.audit.service import record
 from server.kit.errors import Unprocessable
+from server.kit.paging import Page, Paged
 from server.kit.principal import Principal
 from server.kit.service import Service
 from server.kit.uow import UnitOfWork
@@ -91,11 +92,9 @@ class MissionService(Service):
     async def _audit(self, action: str, mission: Mission, **details: Any) -> None:
         await record(self.uow, self.principal, action, target=str(mission.id), **details)
 
-    async def list_missions(
-        self, limit: int, offset: int, kind: MissionKind | None
-    ) -> list[Mission]:
+    async def list_missions(self, page: Page, kind: MissionKind | None) -> Paged[Mission]:
         """Missions of the caller's organisation, oldest first."""
-        return await self.repo.list_filtered(limit, offset, kind)
+        return await self.repo.list_filtered(page, kind)
 
     async def delete(self, mission_id: uuid.UUID) -> None:
         """Delete a mission."""

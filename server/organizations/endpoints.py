@@ -5,7 +5,7 @@ from __future__ import annotations
 import uuid
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query, Response
+from fastapi import APIRouter, Depends, Response
 
 from server.deps import (
     Admin,
@@ -17,6 +17,7 @@ from server.deps import (
     Viewer,
     require,
 )
+from server.kit.paging import PAGED, Paging
 from server.kit.principal import Principal, Role
 from server.organizations.models import Membership, User
 from server.organizations.schemas import (
@@ -74,8 +75,6 @@ Orgs = Annotated[OrganizationService, Depends(_service)]
 OrgsReader = Annotated[OrganizationService, Depends(_org_reader_service)]
 OrgsAdmin = Annotated[OrganizationService, Depends(_admin_service)]
 OrgsSuper = Annotated[OrganizationService, Depends(_super_service)]
-Limit = Annotated[int, Query(ge=1, le=1000)]
-Offset = Annotated[int, Query(ge=0, le=10**9)]
 
 
 @router.post("/api/v1/organizations", status_code=201, response_model=OrganizationOut)
@@ -84,12 +83,12 @@ async def create_organization(body: OrganizationCreate, orgs: OrgsSuper) -> Orga
     return OrganizationOut.model_validate(await orgs.create_organization(body.name))
 
 
-@router.get("/api/v1/organizations", response_model=list[OrganizationOut])
-async def list_organizations(
-    orgs: OrgsReader, limit: Limit = 100, offset: Offset = 0
-) -> list[OrganizationOut]:
+@router.get("/api/v1/organizations", response_model=list[OrganizationOut], responses=PAGED)
+async def list_organizations(orgs: OrgsReader, pages: Paging) -> list[OrganizationOut]:
     """Organisations visible to the caller: all for a superuser, one's own otherwise."""
-    return [OrganizationOut.model_validate(o) for o in await orgs.organizations(limit, offset)]
+    found = await orgs.organizations(pages.page)
+    pages.respond(found.total)
+    return [OrganizationOut.model_validate(o) for o in found.items]
 
 
 @router.get("/api/v1/organizations/{organization_id}", response_model=OrganizationOut)
@@ -98,10 +97,12 @@ async def get_organization(organization_id: uuid.UUID, orgs: OrgsReader) -> Orga
     return OrganizationOut.model_validate(await orgs.organization(organization_id))
 
 
-@router.get("/api/v1/users", response_model=list[UserOut])
-async def list_users(orgs: Orgs, limit: Limit = 100, offset: Offset = 0) -> list[UserOut]:
-    """Members of the caller's organisation."""
-    return [_user_out(m, u) for m, u in await orgs.users(limit, offset)]
+@router.get("/api/v1/users", response_model=list[UserOut], responses=PAGED)
+async def list_users(orgs: Orgs, pages: Paging) -> list[UserOut]:
+    """Members of the caller's organisation, oldest first."""
+    found = await orgs.users(pages.page)
+    pages.respond(found.total)
+    return [_user_out(m, u) for m, u in found.items]
 
 
 @router.post("/api/v1/users", status_code=201, response_model=UserOut)

@@ -11,6 +11,7 @@ from server.audit.service import record
 from server.auth.service import SessionService
 from server.config import Settings
 from server.kit.errors import Conflict, NotFound
+from server.kit.paging import Page, Paged, page_of
 from server.kit.principal import Principal, Role
 from server.kit.security import Passwords
 from server.kit.service import Service
@@ -88,12 +89,12 @@ class OrganizationService(Service):
         )
         return org
 
-    async def organizations(self, limit: int, offset: int) -> list[Organization]:
+    async def organizations(self, page: Page) -> Paged[Organization]:
         """Every organisation for a superuser, one's own otherwise."""
         if self.principal.is_superuser:
-            return await self.orgs.all(limit, offset)
+            return await self.orgs.all(page)
         org = await self.orgs.by_id(self.principal.organization_id)  # type: ignore[arg-type]
-        return [org] if org and offset == 0 else []
+        return page_of([org] if org else [], page)
 
     async def organization(self, organization_id: uuid.UUID) -> Organization:
         """One's own organisation, or any for a superuser; NotFound otherwise."""
@@ -104,9 +105,9 @@ class OrganizationService(Service):
             raise NotFound(f"organisation {organization_id} not found")
         return org
 
-    async def users(self, limit: int, offset: int) -> list[tuple[Membership, User]]:
-        """Members of the caller's organisation."""
-        return await self.members.with_users(limit, offset)
+    async def users(self, page: Page) -> Paged[tuple[Membership, User]]:
+        """Members of the caller's organisation, oldest first."""
+        return await self.members.with_users(page)
 
     async def user(self, user_id: uuid.UUID) -> tuple[Membership, User]:
         """One member of the caller's organisation; NotFound otherwise."""

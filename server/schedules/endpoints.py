@@ -5,9 +5,10 @@ from __future__ import annotations
 import uuid
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query, Response
+from fastapi import APIRouter, Depends, Response
 
 from server.deps import Operator, UoW, Viewer
+from server.kit.paging import PAGED, Paging
 from server.schedules.schemas import ScheduleCreate, ScheduleOut, ScheduleUpdate
 from server.schedules.service import ScheduleService
 
@@ -32,14 +33,12 @@ async def create_schedule(body: ScheduleCreate, schedules: SchedulesOperator) ->
     return ScheduleOut.model_validate(await schedules.create(body))
 
 
-@router.get("/api/v1/schedules", response_model=list[ScheduleOut])
-async def list_schedules(
-    schedules: Schedules,
-    limit: int = Query(100, ge=1, le=1000),
-    offset: int = Query(0, ge=0, le=10**9),
-) -> list[ScheduleOut]:
-    """Schedules of the caller's organisation."""
-    return [ScheduleOut.model_validate(s) for s in await schedules.list_schedules(limit, offset)]
+@router.get("/api/v1/schedules", response_model=list[ScheduleOut], responses=PAGED)
+async def list_schedules(schedules: Schedules, pages: Paging) -> list[ScheduleOut]:
+    """Schedules of the caller's organisation, oldest first."""
+    found = await schedules.list_schedules(pages.page)
+    pages.respond(found.total)
+    return [ScheduleOut.model_validate(s) for s in found.items]
 
 
 @router.get("/api/v1/schedules/{schedule_id}", response_model=ScheduleOut)

@@ -13,6 +13,7 @@ from sqlalchemy.exc import IntegrityError
 from server.assets.models import AssetKind
 from server.assets.repository import AssetRepository
 from server.kit.errors import AppError, Unprocessable
+from server.kit.paging import Page, Paged
 from server.kit.periodic import Periodic
 from server.kit.principal import Principal, Role
 from server.kit.service import Service
@@ -98,9 +99,9 @@ class ScheduleService(Service):
         await self.db.flush()
         return s
 
-    async def list_schedules(self, limit: int, offset: int) -> list[Schedule]:
-        """Schedules of the caller's organisation."""
-        return await ScheduleRepository(self.db, self.principal).list(limit, offset)
+    async def list_schedules(self, page: Page) -> Paged[Schedule]:
+        """Schedules of the caller's organisation, oldest first."""
+        return await ScheduleRepository(self.db, self.principal).list(page)
 
     async def get(self, schedule_id: uuid.UUID) -> Schedule:
         """One schedule (NotFound for another organisation's)."""

@@ -9,6 +9,7 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Depends, Query
 
 from server.deps import ServicesDep, UoW, Viewer
+from server.kit.paging import PAGED, Pager, pager
 from server.telemetry.schemas import EventOut
 from server.telemetry.service import TelemetryService
 
@@ -44,13 +45,15 @@ async def telemetry_latest(asset_id: uuid.UUID, samples: Telemetry) -> dict[str,
     return await samples.latest(asset_id)
 
 
-@router.get("/api/v1/assets/{asset_id}/events", response_model=list[EventOut])
+@router.get("/api/v1/assets/{asset_id}/events", response_model=list[EventOut], responses=PAGED)
 async def events(
     asset_id: uuid.UUID,
     samples: Telemetry,
+    pages: Annotated[Pager, Depends(pager(default=1000, maximum=10_000))],
     start: datetime | None = None,
     end: datetime | None = None,
-    limit: int = Query(1000, ge=1, le=10_000),
 ) -> list[EventOut]:
-    """Events of an asset in [start, end)."""
-    return [EventOut.model_validate(e) for e in await samples.events(asset_id, start, end, limit)]
+    """Events of an asset in [start, end), oldest first."""
+    found = await samples.events(asset_id, start, end, pages.page)
+    pages.respond(found.total)
+    return [EventOut.model_validate(e) for e in found.items]
