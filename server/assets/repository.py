@@ -31,6 +31,12 @@ class AssetRepository(ScopedRepository[Asset]):
             stmt = stmt.where(Asset.kind == kind)
         return await paginate(self.db, stmt, page)
 
+    async def bound_to(self, base_id: uuid.UUID) -> list[Asset]:
+        """The UAVs bound to a landing base."""
+        return list(
+            (await self.db.execute(self.select().where(Asset.base_id == base_id))).scalars()
+        )
+
     async def visible_ids(self, ids: Collection[uuid.UUID]) -> set[uuid.UUID]:
         """Which of these ids are assets of the caller's organisation (one query)."""
         if not ids:

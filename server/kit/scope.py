@@ -42,9 +42,12 @@ class ScopedRepository(Generic[M]):
         """The scoped SELECT every query of this repository starts from."""
         return scoped(self.model, self.principal)
 
-    async def get(self, id_: uuid.UUID) -> M:
-        """The row with this id in the caller's organisation, else NotFound."""
+    async def get(self, id_: uuid.UUID, *, lock: bool = False) -> M:
+        """The row with this id in the caller's organisation, else NotFound; `lock`: for the rest
+        of the transaction (a row lock on PostgreSQL; SQLite takes none), to edit it."""
         stmt = self.select().where(self.model.id == id_)  # type: ignore[attr-defined]
+        if lock:
+            stmt = stmt.with_for_update().execution_options(populate_existing=True)
         row = (await self.db.execute(stmt)).scalar_one_or_none()
         if row is None:
             raise NotFound(f"{self.noun} {id_} not found")

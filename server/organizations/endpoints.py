@@ -17,6 +17,7 @@ from server.deps import (
     Viewer,
     require,
 )
+from server.kit.etag import CREATED_TAGGED, PRECONDITION, TAGGED, IfMatchDep, tag
 from server.kit.paging import PAGED, Paging
 from server.kit.principal import Principal, Role
 from server.organizations.models import Membership, User
@@ -105,29 +106,50 @@ async def list_users(orgs: Orgs, pages: Paging) -> list[UserOut]:
     return [_user_out(m, u) for m, u in found.items]
 
 
-@router.post("/api/v1/users", status_code=201, response_model=UserOut)
-async def create_user(body: UserCreate, orgs: OrgsAdmin, passwords: PasswordsDep) -> UserOut:
+@router.post("/api/v1/users", status_code=201, response_model=UserOut, responses=CREATED_TAGGED)
+async def create_user(
+    body: UserCreate, orgs: OrgsAdmin, passwords: PasswordsDep, response: Response
+) -> UserOut:
     """Create a user in the caller's organisation (admins only)."""
     m, user = await orgs.create_user(
         passwords, email=body.email, password=body.password, role=body.role
     )
+    tag(response, m.version)
     return _user_out(m, user)
 
 
-@router.get("/api/v1/users/{user_id}", response_model=UserOut)
-async def get_user(user_id: uuid.UUID, orgs: Orgs) -> UserOut:
-    """One member of the caller's organisation."""
-    return _user_out(*await orgs.user(user_id))
+@router.get("/api/v1/users/{user_id}", response_model=UserOut, responses=TAGGED)
+async def get_user(user_id: uuid.UUID, orgs: Orgs, response: Response) -> UserOut:
+    """One member of the caller's organisation, the ETag of the membership in the header."""
+    m, user = await orgs.user(user_id)
+    tag(response, m.version)
+    return _user_out(m, user)
 
 
-@router.patch("/api/v1/users/{user_id}", response_model=UserOut)
-async def update_user(user_id: uuid.UUID, body: UserUpdate, orgs: OrgsAdmin) -> UserOut:
-    """Change a member's role or disable them in this organisation (admins only)."""
-    return _user_out(*await orgs.update_user(user_id, role=body.role, is_active=body.is_active))
+@router.patch(
+    "/api/v1/users/{user_id}", response_model=UserOut, responses={**TAGGED, **PRECONDITION}
+)
+async def update_user(
+    user_id: uuid.UUID,
+    body: UserUpdate,
+    orgs: OrgsAdmin,
+    expect: IfMatchDep,
+    response: Response,
+) -> UserOut:
+    """Change a member's role or disable them in this organisation (admins only); with
+    `If-Match`, only the version it names (else 412)."""
+    m, user = await orgs.update_user(
+        user_id, role=body.role, is_active=body.is_active, expect=expect
+    )
+    tag(response, m.version)
+    return _user_out(m, user)
 
 
-@router.delete("/api/v1/users/{user_id}", status_code=204, response_class=Response)
-async def remove_user(user_id: uuid.UUID, orgs: OrgsAdmin) -> Response:
-    """Remove a member from the caller's organisation and end their sessions there (admins only)."""
-    await orgs.remove_user(user_id)
+@router.delete(
+    "/api/v1/users/{user_id}", status_code=204, response_class=Response, responses=PRECONDITION
+)
+async def remove_user(user_id: uuid.UUID, orgs: OrgsAdmin, expect: IfMatchDep) -> Response:
+    """Remove a member from the caller's organisation and end their sessions there (admins only);
+    with `If-Match`, only the version it names (else 412)."""
+    await orgs.remove_user(user_id, expect)
     return Response(status_code=204)

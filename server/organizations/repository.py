@@ -76,13 +76,18 @@ class MembershipRepository(ScopedRepository[Membership]):
         found = await paginate_rows(self.db, stmt, page)
         return Paged([(m, u) for m, u in found.items], found.total)
 
-    async def of_user(self, user_id: uuid.UUID) -> tuple[Membership, User] | None:
-        """The membership of one user in the caller's organisation."""
+    async def of_user(
+        self, user_id: uuid.UUID, *, lock: bool = False
+    ) -> tuple[Membership, User] | None:
+        """The membership of one user in the caller's organisation (`lock`: the membership's row,
+        for the rest of the transaction, on PostgreSQL)."""
         stmt = (
             self.select()
             .add_columns(User)
             .join(User, User.id == Membership.user_id)
             .where(Membership.user_id == user_id)
         )
+        if lock:
+            stmt = stmt.with_for_update(of=Membership).execution_options(populate_existing=True)
         row = (await self.db.execute(stmt)).first()
         return (row[0], row[1]) if row else None

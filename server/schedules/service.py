@@ -13,6 +13,7 @@ from sqlalchemy.exc import IntegrityError
 from server.assets.models import AssetKind
 from server.assets.repository import AssetRepository
 from server.kit.errors import AppError, Unprocessable
+from server.kit.etag import NO_PRECONDITION, IfMatch
 from server.kit.paging import Page, Paged
 from server.kit.periodic import Periodic
 from server.kit.principal import Principal, Role
@@ -107,9 +108,13 @@ class ScheduleService(Service):
         """One schedule (NotFound for another organisation's)."""
         return await ScheduleRepository(self.db, self.principal).get(schedule_id)
 
-    async def update(self, schedule_id: uuid.UUID, changes: dict[str, Any]) -> Schedule:
-        """Enable, disable, rename or change the missed-run policy."""
-        s = await self.get(schedule_id)
+    async def update(
+        self, schedule_id: uuid.UUID, changes: dict[str, Any], expect: IfMatch = NO_PRECONDITION
+    ) -> Schedule:
+        """Enable, disable, rename or change the missed-run policy (PreconditionFailed when
+        `expect` names another version)."""
+        s = await ScheduleRepository(self.db, self.principal).get(schedule_id, lock=True)
+        expect.check(s.version, f"schedule {s.id}")
         for key, value in changes.items():
             if value is not None:
                 setattr(s, key, value)
@@ -117,9 +122,11 @@ class ScheduleService(Service):
         await self.db.flush()
         return s
 
-    async def delete(self, schedule_id: uuid.UUID) -> None:
+    async def delete(self, schedule_id: uuid.UUID, expect: IfMatch = NO_PRECONDITION) -> None:
         """Delete a schedule (its past runs stay)."""
-        await self.db.delete(await self.get(schedule_id))
+        s = await ScheduleRepository(self.db, self.principal).get(schedule_id, lock=True)
+        expect.check(s.version, f"schedule {s.id}")
+        await self.db.delete(s)
 
 
 class Scheduler:
