@@ -18,7 +18,7 @@ from server.kit.paging import Page, Paged
 from server.kit.principal import Principal
 from server.kit.security import new_secret, token_hash
 from server.kit.service import Service
-from server.kit.time import utcnow
+from server.kit.time import rfc3339, utcnow
 from server.kit.uow import UnitOfWork
 
 
@@ -118,7 +118,7 @@ class AssetService(Service):
             name=asset.name,
             kind=asset.kind.value,
             secret=secret,
-            issued_at=utcnow().isoformat(),
+            issued_at=rfc3339(utcnow()),
         )
         # scrypt is deliberately slow: keep it off the event loop
         return await asyncio.to_thread(encrypt_config, cfg, password, self.scrypt_log_n)

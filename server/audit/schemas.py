@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import uuid
-from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict
+
+from server.kit.types import Timestamp
 
 
 class AuditEventOut(BaseModel):
@@ -14,7 +15,7 @@ class AuditEventOut(BaseModel):
 
     model_config = ConfigDict(from_attributes=True)
     id: uuid.UUID
-    at: datetime
+    at: Timestamp
     actor_kind: str
     actor_id: str | None
     action: str

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import uuid
-from datetime import datetime
 
 from pydantic import BaseModel, ConfigDict
 
-from server.kit.types import Email, LoginPassword, Name, Text
+from server.kit.types import Email, LoginPassword, Name, Text, Timestamp
 
 
 class LoginRequest(BaseModel):
@@ -34,7 +33,7 @@ class TokenResponse(BaseModel):
 
     access_token: str
     token_type: str = "bearer"
-    expires_at: datetime
+    expires_at: Timestamp
     session_id: uuid.UUID
 
 
@@ -58,4 +57,4 @@ class MeResponse(BaseModel):
     role: str | None
     memberships: list[MembershipOut] = []
     session_id: uuid.UUID
-    session_expires_at: datetime
+    session_expires_at: Timestamp

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import uuid
-from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from server.kit.types import Name
+from server.kit.types import Name, Timestamp
 
 
 class CommandCreate(BaseModel):
@@ -24,7 +23,7 @@ class StatusChangeOut(BaseModel):
     """One step of a command's history."""
 
     model_config = ConfigDict(from_attributes=True)
-    at: datetime
+    at: Timestamp
     status: str
     reason: str
     progress: dict[str, Any] | None
@@ -41,7 +40,7 @@ class CommandOut(BaseModel):
     status: str
     reason: str
     result: dict[str, Any] | None
-    deadline: datetime
-    created_at: datetime
-    updated_at: datetime
+    deadline: Timestamp
+    created_at: Timestamp
+    updated_at: Timestamp
     history: list[StatusChangeOut] = []

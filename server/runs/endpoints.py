@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import uuid
-from datetime import datetime
 from typing import Annotated
 
 from fastapi import APIRouter, Depends
 
 from server.deps import Operator, ServicesDep, UoW, Viewer
 from server.kit.paging import PAGED, Paging
+from server.kit.types import Timestamp
 from server.runs.machine import State
 from server.runs.schemas import AbortRequest, FleetReport, RunCreate, RunOut, RunReport
 from server.runs.service import RunService, run_out
@@ -65,7 +65,7 @@ async def run_report(run_id: uuid.UUID, runs: Runs, services: ServicesDep) -> Ru
 
 @router.get("/api/v1/reports/fleet", response_model=FleetReport)
 async def fleet_report(
-    runs: Runs, start: datetime | None = None, end: datetime | None = None
+    runs: Runs, start: Timestamp | None = None, end: Timestamp | None = None
 ) -> FleetReport:
     """Runs in [start, end): success rate, failures by cause, mean flight time, per asset."""
     return await runs.fleet(start, end)

@@ -18,7 +18,7 @@ from server.kit.paging import Page, Paged
 from server.kit.periodic import Periodic
 from server.kit.principal import Principal, Role
 from server.kit.service import Service
-from server.kit.time import utcnow
+from server.kit.time import rfc3339, utcnow
 from server.missions.repository import MissionRepository
 from server.runs.repository import RunRepository
 from server.runs.service import create_run
@@ -60,8 +60,6 @@ class ScheduleService(Service):
         now = utcnow()
         try:
             zone(body.timezone)
-            if body.at is not None and body.at.tzinfo is None:
-                raise TimingError("`at` needs a time zone offset (e.g. 2026-11-22T10:00:00Z)")
             if body.kind == "once":
                 if body.at is None:
                     raise TimingError("a one-shot schedule needs `at`")
@@ -184,9 +182,9 @@ class Scheduler:
             log.info("schedule %s started run %s for %s", s.id, run.id, due)
         except IntegrityError:
             s.last_result = (
-                f"the run for {due.isoformat()} was already started by another server process"
+                f"the run for {rfc3339(due)} was already started by another server process"
             )
         except AppError as err:
             s.last_fired_at = utcnow()
-            s.last_result = f"could not start the run due {due.isoformat()}: {err.message}"
+            s.last_result = f"could not start the run due {rfc3339(due)}: {err.message}"
             log.warning("schedule %s: %s", s.id, s.last_result)

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import uuid
-from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, Query
 
 from server.deps import ServicesDep, UoW, Viewer
 from server.kit.paging import PAGED, Pager, pager
+from server.kit.types import Timestamp
 from server.telemetry.schemas import EventOut
 from server.telemetry.service import TelemetryService
 
@@ -27,8 +27,8 @@ Telemetry = Annotated[TelemetryService, Depends(_service)]
 async def telemetry(
     asset_id: uuid.UUID,
     samples: Telemetry,
-    start: datetime | None = None,
-    end: datetime | None = None,
+    start: Timestamp | None = None,
+    end: Timestamp | None = None,
     fields: str | None = Query(None, max_length=2000, description="comma-separated dotted names"),
     every: float | None = Query(None, gt=0, le=86400, description="bucket seconds"),
     agg: Literal["mean", "last"] = "mean",
@@ -50,8 +50,8 @@ async def events(
     asset_id: uuid.UUID,
     samples: Telemetry,
     pages: Annotated[Pager, Depends(pager(default=1000, maximum=10_000))],
-    start: datetime | None = None,
-    end: datetime | None = None,
+    start: Timestamp | None = None,
+    end: Timestamp | None = None,
 ) -> list[EventOut]:
     """Events of an asset in [start, end), oldest first."""
     found = await samples.events(asset_id, start, end, pages.page)

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import uuid
-from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict
+
+from server.kit.types import Timestamp
 
 
 class EventOut(BaseModel):
@@ -15,7 +16,7 @@ class EventOut(BaseModel):
     model_config = ConfigDict(from_attributes=True)
     id: uuid.UUID
     asset_id: uuid.UUID
-    ts: datetime
+    ts: Timestamp
     name: str
     severity: str
     message: str
