@@ -44,10 +44,11 @@ class ScopedRepository(Generic[M]):
 
     async def get(self, id_: uuid.UUID, *, lock: bool = False) -> M:
         """The row with this id in the caller's organisation, else NotFound; `lock`: for the rest
-        of the transaction (a row lock on PostgreSQL; SQLite takes none), to edit it."""
+        of the transaction, to edit it: FOR NO KEY UPDATE on PostgreSQL (rows referring to it may still
+        be written: their foreign-key checks take KEY SHARE), none on SQLite."""
         stmt = self.select().where(self.model.id == id_)  # type: ignore[attr-defined]
         if lock:
-            stmt = stmt.with_for_update().execution_options(populate_existing=True)
+            stmt = stmt.with_for_update(key_share=True).execution_options(populate_existing=True)
         row = (await self.db.execute(stmt)).scalar_one_or_none()
         if row is None:
             raise NotFound(f"{self.noun} {id_} not found")

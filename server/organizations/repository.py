@@ -88,6 +88,8 @@ class MembershipRepository(ScopedRepository[Membership]):
             .where(Membership.user_id == user_id)
         )
         if lock:
-            stmt = stmt.with_for_update(of=Membership).execution_options(populate_existing=True)
+            stmt = stmt.with_for_update(of=Membership, key_share=True).execution_options(
+                populate_existing=True
+            )
         row = (await self.db.execute(stmt)).first()
         return (row[0], row[1]) if row else None

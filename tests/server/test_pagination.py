@@ -14,10 +14,10 @@ import httpx
 import pytest
 
 from protocol.messages import now_ms
-from server.kit.paging import TOTAL_HEADER
 from tests.conftest import SUPERUSER_PASSWORD, LiveServer, Tenant, login, test_settings
 from tests.server.realtime_client import asset_socket, asset_token, message, next_of
 
+TOTAL_HEADER = "X-Total-Count"
 LINK = re.compile(r'<([^>]*)>\s*;\s*rel="([^"]+)"')
 # time series, paged by time (`start`/`end`), not by offset: see frontend_api.md
 NOT_PAGED = {"/api/v1/assets/{asset_id}/telemetry"}
