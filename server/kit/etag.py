@@ -104,6 +104,7 @@ ETAG_HEADERS: dict[str, Any] = {
 TAGGED: dict[int | str, dict[str, Any]] = {200: {"headers": ETAG_HEADERS}}
 CREATED_TAGGED: dict[int | str, dict[str, Any]] = {201: {"headers": ETAG_HEADERS}}
 PRECONDITION: dict[int | str, dict[str, Any]] = {
+    400: {"description": "If-Match is not `*` or a list of quoted entity tags"},
     412: {"description": "If-Match names none of the resource's current versions"},
     409: {"description": "another write of the same resource won the race (without If-Match)"},
 }
