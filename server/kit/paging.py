@@ -1,8 +1,8 @@
 """Pages of lists, one mechanism for every list endpoint.
 
 In: `limit` and `offset` query parameters (bounds checked, 422 outside them). Out: the page's rows
-and the total of the same filtered query, read in one statement (`count(*) OVER ()`, so the total
-and the rows come from one snapshot). On the answer: `X-Total-Count` and an RFC 8288 `Link` header
+and the total of the same filtered query, read in one statement (a scalar subquery), so the total
+and the rows come from one snapshot. On the answer: `X-Total-Count` and an RFC 8288 `Link` header
 (`rel="next"`, `rel="prev"`) whose targets are the same path with the same filters. The body stays
 a JSON array.
 """
@@ -40,19 +40,23 @@ class Paged(Generic[T]):
     total: int
 
 
-async def _total(db: AsyncSession, stmt: Select[Any]) -> int:
-    counted = select(func.count()).select_from(stmt.order_by(None).subquery())
-    return int((await db.execute(counted)).scalar_one())
+def _count(stmt: Select[Any]) -> Select[int]:
+    return select(func.count()).select_from(stmt.order_by(None).subquery())
 
 
 async def paginate_rows(db: AsyncSession, stmt: Select[Any], page: Page) -> Paged[tuple[Any, ...]]:
-    """One page of an ordered SELECT, as row tuples, with the total of the same SELECT."""
-    windowed = stmt.add_columns(func.count().over().label("_total"))
-    rows = (await db.execute(windowed.limit(page.limit).offset(page.offset))).all()
+    """One page of an ordered SELECT, as row tuples, with the total of the same SELECT.
+
+    The total rides on every row as an uncorrelated scalar subquery (evaluated once): one
+    statement, one snapshot, and the count's own plan (an index-only scan where it can, where
+    `count(*) OVER ()` would drag every column of every row through the window)."""
+    counted = stmt.add_columns(_count(stmt).scalar_subquery().label("_total"))
+    rows = (await db.execute(counted.limit(page.limit).offset(page.offset))).all()
     if rows:
         return Paged([tuple(r[:-1]) for r in rows], int(rows[0][-1]))
     # past the end (or nothing at all): no row carries the total, count it
-    return Paged([], 0 if page.offset == 0 else await _total(db, stmt))
+    total = 0 if page.offset == 0 else int((await db.execute(_count(stmt))).scalar_one())
+    return Paged([], total)
 
 
 async def paginate(db: AsyncSession, stmt: Select[M], page: Page) -> Paged[M]:
