@@ -14,7 +14,7 @@ from server.assets.service import AssetService
 from server.deps import Admin, SettingsDep, UoW, Viewer
 from server.kit.download import attachment
 from server.kit.errors import Conflict, NotFound
-from server.kit.etag import CREATED_TAGGED, PRECONDITION, TAGGED, IfMatchDep, tag
+from server.kit.etag import CREATED_TAGGED, TAGGED, IfMatchDep, tag
 from server.kit.openapi import errors
 from server.kit.paging import PAGED, Paging
 
@@ -75,7 +75,7 @@ async def get_asset(asset_id: uuid.UUID, assets: Assets, response: Response) -> 
 @router.patch(
     "/api/v1/assets/{asset_id}",
     response_model=AssetOut,
-    responses={**TAGGED, **PRECONDITION, **errors(Conflict)},
+    responses={**TAGGED, **errors(Conflict)},
 )
 async def update_asset(
     asset_id: uuid.UUID,
@@ -95,7 +95,6 @@ async def update_asset(
     "/api/v1/assets/{asset_id}",
     status_code=204,
     response_class=Response,
-    responses=PRECONDITION,
 )
 async def delete_asset(asset_id: uuid.UUID, assets: AssetsAdmin, expect: IfMatchDep) -> Response:
     """Delete an asset and end its sessions (admins only); with `If-Match`, only the version it

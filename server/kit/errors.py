@@ -6,6 +6,7 @@ AppError                      {"error": {"code", "message", "details"}}
 ├── Forbidden         403   logged in, but the role does not allow it
 ├── NotFound          404   also for resources of another organisation
 ├── Conflict          409   name taken, live session, state clash
+│   └── EditConflict  409   an edit without If-Match lost a race with another write
 ├── PreconditionFailed 412  If-Match names none of the resource's current versions
 ├── TooLarge          413   a request body over the route's limit (server/kit/bodylimit.py)
 ├── UnsupportedMediaType 415 a body of a content type the route does not read
@@ -76,6 +77,12 @@ class Conflict(AppError):
     """The request clashes with the current state."""
 
     status, code = 409, "conflict"
+
+
+class EditConflict(Conflict):
+    """Another write of the same resource won the race: read it again and retry."""
+
+    code = "edit_conflict"
 
 
 class PreconditionFailed(AppError):
@@ -223,9 +230,8 @@ def install_error_handlers(app: FastAPI) -> None:
     async def _lost_race(request: Request, _: StaleDataError) -> JSONResponse:
         # the row's version changed between our read and our write (server/kit/etag.py)
         message = "changed by another request at the same time: read it again and reapply the edit"
-        if "if-match" in request.headers:
-            return ErrorResponse(error_body("precondition_failed", message), status_code=412)
-        return ErrorResponse(error_body("edit_conflict", message), status_code=409)
+        lost = PreconditionFailed if "if-match" in request.headers else EditConflict
+        return ErrorResponse(error_body(lost.code, message), status_code=lost.status)
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:

@@ -18,7 +18,8 @@ from typing import Annotated, Any
 from fastapi import Depends, Header, Response
 from sqlalchemy.orm import Mapped, declared_attr, mapped_column
 
-from server.kit.errors import BadRequest, PreconditionFailed
+from server.kit.errors import BadRequest, EditConflict, PreconditionFailed
+from server.kit.openapi import declares
 
 ETAG_HEADER = "ETag"
 _TAG = re.compile(r'\s*(W/)?"([\x21\x23-\x7e\x80-\xff]*)"\s*(?:,|$)')
@@ -72,6 +73,7 @@ class IfMatch:
         )
 
 
+@declares(BadRequest, PreconditionFailed, EditConflict)  # every route reading it documents them
 def if_match(
     value: Annotated[
         str | None,
@@ -94,7 +96,7 @@ def tag(response: Response, version: int) -> None:
     response.headers[ETAG_HEADER] = etag(version)
 
 
-# OpenAPI: answers that carry the ETag, and the edits that may be refused with 412
+# OpenAPI: the answers that carry the ETag (the edits' 400/409/412 come from `if_match`)
 ETAG_HEADERS: dict[str, Any] = {
     ETAG_HEADER: {
         "description": "strong entity tag of this version; send it back as If-Match",
@@ -103,8 +105,3 @@ ETAG_HEADERS: dict[str, Any] = {
 }
 TAGGED: dict[int | str, dict[str, Any]] = {200: {"headers": ETAG_HEADERS}}
 CREATED_TAGGED: dict[int | str, dict[str, Any]] = {201: {"headers": ETAG_HEADERS}}
-PRECONDITION: dict[int | str, dict[str, Any]] = {
-    400: {"description": "If-Match is not `*` or a list of quoted entity tags"},
-    412: {"description": "If-Match names none of the resource's current versions"},
-    409: {"description": "another write of the same resource won the race (without If-Match)"},
-}

@@ -12,7 +12,7 @@ from fastapi.responses import JSONResponse
 
 from server.deps import Operator, SettingsDep, UoW, Viewer
 from server.kit.errors import Conflict, UnsupportedMediaType
-from server.kit.etag import CREATED_TAGGED, PRECONDITION, TAGGED, IfMatchDep, tag
+from server.kit.etag import CREATED_TAGGED, TAGGED, IfMatchDep, tag
 from server.kit.openapi import errors
 from server.kit.paging import PAGED, Paging
 from server.missions import qgc, wpl
@@ -176,7 +176,7 @@ async def get_mission(mission_id: uuid.UUID, missions: Missions, response: Respo
 @router.patch(
     "/api/v1/missions/{mission_id}",
     response_model=MissionOut,
-    responses={**TAGGED, **PRECONDITION},
+    responses=TAGGED,
 )
 async def update_mission(
     mission_id: uuid.UUID,
@@ -197,7 +197,7 @@ async def update_mission(
     "/api/v1/missions/{mission_id}",
     status_code=204,
     response_class=Response,
-    responses={**PRECONDITION, **errors(Conflict)},  # 409: runs still refer to it
+    responses=errors(Conflict),  # 409: runs still refer to it
 )
 async def delete_mission(
     mission_id: uuid.UUID, missions: MissionsOperator, expect: IfMatchDep

@@ -18,7 +18,7 @@ from server.deps import (
     require,
 )
 from server.kit.errors import Conflict, Forbidden
-from server.kit.etag import CREATED_TAGGED, PRECONDITION, TAGGED, IfMatchDep, tag
+from server.kit.etag import CREATED_TAGGED, TAGGED, IfMatchDep, tag
 from server.kit.openapi import declares, errors
 from server.kit.paging import PAGED, Paging
 from server.kit.principal import Principal, Role
@@ -142,7 +142,7 @@ async def get_user(user_id: uuid.UUID, orgs: Orgs, response: Response) -> UserOu
 @router.patch(
     "/api/v1/users/{user_id}",
     response_model=UserOut,
-    responses={**TAGGED, **PRECONDITION, **errors(Conflict)},
+    responses={**TAGGED, **errors(Conflict)},
 )
 async def update_user(
     user_id: uuid.UUID,
@@ -164,7 +164,7 @@ async def update_user(
     "/api/v1/users/{user_id}",
     status_code=204,
     response_class=Response,
-    responses={**PRECONDITION, **errors(Conflict)},
+    responses=errors(Conflict),
 )
 async def remove_user(user_id: uuid.UUID, orgs: OrgsAdmin, expect: IfMatchDep) -> Response:
     """Remove a member from the caller's organisation and end their sessions there (admins only);

@@ -9,7 +9,7 @@ from fastapi import APIRouter, Depends, Response
 
 from server.deps import Operator, UoW, Viewer
 from server.kit.errors import NotFound
-from server.kit.etag import CREATED_TAGGED, PRECONDITION, TAGGED, IfMatchDep, tag
+from server.kit.etag import CREATED_TAGGED, TAGGED, IfMatchDep, tag
 from server.kit.openapi import errors
 from server.kit.paging import PAGED, Paging
 from server.schedules.schemas import ScheduleCreate, ScheduleOut, ScheduleUpdate
@@ -66,7 +66,7 @@ async def get_schedule(
 @router.patch(
     "/api/v1/schedules/{schedule_id}",
     response_model=ScheduleOut,
-    responses={**TAGGED, **PRECONDITION},
+    responses=TAGGED,
 )
 async def update_schedule(
     schedule_id: uuid.UUID,
@@ -87,7 +87,6 @@ async def update_schedule(
     "/api/v1/schedules/{schedule_id}",
     status_code=204,
     response_class=Response,
-    responses=PRECONDITION,
 )
 async def delete_schedule(
     schedule_id: uuid.UUID, schedules: SchedulesOperator, expect: IfMatchDep
