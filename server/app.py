@@ -154,6 +154,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 "Location",
                 "Retry-After",
                 "X-Request-Id",
+                "X-Total-Count",
             ],
             max_age=600,
         )

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import enum
 import uuid
-from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict
+
+from server.kit.types import Timestamp
 
 
 class ActorKind(enum.StrEnum):
@@ -24,7 +25,7 @@ class AuditEventOut(BaseModel):
 
     model_config = ConfigDict(from_attributes=True)
     id: uuid.UUID
-    at: datetime
+    at: Timestamp
     actor_kind: ActorKind
     actor_id: str | None
     action: str

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import enum
 import uuid
-from datetime import datetime
 
 from pydantic import BaseModel, ConfigDict
 
 from server.kit.principal import Role
-from server.kit.types import Email, LoginPassword, Name, Text
+from server.kit.types import Email, LoginPassword, Name, Text, Timestamp
 
 
 class PrincipalKind(enum.StrEnum):
@@ -43,7 +42,7 @@ class TokenResponse(BaseModel):
 
     access_token: str
     token_type: str = "bearer"
-    expires_at: datetime
+    expires_at: Timestamp
     session_id: uuid.UUID
 
 
@@ -67,4 +66,4 @@ class MeResponse(BaseModel):
     role: Role | None
     memberships: list[MembershipOut] = []
     session_id: uuid.UUID
-    session_expires_at: datetime
+    session_expires_at: Timestamp

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import enum
 import uuid
-from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from server.kit.types import Name
+from server.kit.types import Name, Timestamp
 
 
 class CommandStatus(enum.StrEnum):
@@ -39,7 +38,7 @@ class StatusChangeOut(BaseModel):
     """One step of a command's history."""
 
     model_config = ConfigDict(from_attributes=True)
-    at: datetime
+    at: Timestamp
     status: CommandStatus
     reason: str
     progress: dict[str, Any] | None
@@ -56,7 +55,7 @@ class CommandOut(BaseModel):
     status: CommandStatus
     reason: str
     result: dict[str, Any] | None
-    deadline: datetime
-    created_at: datetime
-    updated_at: datetime
+    deadline: Timestamp
+    created_at: Timestamp
+    updated_at: Timestamp
     history: list[StatusChangeOut] = []

@@ -4,9 +4,10 @@ the one error envelope, derived from what the operation is built of.
 An operation's error responses come from three places, merged:
 
 - its dependencies: a dependency marked with `declares(...)` (authentication, a role check, the
-  login limiter, the app-wide query check) adds its errors to every operation that uses it,
-  however deeply; a new shared mechanism (say an `If-Match` check answering 412) is declared once,
-  on its dependency, and every route using it documents it;
+  login limiter, the app-wide query check, the `If-Match` reader of server/kit/etag.py: 400,
+  409 `edit_conflict`, 412) adds its errors to every operation that uses it, however deeply; a
+  new shared mechanism is declared once, on its dependency, and every route using it documents
+  it (a status the route declares too gets one response naming both codes);
 - its shape: a path parameter names a resource of the caller's organisation (404, also for one of
   another organisation); a request body may be refused as unreadable (400: not UTF-8), for its
   size (413) or its content (422);
@@ -160,6 +161,13 @@ def _error_response(description: str) -> dict[str, Any]:
 ENVELOPE_REF = "#/components/schemas/ErrorEnvelope"
 
 
+def _with_codes(description: str, derived: Iterable[type[AppError]], status: int) -> str:
+    """A route's own description of `status`, plus the derived errors of that status it does not
+    name yet."""
+    missing = [e for e in derived if e.status == status and f"`{e.code}`" not in description]
+    return "; ".join(part for part in (description, _description(missing)) if part)
+
+
 def _is_ours(response: dict[str, Any]) -> bool:
     """A response the route declared itself with a body other than FastAPI's validation shape."""
     refs = str(response.get("content", {}))
@@ -175,9 +183,14 @@ def document_errors(app: FastAPI, schema: dict[str, Any]) -> dict[str, Any]:
         for method in route.methods or ():
             operation = schema["paths"][route.path_format][method.lower()]
             responses = operation.setdefault("responses", {})
-            for status, declared in errors(*derived_errors(route)).items():
+            derived = derived_errors(route)
+            for status, declared in errors(*derived).items():
                 mine = responses.get(str(status))
                 if mine is not None and _is_ours(mine):
+                    # declared by the route too (409 name taken + a dependency's edit_conflict)
+                    mine["description"] = _with_codes(
+                        mine.get("description", ""), derived, int(status)
+                    )
                     continue
                 description = (mine or {}).get("description")
                 if not description or description == "Validation Error":

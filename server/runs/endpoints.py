@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 import uuid
-from datetime import datetime
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query
+from fastapi import APIRouter, Depends
 
 from server.deps import Operator, ServicesDep, UoW, Viewer
 from server.kit.errors import Conflict, NotFound
 from server.kit.openapi import errors
+from server.kit.paging import PAGED, Paging
+from server.kit.types import Timestamp
 from server.runs.machine import State
 from server.runs.schemas import AbortRequest, FleetReport, RunCreate, RunOut, RunReport
 from server.runs.service import RunService, run_out
@@ -41,16 +42,14 @@ async def create_run(body: RunCreate, runs: RunsOperator) -> RunOut:
     return run_out(await runs.create(body.mission_id, body.uav_id, body.base_id))
 
 
-@router.get("/api/v1/runs", response_model=list[RunOut])
+@router.get("/api/v1/runs", response_model=list[RunOut], responses=PAGED)
 async def list_runs(
-    runs: Runs,
-    state: State | None = None,
-    uav_id: uuid.UUID | None = None,
-    limit: int = Query(100, ge=1, le=1000),
-    offset: int = Query(0, ge=0, le=10**9),
+    runs: Runs, pages: Paging, state: State | None = None, uav_id: uuid.UUID | None = None
 ) -> list[RunOut]:
     """Runs of the caller's organisation, newest first."""
-    return [run_out(r) for r in await runs.list_runs(limit, offset, state, uav_id)]
+    found = await runs.list_runs(pages.page, state, uav_id)
+    pages.respond(found.total)
+    return [run_out(r) for r in found.items]
 
 
 @router.get("/api/v1/runs/{run_id}", response_model=RunOut)
@@ -78,7 +77,7 @@ async def run_report(run_id: uuid.UUID, runs: Runs, services: ServicesDep) -> Ru
 
 @router.get("/api/v1/reports/fleet", response_model=FleetReport, operation_id="getFleetReport")
 async def fleet_report(
-    runs: Runs, start: datetime | None = None, end: datetime | None = None
+    runs: Runs, start: Timestamp | None = None, end: Timestamp | None = None
 ) -> FleetReport:
     """Runs in [start, end): success rate, failures by cause, mean flight time, per asset."""
     return await runs.fleet(start, end)

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import enum
 import uuid
-from datetime import datetime
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from server.kit.types import Name
+from server.kit.types import Name, Timestamp
 
 
 class ScheduleKind(enum.StrEnum):
@@ -36,7 +35,7 @@ class ScheduleCreate(BaseModel):
     uav_id: uuid.UUID
     base_id: uuid.UUID
     kind: ScheduleKind
-    at: datetime | None = None
+    at: Timestamp | None = None
     interval_s: int | None = Field(
         default=None,
         ge=1,
@@ -68,14 +67,14 @@ class ScheduleOut(BaseModel):
     uav_id: uuid.UUID
     base_id: uuid.UUID
     kind: ScheduleKind
-    at: datetime | None
+    at: Timestamp | None
     interval_s: int | None
     cron: str | None
     timezone: str
     missed_policy: MissedPolicy
     enabled: bool
-    next_due_at: datetime | None
-    last_fired_at: datetime | None
+    next_due_at: Timestamp | None
+    last_fired_at: Timestamp | None
     last_run_id: uuid.UUID | None
     last_result: str
-    created_at: datetime
+    created_at: Timestamp

@@ -13,10 +13,12 @@ from sqlalchemy.exc import IntegrityError
 from server.assets.models import AssetKind
 from server.assets.repository import AssetRepository
 from server.kit.errors import AppError, Unprocessable
+from server.kit.etag import NO_PRECONDITION, IfMatch
+from server.kit.paging import Page, Paged
 from server.kit.periodic import Periodic
 from server.kit.principal import Principal, Role
 from server.kit.service import Service
-from server.kit.time import utcnow
+from server.kit.time import rfc3339, utcnow
 from server.kit.uow import UnitOfWork
 from server.missions.repository import MissionRepository
 from server.runs.repository import RunRepository
@@ -64,8 +66,6 @@ class ScheduleService(Service):
         now = utcnow()
         try:
             zone(body.timezone)
-            if body.at is not None and body.at.tzinfo is None:
-                raise TimingError("`at` needs a time zone offset (e.g. 2026-11-22T10:00:00Z)")
             if body.kind == "once":
                 if body.at is None:
                     raise TimingError("a one-shot schedule needs `at`")
@@ -108,17 +108,21 @@ class ScheduleService(Service):
         await self.db.flush()
         return s
 
-    async def list_schedules(self, limit: int, offset: int) -> list[Schedule]:
-        """Schedules of the caller's organisation."""
-        return await ScheduleRepository(self.db, self.principal).list(limit, offset)
+    async def list_schedules(self, page: Page) -> Paged[Schedule]:
+        """Schedules of the caller's organisation, oldest first."""
+        return await ScheduleRepository(self.db, self.principal).list(page)
 
     async def get(self, schedule_id: uuid.UUID) -> Schedule:
         """One schedule (NotFound for another organisation's)."""
         return await ScheduleRepository(self.db, self.principal).get(schedule_id)
 
-    async def update(self, schedule_id: uuid.UUID, changes: dict[str, Any]) -> Schedule:
-        """Enable, disable, rename or change the missed-run policy."""
-        s = await self.get(schedule_id)
+    async def update(
+        self, schedule_id: uuid.UUID, changes: dict[str, Any], expect: IfMatch = NO_PRECONDITION
+    ) -> Schedule:
+        """Enable, disable, rename or change the missed-run policy (PreconditionFailed when
+        `expect` names another version)."""
+        s = await ScheduleRepository(self.db, self.principal).get(schedule_id, lock=True)
+        expect.check(s.version, f"schedule {s.id}")
         for key, value in changes.items():
             if value is not None:
                 setattr(s, key, value)
@@ -126,9 +130,11 @@ class ScheduleService(Service):
         await self.db.flush()
         return s
 
-    async def delete(self, schedule_id: uuid.UUID) -> None:
+    async def delete(self, schedule_id: uuid.UUID, expect: IfMatch = NO_PRECONDITION) -> None:
         """Delete a schedule (its past runs stay)."""
-        await self.db.delete(await self.get(schedule_id))
+        s = await ScheduleRepository(self.db, self.principal).get(schedule_id, lock=True)
+        expect.check(s.version, f"schedule {s.id}")
+        await self.db.delete(s)
 
 
 class Scheduler:
@@ -186,9 +192,9 @@ class Scheduler:
             log.info("schedule %s started run %s for %s", s.id, run.id, due)
         except IntegrityError:
             s.last_result = (
-                f"the run for {due.isoformat()} was already started by another server process"
+                f"the run for {rfc3339(due)} was already started by another server process"
             )
         except AppError as err:
             s.last_fired_at = utcnow()
-            s.last_result = f"could not start the run due {due.isoformat()}: {err.message}"
+            s.last_result = f"could not start the run due {rfc3339(due)}: {err.message}"
             log.warning("schedule %s: %s", s.id, s.last_result)

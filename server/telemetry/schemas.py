@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import uuid
-from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, RootModel
+
+from server.kit.types import Timestamp
 
 
 class TelemetrySample(RootModel[dict[str, Any]]):
@@ -20,7 +21,7 @@ class EventOut(BaseModel):
     model_config = ConfigDict(from_attributes=True)
     id: uuid.UUID
     asset_id: uuid.UUID
-    ts: datetime
+    ts: Timestamp
     name: str
     severity: str
     message: str

@@ -145,9 +145,15 @@ class PreconditionFailed(AppError):
     status, code = 412, "precondition_failed"
 
 
-@declares(PreconditionFailed)
+class LostRace(Conflict):
+    """Another write won the race."""
+
+    code = "edit_conflict"
+
+
+@declares(PreconditionFailed, LostRace)
 def if_match() -> None:
-    """A shared check: every route using it answers 412 when it fails."""
+    """A shared check: every route using it answers 412 (or 409) when it fails."""
 
 
 class Thing(BaseModel):
@@ -175,7 +181,45 @@ def test_a_dependency_declares_its_error_on_every_route_that_uses_it():
     assert {"400", "404", "409", "412", "413", "422"} <= set(put)
     assert "precondition_failed" in put["412"]["description"]
     assert put["412"]["content"]["application/json"]["schema"] == ENVELOPE
+    # the route's own 409 and the dependency's are one response naming both codes
+    assert "`conflict`" in put["409"]["description"]
+    assert "`edit_conflict`" in put["409"]["description"]
     listing = spec["paths"]["/things"]["get"]["responses"]
     assert set(listing) == {"200", "422"}
     name = spec["components"]["schemas"]["Thing"]["properties"]["name"]
     assert name["description"] == "the thing's name" and name["examples"] == ["spoon"]
+
+
+EDITED = (
+    "/api/v1/missions/{mission_id}",
+    "/api/v1/schedules/{schedule_id}",
+    "/api/v1/users/{user_id}",
+    "/api/v1/assets/{asset_id}",
+)
+
+
+def test_edits_declare_what_if_match_answers_and_answers_declare_their_etag(api):
+    """The If-Match dependency declares 400 (not a list of tags), 412 (another version) and 409
+    (a lost race) on every PATCH and DELETE reading it; GET/PATCH 200 and POST 201 carry ETag."""
+    spec = api.get("/api/openapi.json").json()
+    for path in EDITED:
+        ops = spec["paths"][path]
+        for method in ("patch", "delete"):
+            responses = ops[method]["responses"]
+            for status, code in (("400", "bad_request"), ("409", "edit_conflict")):
+                assert f"`{code}`" in responses[status]["description"], (path, method, status)
+            assert "`precondition_failed`" in responses["412"]["description"], (path, method)
+            for status in ("400", "409", "412"):
+                schema = responses[status]["content"]["application/json"]["schema"]
+                assert schema == ENVELOPE, (path, method, status)
+        for method in ("get", "patch"):
+            assert "ETag" in ops[method]["responses"]["200"]["headers"], (path, method)
+        assert "412" not in ops["get"]["responses"], path
+    for path in (
+        "/api/v1/missions",
+        "/api/v1/missions/import",
+        "/api/v1/schedules",
+        "/api/v1/users",
+        "/api/v1/assets",
+    ):
+        assert "ETag" in spec["paths"][path]["post"]["responses"]["201"]["headers"], path
