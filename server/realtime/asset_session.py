@@ -44,6 +44,7 @@ from server.commands import service as commands
 from server.kit.principal import Principal
 from server.kit.uow import unit_of_work
 from server.realtime.channels import asset_channel, command_channel, presence_key, rtcm_channel
+from server.realtime.fastpath import uav_telemetry
 from server.realtime.frames import Refused, receive_text
 from server.realtime.ingest import DROPPED_EVENT, Item
 from server.realtime.sender import Sender, SlowReader
@@ -192,7 +193,7 @@ class AssetSession:
 
     async def read(self) -> None:
         """Validate, rate-limit, de-duplicate, fan out and store what the asset sends."""
-        hub, broker, ingest = self.services.hub, self.services.broker, self.services.ingest
+        hub, broker = self.services.hub, self.services.broker
         while True:
             try:
                 raw = await receive_text(self.ws)
@@ -212,6 +213,21 @@ class AssetSession:
                 )
                 self.sender.close(1008, "rate limit exceeded")
                 return
+            fast = uav_telemetry(raw)
+            if fast is not None:
+                # valid UAV telemetry (the common case): no model built, no re-serialisation
+                seq = fast["seq"]
+                if seq <= self.last_seq:
+                    self._duplicate()
+                    continue
+                payload = fast["payload"]
+                payload["asset_id"] = self._asset_id_text
+                try:
+                    text = orjson.dumps(fast).decode()
+                except orjson.JSONEncodeError:  # a lone surrogate in a string
+                    text = json.dumps(fast, separators=(",", ":"))
+                await self._durable(seq, "telemetry", fast["ts"], fast["id"], payload, text)
+                continue
             decoded = decode(raw, "asset_to_server")
             salvaged = None
             if isinstance(decoded, DecodeError):
@@ -225,29 +241,18 @@ class AssetSession:
             msg: Envelope = salvaged.message if salvaged else decoded  # type: ignore[assignment]
             if msg.type in DURABLE:
                 if msg.seq <= self.last_seq:
-                    hub.counters.duplicates += 1
-                    if self.acked == self.last_seq:  # else the pending ack covers it
-                        self.sender.send_text(ack_text(self.last_seq))
+                    self._duplicate()
                     continue
-                self.last_seq = msg.seq
                 text, payload = self._fan_out_text(raw, msg, salvaged is not None)
-                # encoded once here, not once per operator socket
-                await broker.publish(
-                    asset_channel(self.asset_id), {"id": str(msg.id), "text": text}
-                )
-                ingest.submit(
-                    Item(
-                        self.stream,
-                        self.asset_id,
-                        self.organization_id,
-                        msg.seq,
-                        msg.type,
-                        msg.ts,
-                        payload,
-                        getattr(msg, "re", None),
-                        dropped=salvaged.dropped if salvaged else (),
-                        acks=self,
-                    )
+                await self._durable(
+                    msg.seq,
+                    msg.type,
+                    msg.ts,
+                    str(msg.id),
+                    payload,
+                    text,
+                    getattr(msg, "re", None),
+                    salvaged.dropped if salvaged else (),
                 )
                 if salvaged:
                     await self._publish_dropped(msg.seq, msg.type, salvaged)
@@ -257,6 +262,44 @@ class AssetSession:
                 self.sender.send_error(
                     "unexpected_hello", "hello is only valid as the first message", msg.seq
                 )
+
+    def _duplicate(self) -> None:
+        """A replayed message already stored (or on its way): answered by the ack that covers it."""
+        self.services.hub.counters.duplicates += 1
+        if self.acked == self.last_seq:  # else the pending ack covers it
+            self.sender.send_text(ack_text(self.last_seq))
+
+    async def _durable(
+        self,
+        seq: int,
+        kind: str,
+        ts: int,
+        msg_id: str,
+        payload: dict[str, Any],
+        text: str,
+        re: uuid.UUID | None = None,
+        dropped: tuple[str, ...] = (),
+    ) -> None:
+        """Fan a new durable message out to operators (encoded once here, not once per operator
+        socket) and hand it to the ingest, which acks it once stored."""
+        self.last_seq = seq
+        await self.services.broker.publish(
+            asset_channel(self.asset_id), {"id": msg_id, "text": text}
+        )
+        self.services.ingest.submit(
+            Item(
+                self.stream,
+                self.asset_id,
+                self.organization_id,
+                seq,
+                kind,
+                ts,
+                payload,
+                re,
+                dropped=dropped,
+                acks=self,
+            )
+        )
 
     def _fan_out_text(self, raw: str, msg: Envelope, salvaged: bool) -> tuple[str, dict[str, Any]]:
         """The message as operators receive it (with `asset_id`) and the payload to store.
