@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import httpx
+import orjson
 from websockets.asyncio.client import ClientConnection, connect
 
 from assetlink.configfile import decrypt_config
@@ -325,7 +326,7 @@ async def run_ours(
         with contextlib.suppress(Exception):
             async for raw in ws:
                 if '"type":"ack"' in raw:
-                    rec.acked[i] = max(rec.acked[i], json.loads(raw)["payload"]["seq"])
+                    rec.acked[i] = max(rec.acked[i], orjson.loads(raw)["payload"]["seq"])
                 elif '"type":"error"' in raw:
                     rec.errors += 1
         on_closed(ws)
@@ -334,7 +335,7 @@ async def run_ours(
         with contextlib.suppress(Exception):
             async for raw in ws:
                 t = time.perf_counter()
-                msg = json.loads(raw)
+                msg = orjson.loads(raw)
                 if msg["type"] == "telemetry":
                     rec.on_delivered(k, index[msg["payload"]["asset_id"]], msg["seq"], t)
         on_closed(ws)
