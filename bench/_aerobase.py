@@ -82,7 +82,7 @@ class Server:
                 self.proc.wait(5)
 
 
-def server_env(database_url: str, port: int) -> dict[str, str]:
+def server_env(database_url: str, port: int, root: Path = ROOT) -> dict[str, str]:
     """The environment of the benchmark's server: fast set-up, no throttling of the load."""
     return {
         **os.environ,
@@ -96,21 +96,22 @@ def server_env(database_url: str, port: int) -> dict[str, str]:
         "AEROBASE_ARGON2_TIME_COST": "1",
         "AEROBASE_ARGON2_PARALLELISM": "1",
         "AEROBASE_LOG_FORMAT": "json",
-        "PYTHONPATH": str(ROOT),
+        "PYTHONPATH": str(root),
     }
 
 
-def start_server(tmp: Path, superuser: str, progress: Progress) -> Server:
-    """Create the superuser on the database, start `aerobase server`, wait for /api/health."""
+def start_server(tmp: Path, superuser: str, progress: Progress, root: Path = ROOT) -> Server:
+    """Create the superuser on the database, start `aerobase server` (of the checkout at `root`,
+    by default this one), wait for /api/health."""
     database_url = os.environ.get("DATABASE_URL") or f"sqlite+aiosqlite:///{tmp}/bench.db"
     port = free_port()
-    env = server_env(database_url, port)
+    env = server_env(database_url, port, root)
     cli = [sys.executable, "-m", "aerobase.cli"]
     progress(f"creating the superuser on {database_url.split('@')[-1]}")
     done = subprocess.run(
         [*cli, "admin", "create-superuser", "--email", superuser, "--password", SUPER_PASSWORD],
         env=env,
-        cwd=ROOT,
+        cwd=root,
         capture_output=True,
         text=True,
         timeout=120,
@@ -122,7 +123,7 @@ def start_server(tmp: Path, superuser: str, progress: Progress) -> Server:
     proc = subprocess.Popen(
         [*cli, "server", "--port", str(port)],
         env=env,
-        cwd=ROOT,
+        cwd=root,
         stdout=log,
         stderr=subprocess.STDOUT,
     )
