@@ -94,6 +94,13 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     )
     p.add_argument("--skip-mqtt", action="store_true", help="measure ours only")
     p.add_argument(
+        "--procs",
+        type=int,
+        default=None,
+        help="helper processes driving the assets (default: 1 up to 300 assets, else 2); the "
+        "operators stay in the main process",
+    )
+    p.add_argument(
         "--server-root",
         type=Path,
         default=None,
@@ -169,6 +176,7 @@ async def bench(args: argparse.Namespace) -> dict[str, Any]:
                     args.warmup,
                     args.seconds,
                     progress,
+                    args.procs or (1 if args.assets <= 300 else 2),
                 )
                 ours["cpu_pressure_pct"] = pressure_between(p0, cpu_pressure())
                 ours["database"] = (
@@ -392,7 +400,8 @@ def report(res: dict[str, Any]) -> str:
         f"to every asset, {res['seconds']:g} s measured after {res['warmup_s']:g} s warm-up, "
         f"{res['payload_bytes']} B envelopes",
         f"machine: {res['machine']['note']}; Python {res['machine']['python']}, "
-        f"load generator: one process on {res['machine']['generator_loop']}; commit "
+        f"load generator: {res['ours'].get('generator_processes', 1)} process(es) on "
+        f"{res['machine']['generator_loop']} (operators in the main one); commit "
         f"{res.get('commit')}",
         f"medians over {res['repeats']} interleaved run(s) of each system (losses: summed)",
         "".ljust(width) + "".join(name.rjust(34) for name, _ in cols),
