@@ -136,7 +136,8 @@ async def bench(args: argparse.Namespace) -> dict[str, Any]:
         "warmup_s": args.warmup,
         "operators": args.operators,
         "repeats": args.repeats,
-        "commit": _commit(),
+        "commit": _commit(args.server_root or ROOT),
+        "server_root": str(args.server_root or ROOT),
         "machine": {
             "cores": os.cpu_count(),
             "generator_loop": type(asyncio.get_running_loop()).__module__.split(".")[0],
@@ -286,11 +287,12 @@ def median_run(runs: list[dict[str, Any]]) -> dict[str, Any]:
     return out
 
 
-def _commit() -> str | None:
+def _commit(root: Path) -> str | None:
+    """The commit the server runs (None outside a git checkout, e.g. an exported tree)."""
     try:
         done = subprocess.run(
             ["git", "rev-parse", "--short", "HEAD"],
-            cwd=Path(__file__).resolve().parents[1],
+            cwd=root,
             capture_output=True,
             text=True,
             timeout=5,
