@@ -22,6 +22,7 @@ from multiprocessing.shared_memory import SharedMemory
 from typing import Any
 
 import orjson
+import websockets
 
 from bench._load import Payloads, Recorder, pace
 
@@ -163,7 +164,14 @@ async def _helper_main(
 
         async def open_one(i: int) -> Any:
             async with sem:
-                return await _asset(url, names[i], secrets[i], api)
+                for attempt in range(5):  # a server busy with 1,000 logins may ask for a retry
+                    try:
+                        return await _asset(url, names[i], secrets[i], api)
+                    except (OSError, RuntimeError, websockets.ConnectionClosed):
+                        if attempt == 4:
+                            raise
+                        await asyncio.sleep(1 + attempt)
+            return None
 
         sockets = await asyncio.gather(*(open_one(i) for i in range(n)))
     closed: dict[str, int] = {}

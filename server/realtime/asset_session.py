@@ -26,6 +26,7 @@ from typing import Any
 import orjson
 import structlog
 from fastapi import WebSocket, WebSocketDisconnect
+from sqlalchemy.exc import SQLAlchemyError
 from starlette.websockets import WebSocketState
 
 from asynckit.ratelimit import TokenBucket
@@ -181,6 +182,10 @@ class AssetSession:
             self.acked = self.last_seq
         except StreamOfAnotherAsset:
             await self.ws.close(1008, "that stream belongs to another asset")
+            return False
+        except SQLAlchemyError as err:  # the database busy or away: the asset retries
+            log.warning("stream position of %s unavailable: %r", self.stream, err)
+            await self.ws.close(1011, "storage unavailable; reconnect and retry")
             return False
         welcome = WelcomePayload(
             session_id=str(self.principal.session_id),
