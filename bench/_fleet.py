@@ -160,14 +160,14 @@ async def _helper_main(
     payloads = Payloads(n)
     rec = Recorder(n, 0)
     async with httpx.AsyncClient(base_url=url, timeout=120) as api:
-        sem = asyncio.Semaphore(16)
+        sem = asyncio.Semaphore(8)
 
         async def open_one(i: int) -> Any:
             async with sem:
                 for attempt in range(5):  # a server busy with 1,000 logins may ask for a retry
                     try:
                         return await _asset(url, names[i], secrets[i], api)
-                    except (OSError, RuntimeError, websockets.ConnectionClosed):
+                    except (OSError, RuntimeError, websockets.WebSocketException):
                         if attempt == 4:
                             raise
                         await asyncio.sleep(1 + attempt)
