@@ -198,11 +198,13 @@ async def _helper_main(
     conn.send(("connected", n))
     start = await loop.run_in_executor(None, conn.recv)
 
-    def send(i: int, seq: int) -> Any:
+    async def send(i: int, seq: int) -> None:
         g = first + i
         sent_at[g * slots + seq % slots] = rec.sent[i][seq - 1]
         sent[g] = seq
-        return sockets[i].send(payloads.text(i, seq))
+        # a socket the server closed stays counted as sent: its messages show up as lost
+        with contextlib.suppress(websockets.ConnectionClosed):
+            await sockets[i].send(payloads.text(i, seq))
 
     await pace(n, rate, warmup, seconds, rec, send, lambda _t: None, None, start, (first, total))
     await loop.run_in_executor(None, conn.recv)  # "stop", once the main process has drained

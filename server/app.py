@@ -78,7 +78,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         await broker.start()
         telemetry = make_telemetry_store(settings, sessionmaker, engine.dialect.name)
         await telemetry.start()
-        ingest = Ingest(sessionmaker, telemetry)
+        # the ingest writes through a small pool of its own (one batch at a time)
+        ingest_engine = make_engine(settings.database_url, pool_size=2, max_overflow=0)
+        ingest = Ingest(sessionmaker, telemetry, writer=make_sessionmaker(ingest_engine))
         ingest.start()
         hub = Hub(broker, sessionmaker)
         await hub.start()
@@ -116,6 +118,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             await ingest.stop()
             await telemetry.close()
             await broker.close()
+            await ingest_engine.dispose()
             await engine.dispose()
 
     app = FastAPI(

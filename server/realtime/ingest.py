@@ -120,8 +120,12 @@ class Ingest:
         store: TelemetryStore,
         max_batch: int = 500,
         max_delay_s: float = 0.02,
+        writer: async_sessionmaker[AsyncSession] | None = None,
     ) -> None:
+        """`writer` (default `sessionmaker`) stores the batches: a pool of its own keeps the
+        ingest from waiting behind a thousand sockets' sweeps and heartbeats for a connection."""
         self.sessionmaker = sessionmaker
+        self.writer = writer or sessionmaker
         self.store = store
         self.max_batch = max_batch
         self.max_delay_s = max_delay_s
@@ -203,7 +207,7 @@ class Ingest:
             if i.kind == "telemetry"
         ]
         highest: dict[uuid.UUID, int] = {}
-        async with self.sessionmaker() as db:
+        async with self.writer() as db:
             await self.store.write(samples, db)
             for item in batch:
                 highest[item.stream_id] = max(highest.get(item.stream_id, 0), item.seq)
