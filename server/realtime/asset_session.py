@@ -45,7 +45,7 @@ from server.commands import service as commands
 from server.kit.principal import Principal
 from server.kit.uow import unit_of_work
 from server.realtime.channels import asset_channel, command_channel, presence_key, rtcm_channel
-from server.realtime.fastpath import uav_telemetry
+from server.realtime.fastpath import ack_text, operator_text, uav_telemetry
 from server.realtime.frames import Refused, receive_text
 from server.realtime.ingest import DROPPED_EVENT, Item
 from server.realtime.sender import Sender, SlowReader
@@ -226,7 +226,7 @@ class AssetSession:
                     self._duplicate()
                     continue
                 payload = fast["payload"]
-                payload["asset_id"] = self._asset_id_text
+                payload["asset_id"] = str(self.asset_id)
                 try:
                     text = orjson.dumps(fast).decode()
                 except orjson.JSONEncodeError:  # a lone surrogate in a string
@@ -248,7 +248,7 @@ class AssetSession:
                 if msg.seq <= self.last_seq:
                     self._duplicate()
                     continue
-                text, payload = self._fan_out_text(raw, msg, salvaged is not None)
+                text, payload = operator_text(raw, msg, salvaged is not None, str(self.asset_id))
                 await self._durable(
                     msg.seq,
                     msg.type,
@@ -305,28 +305,6 @@ class AssetSession:
                 acks=self,
             )
         )
-
-    def _fan_out_text(self, raw: str, msg: Envelope, salvaged: bool) -> tuple[str, dict[str, Any]]:
-        """The message as operators receive it (with `asset_id`) and the payload to store.
-
-        Telemetry as received is valid (the model accepted it, extra keys are refused) and is
-        re-emitted from its parsed JSON with `asset_id` set; anything else (events, command
-        results, a message without its non-finite numbers) is dumped from the model.
-        """
-        if msg.type == "telemetry" and not salvaged:
-            try:
-                data = orjson.loads(raw)
-                data["payload"]["asset_id"] = self._asset_id_text
-                return orjson.dumps(data).decode(), data["payload"]
-            except (orjson.JSONDecodeError, orjson.JSONEncodeError):
-                pass  # an integer past 64 bits: orjson refuses it, pydantic did not
-        data = msg.model_dump(mode="json")
-        data["payload"]["asset_id"] = self._asset_id_text
-        return json.dumps(data, separators=(",", ":")), data["payload"]
-
-    @property
-    def _asset_id_text(self) -> str:
-        return str(self.asset_id)
 
     # --- what the ingest says (Acks) ---
 
@@ -403,11 +381,3 @@ def _dropped_message(salvaged: Salvaged) -> str:
     if salvaged.cleared:
         text += " (cleared: " + ", ".join(f"payload.{f}" for f in salvaged.cleared) + ")"
     return text + "; the rest of the message is stored"
-
-
-def ack_text(seq: int) -> str:
-    """An `ack` envelope (what `encode(envelope(AckPayload(seq=seq)))` gives, formatted directly)."""
-    return (
-        f'{{"v":1,"id":"{uuid.uuid4()}","seq":0,"ts":{int(time.time() * 1000)},'
-        f'"type":"ack","payload":{{"seq":{seq}}}}}'
-    )

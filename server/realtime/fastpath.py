@@ -12,6 +12,8 @@ accepts what the models refuse.
 
 from __future__ import annotations
 
+import json
+import time
 import uuid
 from typing import Annotated, Any, Literal
 
@@ -19,6 +21,7 @@ import msgspec
 import orjson
 
 from protocol.base import MAX_MESSAGE_BYTES, MAX_SAFE_INT, MAX_UNIX_MS
+from protocol.messages import Envelope
 
 _MAX = 1.7976931348623157e308  # the largest finite float: NaN and infinities fail the range
 Finite = Annotated[float, msgspec.Meta(ge=-_MAX, le=_MAX)]
@@ -146,3 +149,33 @@ def uav_telemetry(text: str | bytes) -> dict[str, Any] | None:
 
 def _canonical(text: str) -> bool:
     return len(text) == 36 and text == text.lower()
+
+
+def operator_text(
+    raw: str, msg: Envelope, salvaged: bool, asset_id: str
+) -> tuple[str, dict[str, Any]]:
+    """A durable message that took the models' path as operators receive it (with `asset_id`),
+    and the payload to store.
+
+    Telemetry as received is valid (the model accepted it, extra keys are refused) and is
+    re-emitted from its parsed JSON with `asset_id` set; anything else (events, command results,
+    a message without its non-finite numbers) is dumped from the model.
+    """
+    if msg.type == "telemetry" and not salvaged:
+        try:
+            data = orjson.loads(raw)
+            data["payload"]["asset_id"] = asset_id
+            return orjson.dumps(data).decode(), data["payload"]
+        except (orjson.JSONDecodeError, orjson.JSONEncodeError):
+            pass  # an integer past 64 bits: orjson refuses it, pydantic did not
+    data = msg.model_dump(mode="json")
+    data["payload"]["asset_id"] = asset_id
+    return json.dumps(data, separators=(",", ":")), data["payload"]
+
+
+def ack_text(seq: int) -> str:
+    """An `ack` envelope (what `encode(envelope(AckPayload(seq=seq)))` gives, formatted directly)."""
+    return (
+        f'{{"v":1,"id":"{uuid.uuid4()}","seq":0,"ts":{int(time.time() * 1000)},'
+        f'"type":"ack","payload":{{"seq":{seq}}}}}'
+    )

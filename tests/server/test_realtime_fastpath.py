@@ -121,3 +121,17 @@ def test_the_mirror_takes_valid_telemetry_and_leaves_the_rest_to_decode() -> Non
     assert uav_telemetry(upper)["id"] == json.loads(text)["id"]  # type: ignore[index]
     for other in ('{"v":1}', text.replace('"kind":"uav"', '"kind":"landing_base"'), "x" * 10):
         assert uav_telemetry(other) is None
+
+
+def test_the_preformatted_ack_is_what_the_models_encode() -> None:
+    from protocol.messages import Ack, AckPayload
+    from server.realtime.fastpath import ack_text
+
+    text = ack_text(2**53 - 1)
+    ack = decode(text, "server_to_asset")
+    assert isinstance(ack, Ack) and ack.payload.seq == 2**53 - 1
+    reference = json.loads(encode(envelope(AckPayload(seq=5))))
+    assert list(json.loads(ack_text(5))) == list(reference)
+    assert {k: v for k, v in json.loads(ack_text(5)).items() if k not in ("id", "ts")} == {
+        k: v for k, v in reference.items() if k not in ("id", "ts")
+    }
