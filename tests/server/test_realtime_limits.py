@@ -329,7 +329,9 @@ async def test_frames_held_back_by_a_slow_reader_arrive_complete_and_in_order(
             for seq in range(1, 31):
                 await ws.send(message("event", {"name": "bulk", "message": big}, seq=seq))
             # the reader has taken (almost) nothing: frames now wait in the server's sender
-            await eventually(lambda: sender.queue or sender._stuck, 10, "back-pressure")
+            await eventually(
+                lambda: bool(sender.queue) or sender._stuck is not None, 10, "back-pressure"
+            )
             seqs = []
             while len(seqs) < 30:
                 got = await next_of(op, "event", within=10)
