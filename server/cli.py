@@ -58,9 +58,18 @@ def server_main(argv: Sequence[str] | None = None) -> int:
     os.environ["AEROBASE_MIGRATE_ON_START"] = "false"
     os.environ["AEROBASE_HOST"], os.environ["AEROBASE_PORT"] = settings.host, str(settings.port)
     uvicorn.run(
-        "server.app:create_app", factory=True, workers=args.workers, **uvicorn_options(settings)
+        "server.cli:worker_app", factory=True, workers=args.workers, **uvicorn_options(settings)
     )
     return 0
+
+
+def worker_app() -> Any:
+    """The app of one `--workers` process (each configures its own structured logs)."""
+    from server.app import create_app
+
+    settings = Settings()
+    configure_logging(settings.log_format, settings.log_level)
+    return create_app(settings)
 
 
 def uvicorn_options(settings: Settings) -> dict[str, Any]:
