@@ -31,7 +31,7 @@ test-fast: $(STAMP)
 	$(BIN)/python -m pytest -m "not slow" -q $(PYTEST_ARGS)
 
 bench: $(STAMP)
-	$(BIN)/python bench/telemetry_load.py
+	$(BIN)/python bench/telemetry.py
 
 clean:
 	rm -rf $(VENV) var .pytest_cache

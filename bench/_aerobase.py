@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import httpx
+import orjson
 from websockets.asyncio.client import ClientConnection, connect
 
 from assetlink.configfile import decrypt_config
@@ -81,7 +82,7 @@ class Server:
                 self.proc.wait(5)
 
 
-def server_env(database_url: str, port: int) -> dict[str, str]:
+def server_env(database_url: str, port: int, root: Path = ROOT) -> dict[str, str]:
     """The environment of the benchmark's server: fast set-up, no throttling of the load."""
     return {
         **os.environ,
@@ -95,21 +96,22 @@ def server_env(database_url: str, port: int) -> dict[str, str]:
         "AEROBASE_ARGON2_TIME_COST": "1",
         "AEROBASE_ARGON2_PARALLELISM": "1",
         "AEROBASE_LOG_FORMAT": "json",
-        "PYTHONPATH": str(ROOT),
+        "PYTHONPATH": str(root),
     }
 
 
-def start_server(tmp: Path, superuser: str, progress: Progress) -> Server:
-    """Create the superuser on the database, start `aerobase server`, wait for /api/health."""
+def start_server(tmp: Path, superuser: str, progress: Progress, root: Path = ROOT) -> Server:
+    """Create the superuser on the database, start `aerobase server` (of the checkout at `root`,
+    by default this one), wait for /api/health."""
     database_url = os.environ.get("DATABASE_URL") or f"sqlite+aiosqlite:///{tmp}/bench.db"
     port = free_port()
-    env = server_env(database_url, port)
+    env = server_env(database_url, port, root)
     cli = [sys.executable, "-m", "aerobase.cli"]
     progress(f"creating the superuser on {database_url.split('@')[-1]}")
     done = subprocess.run(
         [*cli, "admin", "create-superuser", "--email", superuser, "--password", SUPER_PASSWORD],
         env=env,
-        cwd=ROOT,
+        cwd=root,
         capture_output=True,
         text=True,
         timeout=120,
@@ -121,7 +123,7 @@ def start_server(tmp: Path, superuser: str, progress: Progress) -> Server:
     proc = subprocess.Popen(
         [*cli, "server", "--port", str(port)],
         env=env,
-        cwd=ROOT,
+        cwd=root,
         stdout=log,
         stderr=subprocess.STDOUT,
     )
@@ -287,8 +289,13 @@ async def run_ours(
     warmup: float,
     seconds: float,
     progress: Progress,
+    procs: int = 1,
 ) -> dict:
-    """Operators subscribe, assets connect, the load runs; returns the figures."""
+    """Operators subscribe, assets connect, the load runs; returns the figures. With `procs` > 1
+    the assets are driven by that many helper processes (bench/_fleet.py), the operators stay
+    here."""
+    if procs > 1:
+        return await _run_ours_helpers(url, pid, fleet, rate, warmup, seconds, progress, procs)
     n, m = len(fleet.asset_ids), len(fleet.viewer_tokens)
     index = {a: i for i, a in enumerate(fleet.asset_ids)}
     rec = Recorder(n, m)
@@ -325,7 +332,7 @@ async def run_ours(
         with contextlib.suppress(Exception):
             async for raw in ws:
                 if '"type":"ack"' in raw:
-                    rec.acked[i] = max(rec.acked[i], json.loads(raw)["payload"]["seq"])
+                    rec.acked[i] = max(rec.acked[i], orjson.loads(raw)["payload"]["seq"])
                 elif '"type":"error"' in raw:
                     rec.errors += 1
         on_closed(ws)
@@ -334,7 +341,7 @@ async def run_ours(
         with contextlib.suppress(Exception):
             async for raw in ws:
                 t = time.perf_counter()
-                msg = json.loads(raw)
+                msg = orjson.loads(raw)
                 if msg["type"] == "telemetry":
                     rec.on_delivered(k, index[msg["payload"]["asset_id"]], msg["seq"], t)
         on_closed(ws)
@@ -366,3 +373,76 @@ async def idle_cpu(pid: int, seconds: float) -> float:
     await asyncio.sleep(seconds)
     c1, t1 = process_cpu(pid), time.perf_counter()
     return 0.0 if c0 is None or c1 is None else 100 * (c1 - c0) / (t1 - t0)
+
+
+async def _run_ours_helpers(
+    url: str,
+    pid: int,
+    fleet: Fleet,
+    rate: float,
+    warmup: float,
+    seconds: float,
+    progress: Progress,
+    procs: int,
+) -> dict:
+    """`run_ours` with the assets in `procs` helper processes."""
+    from bench._fleet import Shared, SharedRecorder, merge_reports, slots_for, start_helpers
+
+    n, m = len(fleet.asset_ids), len(fleet.viewer_tokens)
+    index = {a: i for i, a in enumerate(fleet.asset_ids)}
+    shared = Shared.create(n, slots_for(rate, warmup, seconds))
+    rec = SharedRecorder(n, m, shared)
+    helpers = None
+    ops: list[ClientConnection] = []
+    readers: list[asyncio.Task[None]] = []
+    try:
+        ops = [await _operator(url, token, fleet.asset_ids) for token in fleet.viewer_tokens]
+        progress(f"{m} operator(s) subscribed to {n} assets")
+        helpers = start_helpers(
+            procs, url, fleet.names, fleet.secrets, shared, rate, warmup, seconds
+        )
+        rec.helper_pids = helpers.pids()
+        connected = await asyncio.to_thread(helpers.gather)
+        progress(f"connected {sum(c[1] for c in connected)}/{n} assets in {procs} processes")
+        idle = await idle_cpu(pid, IDLE_S)
+        progress(
+            f"server CPU with {n} assets and {m} operator(s) connected, no telemetry: "
+            f"{idle:.1f} % of a core"
+        )
+        closed: dict[str, int] = {}
+
+        async def read_operator(k: int, ws: ClientConnection) -> None:
+            with contextlib.suppress(Exception):
+                async for raw in ws:
+                    t = time.perf_counter()
+                    msg = orjson.loads(raw)
+                    if msg["type"] == "telemetry":
+                        rec.on_delivered(k, index[msg["payload"]["asset_id"]], msg["seq"], t)
+            key = str(ws.close_code)
+            closed[key] = closed.get(key, 0) + 1
+
+        readers = [asyncio.create_task(read_operator(k, ws)) for k, ws in enumerate(ops)]
+        start = time.perf_counter() + 1.0
+        helpers.broadcast(start)
+        marks = await pace(0, rate, warmup, seconds, rec, lambda i, s: None, progress, pid, start)
+        drained = await drain(rec, 15.0)
+        marks["end"] = mark(rec, pid)
+        helpers.broadcast("stop")
+        for code, count in merge_reports(await asyncio.to_thread(helpers.gather), rec).items():
+            closed[code] = closed.get(code, 0) + count
+        for task in readers:
+            task.cancel()
+        readers = []
+        await asyncio.gather(*(ws.close() for ws in ops), return_exceptions=True)
+        result = figures(rec, marks, drained)
+    finally:
+        for task in readers:
+            task.cancel()
+        if helpers is not None:
+            await asyncio.to_thread(helpers.stop)
+        rec.release()
+        shared.close()
+    result["idle_cpu_pct_of_core"] = round(idle, 1)
+    result["sockets_closed_by_server"] = {k: v for k, v in closed.items() if k != "1000"}
+    result["generator_processes"] = procs + 1
+    return result

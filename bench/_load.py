@@ -103,6 +103,7 @@ class Recorder:
     lags: array = field(default_factory=lambda: array("d"))
     errors: int = 0
     duplicates: int = 0
+    helper_pids: list[int] = field(default_factory=list)  # generator processes besides this one
 
     def __post_init__(self) -> None:
         self.sent = [array("d") for _ in range(self.assets)]
@@ -144,20 +145,25 @@ async def pace(
     send: Callable[[int, int], Awaitable[None] | None],
     progress: Callable[[str], None],
     pid: int | None,
+    start: float | None = None,
+    phase: tuple[int, int] = (0, 0),
 ) -> dict:
     """Send from `n` assets at `rate` Hz for warmup + seconds, phases spread evenly; returns marks.
 
     `send(asset, seq)` sends message `seq` of `asset`. The returned marks are perf_counter times and
-    counters at the start and the end of the measured window.
+    counters at the start and the end of the measured window. Several processes share one schedule
+    by passing the same `start` (perf_counter is the system's monotonic clock) and `phase` = (index
+    of this process's first asset, assets in all processes).
     """
     period = 1.0 / rate
-    start = time.perf_counter() + 0.2
+    start = time.perf_counter() + 0.2 if start is None else start
+    first, total = phase if phase[1] else (0, n)
     t_open, t_close = start + warmup, start + warmup + seconds
     rec.window = (t_open, t_close)
     marks: dict = {"start": mark(rec, pid)}
 
     async def asset_loop(i: int) -> None:
-        next_t = start + period * i / n
+        next_t = start + period * (first + i) / total
         while next_t < t_close:
             delay = next_t - time.perf_counter()
             if delay > 0:
@@ -195,7 +201,7 @@ def mark(rec: Recorder, pid: int | None) -> dict:
         "acked": sum(rec.acked),
         "delivered": sum(rec.delivered),
         "sent": rec.total_sent(),
-        "cpu_self": _self_cpu(),
+        "cpu_self": _self_cpu() + sum(process_cpu(p) or 0.0 for p in rec.helper_pids),
         "machine": machine_busy(),
     }
 

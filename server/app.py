@@ -79,7 +79,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         await broker.start()
         telemetry = make_telemetry_store(settings, sessionmaker, engine.dialect.name)
         await telemetry.start()
-        ingest = Ingest(sessionmaker, telemetry)
+        # the ingest writes through a small pool of its own (one batch at a time), except in an
+        # in-memory SQLite database, which another engine would not see
+        in_memory = settings.database_url.startswith("sqlite") and path is None
+        ingest_engine = (
+            engine if in_memory else make_engine(settings.database_url, pool_size=2, max_overflow=0)
+        )
+        ingest = Ingest(sessionmaker, telemetry, writer=make_sessionmaker(ingest_engine))
         ingest.start()
         hub = Hub(broker, sessionmaker)
         await hub.start()
@@ -117,6 +123,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             await ingest.stop()
             await telemetry.close()
             await broker.close()
+            if ingest_engine is not engine:
+                await ingest_engine.dispose()
             await engine.dispose()
 
     app = FastAPI(

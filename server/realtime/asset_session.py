@@ -1,10 +1,12 @@
 """The server half of the link protocol: one connected asset's session on `/ws/asset`.
 
-After hello/welcome the session runs four tasks beside the reader: the sender (one writer per
-socket), the acker (cumulative acks, in order, once storage completed), the heartbeat (keeps the
-auth session alive and the presence claim ours) and command delivery (from the database, nudged
-through the broker). The reader rate-limits, de-duplicates by seq, fans durable messages out to
-operators and hands them to the ingest. A message whose only fault is a NaN or infinite number is
+After hello/welcome the session runs three tasks beside the reader: the sender's writer (used only
+when the socket cannot take a frame at once), the heartbeat (keeps the auth session alive and the
+presence claim ours) and command delivery (from the database, nudged through the broker). The
+reader rate-limits, de-duplicates by seq, fans durable messages out to operators (the received
+telemetry re-emitted once with `asset_id` set, not re-serialised from the model) and hands them to
+the ingest, which calls back once per batch with the highest seq of this session it stored: the
+session then sends one cumulative ack (nothing is acked before it is stored). A message whose only fault is a NaN or infinite number is
 kept without it: the asset is answered `invalid_payload` naming the field and the asset's events
 record `telemetry_field_dropped`. A binary frame closes the socket with 1003, no hello within the
 handshake time with 4408.
@@ -19,17 +21,17 @@ import logging
 import random
 import time
 import uuid
-from collections import deque
 from typing import Any
 
+import orjson
 import structlog
 from fastapi import WebSocket, WebSocketDisconnect
+from sqlalchemy.exc import SQLAlchemyError
 from starlette.websockets import WebSocketState
 
 from asynckit.ratelimit import TokenBucket
 from protocol.codec import DecodeError, Salvaged, decode, drop_non_finite, encode
 from protocol.messages import (
-    AckPayload,
     CommandPayload,
     Envelope,
     EventPayload,
@@ -43,8 +45,9 @@ from server.commands import service as commands
 from server.kit.principal import Principal
 from server.kit.uow import unit_of_work
 from server.realtime.channels import asset_channel, command_channel, presence_key, rtcm_channel
+from server.realtime.fastpath import ack_text, operator_text, uav_telemetry
 from server.realtime.frames import Refused, receive_text
-from server.realtime.ingest import DROPPED_EVENT, Item, RowRejected
+from server.realtime.ingest import DROPPED_EVENT, Item
 from server.realtime.sender import Sender, SlowReader
 from server.services import Services
 from server.telemetry.service import StreamOfAnotherAsset
@@ -83,9 +86,9 @@ class AssetSession:
         self.bucket = TokenBucket(settings.ws_rate_per_s, settings.ws_burst)
         self.wake = asyncio.Event()  # commands wait in the database
         self.stream = uuid.UUID(int=0)
-        self.last_seq = 0
-        self.pending: deque[tuple[int, asyncio.Future[None]]] = deque()
-        self.have_pending = asyncio.Event()
+        self.last_seq = 0  # the highest seq received (handed to the ingest)
+        self.acked = 0  # the highest seq acknowledged (stored)
+        self.storage_failed = False  # a batch of ours failed: nothing more is acked on this socket
 
     async def serve(self) -> None:
         """Claim presence, exchange hello/welcome, then serve until the socket or a task ends."""
@@ -109,7 +112,6 @@ class AssetSession:
                 return
             tasks = [
                 asyncio.create_task(self.sender.run()),
-                asyncio.create_task(self.acker()),
                 asyncio.create_task(self.heartbeat()),
                 asyncio.create_task(self.deliver_commands()),
             ]
@@ -132,11 +134,6 @@ class AssetSession:
         finally:
             for t in tasks:
                 t.cancel()
-            for (
-                _,
-                fut,
-            ) in self.pending:  # nobody acks them now: a storage error is not "unretrieved"
-                fut.add_done_callback(_retrieve)
             broker.unsubscribe(command_channel(self.asset_id), self._nudge)
             if corrections:
                 broker.unsubscribe(corrections, self._forward_rtcm)
@@ -182,8 +179,13 @@ class AssetSession:
         self.stream = hello.payload.stream
         try:
             self.last_seq = await self.services.ingest.last_seq(self.stream, self.asset_id)
+            self.acked = self.last_seq
         except StreamOfAnotherAsset:
             await self.ws.close(1008, "that stream belongs to another asset")
+            return False
+        except SQLAlchemyError as err:  # the database busy or away: the asset retries
+            log.warning("stream position of %s unavailable: %r", self.stream, err)
+            await self.ws.close(1011, "storage unavailable; reconnect and retry")
             return False
         welcome = WelcomePayload(
             session_id=str(self.principal.session_id),
@@ -196,7 +198,7 @@ class AssetSession:
 
     async def read(self) -> None:
         """Validate, rate-limit, de-duplicate, fan out and store what the asset sends."""
-        hub, broker, ingest = self.services.hub, self.services.broker, self.services.ingest
+        hub, broker = self.services.hub, self.services.broker
         while True:
             try:
                 raw = await receive_text(self.ws)
@@ -216,6 +218,21 @@ class AssetSession:
                 )
                 self.sender.close(1008, "rate limit exceeded")
                 return
+            fast = uav_telemetry(raw)
+            if fast is not None:
+                # valid UAV telemetry (the common case): no model built, no re-serialisation
+                seq = fast["seq"]
+                if seq <= self.last_seq:
+                    self._duplicate()
+                    continue
+                payload = fast["payload"]
+                payload["asset_id"] = str(self.asset_id)
+                try:
+                    text = orjson.dumps(fast).decode()
+                except orjson.JSONEncodeError:  # a lone surrogate in a string
+                    text = json.dumps(fast, separators=(",", ":"))
+                await self._durable(seq, "telemetry", fast["ts"], fast["id"], payload, text)
+                continue
             decoded = decode(raw, "asset_to_server")
             salvaged = None
             if isinstance(decoded, DecodeError):
@@ -229,31 +246,19 @@ class AssetSession:
             msg: Envelope = salvaged.message if salvaged else decoded  # type: ignore[assignment]
             if msg.type in DURABLE:
                 if msg.seq <= self.last_seq:
-                    hub.counters.duplicates += 1
-                    if not self.pending:
-                        self.sender.send_text(encode(envelope(AckPayload(seq=self.last_seq))))
+                    self._duplicate()
                     continue
-                self.last_seq = msg.seq
-                data = msg.model_dump(mode="json")
-                data["payload"]["asset_id"] = str(self.asset_id)
-                # encoded once here, not once per operator socket
-                await broker.publish(
-                    asset_channel(self.asset_id),
-                    {"id": data["id"], "text": json.dumps(data, separators=(",", ":"))},
-                )
-                item = Item(
-                    self.stream,
-                    self.asset_id,
-                    self.organization_id,
+                text, payload = operator_text(raw, msg, salvaged is not None, str(self.asset_id))
+                await self._durable(
                     msg.seq,
                     msg.type,
                     msg.ts,
-                    data["payload"],
+                    str(msg.id),
+                    payload,
+                    text,
                     getattr(msg, "re", None),
-                    dropped=salvaged.dropped if salvaged else (),
+                    salvaged.dropped if salvaged else (),
                 )
-                self.pending.append((msg.seq, ingest.submit(item)))
-                self.have_pending.set()
                 if salvaged:
                     await self._publish_dropped(msg.seq, msg.type, salvaged)
             elif msg.type == "rtcm":
@@ -263,28 +268,64 @@ class AssetSession:
                     "unexpected_hello", "hello is only valid as the first message", msg.seq
                 )
 
-    async def acker(self) -> None:
-        """Ack the highest seq whose storage completed, in order."""
-        while True:
-            await self.have_pending.wait()
-            seq, fut = self.pending[0]
-            try:
-                await fut
-            except RowRejected as rejected:
-                # this one message cannot be stored (the others of its batch were): it is refused,
-                # and acknowledged with the rest so that the asset does not replay it forever
-                self.sender.send_error("invalid_payload", str(rejected), seq)
-            except Exception:
-                self.sender.close(1011, "storage failed; reconnect and replay")
-                return
-            highest = seq
-            self.pending.popleft()
-            while self.pending and self.pending[0][1].done() and not self.pending[0][1].exception():
-                highest = self.pending.popleft()[0]
-            # (a rejected row still pending is reported on its own turn of the loop)
-            if not self.pending:
-                self.have_pending.clear()
-            self.sender.send_text(encode(envelope(AckPayload(seq=highest))))
+    def _duplicate(self) -> None:
+        """A replayed message already stored (or on its way): answered by the ack that covers it."""
+        self.services.hub.counters.duplicates += 1
+        if self.acked == self.last_seq:  # else the pending ack covers it
+            self.sender.send_text(ack_text(self.last_seq))
+
+    async def _durable(
+        self,
+        seq: int,
+        kind: str,
+        ts: int,
+        msg_id: str,
+        payload: dict[str, Any],
+        text: str,
+        re: uuid.UUID | None = None,
+        dropped: tuple[str, ...] = (),
+    ) -> None:
+        """Fan a new durable message out to operators (encoded once here, not once per operator
+        socket) and hand it to the ingest, which acks it once stored."""
+        self.last_seq = seq
+        await self.services.broker.publish(
+            asset_channel(self.asset_id), {"id": msg_id, "text": text}
+        )
+        self.services.ingest.submit(
+            Item(
+                self.stream,
+                self.asset_id,
+                self.organization_id,
+                seq,
+                kind,
+                ts,
+                payload,
+                re,
+                dropped=dropped,
+                acks=self,
+            )
+        )
+
+    # --- what the ingest says (Acks) ---
+
+    def stored(self, seq: int) -> None:
+        """Every message up to `seq` is stored: one cumulative ack."""
+        if not self.storage_failed and seq > self.acked:
+            self.acked = seq
+            self.sender.send_text(ack_text(seq))
+
+    def rejected(self, seq: int, reason: str) -> None:
+        """This one message cannot be stored (the others of its batch were): it is refused, and
+        acknowledged with the rest so that the asset does not replay it forever."""
+        if not self.storage_failed:
+            self.sender.send_error("invalid_payload", reason, seq)
+            self.stored(seq)
+
+    def failed(self, err: BaseException) -> None:
+        """Storage failed: nothing after this is acked; the asset reconnects and replays."""
+        if not self.storage_failed:
+            self.storage_failed = True
+            self.sender.close(1011, "storage failed; reconnect and replay")
 
     async def heartbeat(self) -> None:
         """Keep the session alive and the presence claim ours while the socket lives."""
@@ -347,8 +388,3 @@ def _dropped_message(salvaged: Salvaged) -> str:
     if salvaged.cleared:
         text += " (cleared: " + ", ".join(f"payload.{f}" for f in salvaged.cleared) + ")"
     return text + "; the rest of the message is stored"
-
-
-def _retrieve(fut: asyncio.Future[None]) -> None:
-    if not fut.cancelled():
-        fut.exception()

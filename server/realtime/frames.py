@@ -29,7 +29,10 @@ async def receive_text(ws: WebSocket, timeout_s: float | None = None, waiting: s
     """The next text frame; WebSocketDisconnect once the peer left, Refused for a binary frame or
     for nothing within `timeout_s` (`waiting` says what was expected, for the close reason)."""
     try:
-        message = await asyncio.wait_for(ws.receive(), timeout_s)
+        if timeout_s is None:
+            message = await ws.receive()  # the hot path: no wait_for wrapper per frame
+        else:
+            message = await asyncio.wait_for(ws.receive(), timeout_s)
     except TimeoutError:
         raise Refused(TIMED_OUT, f"no {waiting or 'message'} within {timeout_s:g} s") from None
     if message["type"] == "websocket.disconnect":

@@ -1,9 +1,14 @@
 """Durable storage of what assets send, in batches shared by every connection of this process.
 
-A connection hands over (stream, seq, message); the batcher stores telemetry through the telemetry
-store, then events and stream positions (telemetry service) and command results (commands service)
-in one transaction per batch, then resolves the connection's future so it can ack. Writes are
-idempotent (a replay after a crash stores nothing twice).
+A connection hands over (stream, seq, message); the batcher stores a batch in one transaction with
+one commit: telemetry through the telemetry store (the SQL store joins the transaction: one
+multi-row INSERT; InfluxDB is written first), events and stream positions (telemetry service: one
+`UPDATE ... WHERE last_seq < seq` per stream, no objects loaded) and command results (commands
+service). Then it tells each connection the highest seq of its own that is stored (`Acks.stored`,
+once per batch, not per message), so acks are cumulative and cost no task wake-up per message.
+Writes are idempotent (a replay after a crash stores nothing twice). The batcher waits at most
+`max_delay_s` after the first queued message, then takes up to `max_batch` (bounded so that
+building one batch never holds the event loop for more than a few milliseconds).
 
 One bad row never fails a batch shared by many connections: a batch refused because of its data
 (a value the database or the store cannot hold) is split in halves and retried until the rows at
@@ -18,9 +23,10 @@ import asyncio
 import logging
 import time
 import uuid
+from collections import deque
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
-from typing import Any
+from typing import Any, Protocol
 
 from sqlalchemy.exc import DataError, IntegrityError, StatementError
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
@@ -61,7 +67,20 @@ class RowRejected(Exception):
     """This one message cannot be stored (the rest of its batch was)."""
 
 
-@dataclass
+class Acks(Protocol):
+    """What the ingest tells the connection a message came from, in the order it stored them."""
+
+    def stored(self, seq: int) -> None:
+        """Every message of this connection up to `seq` is stored (or was rejected)."""
+
+    def rejected(self, seq: int, reason: str) -> None:
+        """Message `seq` cannot be stored; the others of its batch were."""
+
+    def failed(self, err: BaseException) -> None:
+        """A batch holding messages of this connection failed as a whole (they are not stored)."""
+
+
+@dataclass(slots=True)
 class Item:
     """One message to store."""
 
@@ -74,9 +93,7 @@ class Item:
     payload: dict[str, Any]
     re: uuid.UUID | None = None
     dropped: tuple[str, ...] = ()  # non-finite fields the server removed (recorded as an event)
-    done: asyncio.Future[None] = field(
-        default_factory=lambda: asyncio.get_running_loop().create_future()
-    )
+    acks: Acks | None = None
     arrived: float = field(default_factory=time.monotonic)
 
 
@@ -101,14 +118,19 @@ class Ingest:
         self,
         sessionmaker: async_sessionmaker[AsyncSession],
         store: TelemetryStore,
-        max_batch: int = 2000,
+        max_batch: int = 500,
         max_delay_s: float = 0.02,
+        writer: async_sessionmaker[AsyncSession] | None = None,
     ) -> None:
+        """`writer` (default `sessionmaker`) stores the batches: a pool of its own keeps the
+        ingest from waiting behind a thousand sockets' sweeps and heartbeats for a connection."""
         self.sessionmaker = sessionmaker
+        self.writer = writer or sessionmaker
         self.store = store
         self.max_batch = max_batch
         self.max_delay_s = max_delay_s
-        self.queue: asyncio.Queue[Item] = asyncio.Queue()
+        self.queue: deque[Item] = deque()
+        self._ready = asyncio.Event()
         self._task: asyncio.Task[None] | None = None
         self.stored = 0
 
@@ -127,28 +149,27 @@ class Ingest:
             await db.commit()
             return position
 
-    def submit(self, item: Item) -> asyncio.Future[None]:
-        """Queue an item; the future resolves once it is stored."""
-        self.queue.put_nowait(item)
-        return item.done
+    def submit(self, item: Item) -> None:
+        """Queue an item; `item.acks` hears once it is stored (or rejected, or failed)."""
+        self.queue.append(item)
+        self._ready.set()
 
     async def _run(self) -> None:
         while True:
-            batch = [await self.queue.get()]
-            deadline = asyncio.get_running_loop().time() + self.max_delay_s
-            while len(batch) < self.max_batch:
-                timeout = deadline - asyncio.get_running_loop().time()
-                if timeout <= 0:
-                    break
-                try:
-                    batch.append(await asyncio.wait_for(self.queue.get(), timeout))
-                except TimeoutError:
-                    break
+            await self._ready.wait()
+            if len(self.queue) < self.max_batch:
+                # one timer per batch (not one per message): what arrives meanwhile joins it
+                await asyncio.sleep(self.max_delay_s)
+            n = min(len(self.queue), self.max_batch)
+            batch = [self.queue.popleft() for _ in range(n)]
+            if not self.queue:
+                self._ready.clear()
             await self._store_isolated(batch)
 
     async def _store_isolated(self, batch: list[Item]) -> None:
-        """Store a batch and resolve its futures; a batch refused for its data is halved until the
-        rows at fault are alone (only they fail); any other failure fails the batch (replayed)."""
+        """Store a batch and tell its connections; a batch refused for its data is halved until
+        the rows at fault are alone (only they fail); any other failure fails the batch
+        (replayed)."""
         try:
             await self._store(batch)
         except asyncio.CancelledError:
@@ -156,25 +177,27 @@ class Ingest:
         except Exception as err:
             if not _data_fault(err):
                 log.exception("storing a batch of %d messages failed", len(batch))
-                for item in batch:
-                    if not item.done.done():
-                        item.done.set_exception(err)
+                for acks in {id(i.acks): i.acks for i in batch if i.acks is not None}.values():
+                    acks.failed(err)
                 return
             if len(batch) == 1:
                 item = batch[0]
                 log.warning(
                     "message seq %d of asset %s cannot be stored: %r", item.seq, item.asset_id, err
                 )
-                if not item.done.done():
-                    item.done.set_exception(RowRejected(f"message seq {item.seq} cannot be stored"))
+                if item.acks is not None:
+                    item.acks.rejected(item.seq, f"message seq {item.seq} cannot be stored")
                 return
             half = len(batch) // 2
             await self._store_isolated(batch[:half])
             await self._store_isolated(batch[half:])
             return
+        highest: dict[int, tuple[Acks, int]] = {}
         for item in batch:
-            if not item.done.done():
-                item.done.set_result(None)
+            if item.acks is not None:
+                highest[id(item.acks)] = (item.acks, item.seq)  # a connection's items are in order
+        for acks, seq in highest.values():
+            acks.stored(seq)
         self.stored += len(batch)
 
     async def _store(self, batch: list[Item]) -> None:
@@ -183,9 +206,9 @@ class Ingest:
             for i in batch
             if i.kind == "telemetry"
         ]
-        await self.store.write(samples)
         highest: dict[uuid.UUID, int] = {}
-        async with self.sessionmaker() as db:
+        async with self.writer() as db:
+            await self.store.write(samples, db)
             for item in batch:
                 highest[item.stream_id] = max(highest.get(item.stream_id, 0), item.seq)
                 if item.kind == "event":

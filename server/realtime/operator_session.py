@@ -48,15 +48,20 @@ class OperatorSession:
         self.bucket = TokenBucket(settings.ws_operator_rate_per_s, settings.ws_operator_burst)
         self.subscribed: set[uuid.UUID] = set()
         self.recent: deque[str] = deque(maxlen=RECENT_IDS)
+        self.recent_set: set[str] = set()  # the same ids, for an O(1) look-up per message
         self.owner = f"{services.hub.node}:{uuid.uuid4().hex[:8]}"
         self.slot: str | None = None
 
     def forward(self, message: dict[str, Any]) -> None:
         """Pass one broker message on to the socket (once, even when it came on two channels)."""
         mid = str(message.get("id", ""))
-        if mid and mid in self.recent:
-            return
-        self.recent.append(mid)
+        if mid:
+            if mid in self.recent_set:
+                return
+            if len(self.recent) == RECENT_IDS:
+                self.recent_set.discard(self.recent[0])
+            self.recent.append(mid)
+            self.recent_set.add(mid)
         text = message.get("text")
         if not isinstance(text, str):
             text = json.dumps(message, separators=(",", ":"))

@@ -175,8 +175,9 @@ class InfluxTelemetryStore:
 
     # -- the TelemetryStore operations
 
-    async def write(self, samples: Sequence[Sample]) -> None:
-        """Store a batch; returns when InfluxDB has acknowledged it (points with bad values logged)."""
+    async def write(self, samples: Sequence[Sample], db: Any = None) -> None:
+        """Store a batch; returns when InfluxDB has acknowledged it (points with bad values logged).
+        `db` (the caller's SQL transaction) is not InfluxDB's: ignored."""
         lines = [line for line in map(to_line, samples) if line is not None]
         for i in range(0, len(lines), WRITE_CHUNK):
             chunk = lines[i : i + WRITE_CHUNK]

@@ -73,9 +73,10 @@ async def stream_position(db: AsyncSession, stream_id: uuid.UUID, asset_id: uuid
 
 
 async def advance_streams(db: AsyncSession, highest: Mapping[uuid.UUID, int]) -> None:
-    """Move each stream's stored position up to `highest[stream]` (never down: replays are harmless)."""
-    for row in await repository.streams(db, highest):
-        row.last_seq = max(row.last_seq, highest[row.stream_id])
+    """Move each stream's stored position up to `highest[stream]` (never down: replays are
+    harmless), in the caller's transaction: one UPDATE per stream in one executemany."""
+    if highest:
+        await repository.advance_streams(db, highest)
 
 
 def time_range(start: datetime | None, end: datetime | None) -> tuple[datetime, datetime]:

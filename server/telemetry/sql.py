@@ -6,9 +6,9 @@ import math
 import uuid
 from collections.abc import Sequence
 from datetime import UTC, datetime
-from typing import Any
+from typing import Any, cast
 
-from sqlalchemy import delete, select
+from sqlalchemy import Table, delete, select
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
@@ -33,21 +33,28 @@ class SqlTelemetryStore:
     async def ping(self) -> None:
         """The table is in the main database, which readiness checks on its own."""
 
-    async def write(self, samples: Sequence[Sample]) -> None:
-        """Insert a batch in one transaction; a sample already stored (a replay) is skipped."""
+    async def write(self, samples: Sequence[Sample], db: AsyncSession | None = None) -> None:
+        """Insert a batch (one Core executemany, no ORM objects); a sample already stored (a
+        replay) is skipped. Inside `db`'s transaction when given (the caller commits), else in
+        one of its own."""
         if not samples:
             return
         rows = [
-            {"asset_id": s.asset_id, "ts": s.ts, "seq": s.seq, "fields": dict(s.fields)}
-            for s in samples
+            {"asset_id": s.asset_id, "ts": s.ts, "seq": s.seq, "fields": s.fields} for s in samples
         ]
+        if db is not None:
+            await db.execute(self._insert, rows)
+            return
+        async with self.sessionmaker() as own:
+            await own.execute(self._insert, rows)
+            await own.commit()
+
+    @property
+    def _insert(self) -> Any:
         insert = postgresql.insert if self.dialect == "postgresql" else sqlite.insert
-        stmt = insert(TelemetrySample).on_conflict_do_nothing(
+        return insert(cast(Table, TelemetrySample.__table__)).on_conflict_do_nothing(
             index_elements=["asset_id", "seq", "ts"]
         )
-        async with self.sessionmaker() as db:
-            await db.execute(stmt, rows)
-            await db.commit()
 
     async def _rows(self, q: Query) -> list[TelemetrySample]:
         stmt = (

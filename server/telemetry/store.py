@@ -11,7 +11,10 @@ import uuid
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
+
+if TYPE_CHECKING:
+    from sqlalchemy.ext.asyncio import AsyncSession
 
 Scalar = float | int | bool | str
 Aggregate = Literal["mean", "last"]
@@ -52,8 +55,10 @@ class TelemetryStore(Protocol):
     async def close(self) -> None:
         """Flush and disconnect."""
 
-    async def write(self, samples: Sequence[Sample]) -> None:
-        """Store a batch durably; returns only when it is stored."""
+    async def write(self, samples: Sequence[Sample], db: AsyncSession | None = None) -> None:
+        """Store a batch durably; returns only when it is stored. `db` is the caller's open
+        transaction on the main database: a store living there joins it (the caller commits),
+        any other store ignores it and is durable on return."""
 
     async def query(self, q: Query) -> list[dict[str, Any]]:
         """Rows `{"ts": iso8601, field: value, ...}` in time order."""
@@ -65,16 +70,26 @@ class TelemetryStore(Protocol):
         """Delete samples older than `before` (retention); returns how many, when known."""
 
 
+_SCALARS = (bool, int, float, str)
+
+
 def flatten(payload: Mapping[str, Any], prefix: str = "") -> dict[str, Scalar]:
     """Nested telemetry -> flat dotted fields; None values are dropped, lists are skipped."""
     out: dict[str, Scalar] = {}
-    for key, value in payload.items():
-        name = f"{prefix}{key}"
-        if isinstance(value, Mapping):
-            out.update(flatten(value, name + "."))
-        elif isinstance(value, bool | int | float | str):
-            out[name] = value
+    _flatten_into(out, payload, prefix)
     return out
+
+
+def _flatten_into(out: dict[str, Scalar], payload: Mapping[str, Any], prefix: str) -> None:
+    # exact type checks first (decoded JSON is plain dicts and scalars): no ABC look-ups per value
+    for key, value in payload.items():
+        kind = type(value)
+        if kind in _SCALARS:
+            out[prefix + key if prefix else key] = value
+        elif kind is dict or isinstance(value, Mapping):
+            _flatten_into(out, value, f"{prefix}{key}.")
+        elif isinstance(value, _SCALARS):  # subclasses (an IntEnum, a str enum)
+            out[prefix + key if prefix else key] = value
 
 
 async def retention_loop(store: TelemetryStore, keep_days: float, every_s: float = 3600.0) -> None:

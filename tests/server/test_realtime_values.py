@@ -72,7 +72,8 @@ async def test_out_of_range_seq_and_ts_are_refused_and_another_asset_keeps_its_s
 
 async def test_an_unstorable_row_fails_alone_in_its_batch(database_url: str) -> None:
     """Rows that pass no edge (written straight to the ingest): the one the database cannot hold
-    fails with RowRejected, every other row of the same batch is stored (SQLite and PostgreSQL)."""
+    is rejected alone, every other row of the same batch is stored and acknowledged (SQLite and
+    PostgreSQL)."""
     from datetime import UTC, datetime
 
     from sqlalchemy import insert
@@ -80,7 +81,7 @@ async def test_an_unstorable_row_fails_alone_in_its_batch(database_url: str) -> 
     from server.assets.models import Asset
     from server.kit.db import make_engine, make_sessionmaker
     from server.organizations.models import Organization
-    from server.realtime.ingest import Ingest, Item, RowRejected
+    from server.realtime.ingest import Ingest, Item
     from server.telemetry.sql import SqlTelemetryStore
     from server.telemetry.store import Query
 
@@ -109,20 +110,55 @@ async def test_an_unstorable_row_fails_alone_in_its_batch(database_url: str) -> 
         good_stream, bad_stream = uuid.uuid4(), uuid.uuid4()
         for stream, asset in ((good_stream, good), (bad_stream, bad)):
             await ingest.last_seq(stream, asset)
+        heard_good, heard_bad = _Heard(), _Heard()
         items = [
-            Item(good_stream, good, org, i, "telemetry", ts + i, {"n": i}) for i in range(1, 11)
+            Item(good_stream, good, org, i, "telemetry", ts + i, {"n": i}, acks=heard_good)
+            for i in range(1, 11)
         ]
-        items.insert(5, Item(bad_stream, bad, org, 2**63, "telemetry", ts, {"n": -1}))
-        futures = [ingest.submit(item) for item in items]
-        outcomes = await asyncio.wait_for(asyncio.gather(*futures, return_exceptions=True), 30)
+        items.insert(
+            5, Item(bad_stream, bad, org, 2**63, "telemetry", ts, {"n": -1}, acks=heard_bad)
+        )
+        for item in items:
+            ingest.submit(item)
+        await asyncio.wait_for(heard_good.reached(10), 30)
+        await asyncio.wait_for(heard_bad.settled.wait(), 30)
     finally:
         await ingest.stop()
-    assert [type(o) for o in outcomes] == [type(None)] * 5 + [RowRejected] + [type(None)] * 5
+    assert heard_good.rejects == [] and heard_good.errors == []
+    assert heard_bad.rejects == [2**63] and heard_bad.errors == []
     start = datetime.fromtimestamp(ts / 1000 - 60, UTC)
     end = datetime.fromtimestamp(ts / 1000 + 60, UTC)
     rows = await store.query(Query(good, start, end))
     assert sorted(r["n"] for r in rows) == list(range(1, 11))
     await engine.dispose()
+
+
+class _Heard:
+    """What the ingest told one connection (an `Acks`)."""
+
+    def __init__(self) -> None:
+        self.up_to = 0
+        self.rejects: list[int] = []
+        self.errors: list[BaseException] = []
+        self.settled = asyncio.Event()
+
+    def stored(self, seq: int) -> None:
+        assert seq > self.up_to, "acks are cumulative and only move up"
+        self.up_to = seq
+        self.settled.set()
+
+    def rejected(self, seq: int, reason: str) -> None:
+        self.rejects.append(seq)
+        self.settled.set()
+
+    def failed(self, err: BaseException) -> None:
+        self.errors.append(err)
+        self.settled.set()
+
+    async def reached(self, seq: int) -> None:
+        while self.up_to < seq and not self.errors:
+            self.settled.clear()
+            await self.settled.wait()
 
 
 async def test_nan_in_uav_telemetry_is_dropped_with_an_error_and_an_event(

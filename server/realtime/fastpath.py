@@ -1,0 +1,181 @@
+"""The server's hot path of `protocol.codec.decode` for the one message that arrives thousands of
+times a second: UAV telemetry from an asset, checked by a msgspec mirror of its pydantic models
+(several times faster) and returned as plain JSON data.
+
+The mirror is at least as strict as the models (`protocol.messages.Telemetry` with
+`protocol.telemetry_payloads.UavTelemetry`, strict mode): the same ranges, literals, forbidden
+extra keys and finite numbers, and every envelope field required. Anything it does not accept
+(invalid, or merely unusual: a landing base's telemetry, a missing `seq`, NaN) returns None and
+goes through `protocol.codec.decode`, which gives the usual errors; a test checks the mirror never
+accepts what the models refuse.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import uuid
+from typing import Annotated, Any, Literal
+
+import msgspec
+import orjson
+
+from protocol.base import MAX_MESSAGE_BYTES, MAX_SAFE_INT, MAX_UNIX_MS
+from protocol.messages import Envelope
+
+_MAX = 1.7976931348623157e308  # the largest finite float: NaN and infinities fail the range
+Finite = Annotated[float, msgspec.Meta(ge=-_MAX, le=_MAX)]
+Pct = Annotated[float, msgspec.Meta(ge=0, le=100)]
+Deg360 = Annotated[float, msgspec.Meta(ge=0, le=360)]
+NonNegative = Annotated[float, msgspec.Meta(ge=0, le=_MAX)]
+
+
+class _S(msgspec.Struct, forbid_unknown_fields=True):
+    pass
+
+
+class _Position(_S):
+    lat: Annotated[float, msgspec.Meta(ge=-90, le=90)]
+    lon: Annotated[float, msgspec.Meta(ge=-180, le=180)]
+    alt_msl_m: Finite
+    alt_rel_m: Finite
+
+
+class _Velocity(_S):
+    north_m_s: Finite
+    east_m_s: Finite
+    down_m_s: Finite
+
+
+class _Attitude(_S):
+    roll_deg: Finite
+    pitch_deg: Finite
+    yaw_deg: Finite
+
+
+class _Battery(_S):
+    percent: Pct | None = None
+    voltage_v: Finite | None = None
+    current_a: Finite | None = None
+
+
+class _Gnss(_S):
+    fix: Literal["none", "2d", "3d", "dgps", "rtk_float", "rtk_fixed"]
+    satellites: Annotated[int, msgspec.Meta(ge=0, le=255)] | None = None
+    hdop: NonNegative | None = None
+
+
+class _Mission(_S):
+    current: Annotated[int, msgspec.Meta(ge=0, le=65535)]
+    total: Annotated[int, msgspec.Meta(ge=0, le=65535)]
+
+
+class _UavTelemetry(_S):
+    kind: Literal["uav"]  # the union's tag: required by the models too
+    asset_id: uuid.UUID | None = None
+    position: _Position | None = None
+    velocity: _Velocity | None = None
+    heading_deg: Deg360 | None = None
+    attitude: _Attitude | None = None
+    battery: _Battery | None = None
+    gnss: _Gnss | None = None
+    flight_mode: str | None = None
+    armed: bool = False
+    landed_state: Literal["unknown", "on_ground", "in_air", "takeoff", "landing"] = "unknown"
+    mission: _Mission | None = None
+
+
+class _TelemetryEnvelope(_S):
+    v: Literal[1]
+    id: uuid.UUID
+    seq: Annotated[int, msgspec.Meta(ge=0, le=MAX_SAFE_INT)]
+    ts: Annotated[int, msgspec.Meta(ge=0, lt=MAX_UNIX_MS)]
+    type: Literal["telemetry"]
+    payload: _UavTelemetry
+    re: uuid.UUID | None = None
+
+
+_DECODER = msgspec.json.Decoder(_TelemetryEnvelope)
+
+
+def _defaults(struct: type[msgspec.Struct]) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+    """A struct's field defaults, and those of its struct-valued fields (by field name)."""
+    plain: dict[str, Any] = {}
+    nested: dict[str, dict[str, Any]] = {}
+    for f in msgspec.structs.fields(struct):
+        if f.default is not msgspec.NODEFAULT:
+            plain[f.name] = f.default
+        inner = [t for t in getattr(f.type, "__args__", (f.type,)) if isinstance(t, type)]
+        for t in inner:
+            if issubclass(t, msgspec.Struct) and _defaults(t)[0]:
+                nested[f.name] = _defaults(t)[0]
+    return plain, nested
+
+
+# what the models fill in for a field left out (so stored samples and operators see the same data)
+_PAYLOAD_DEFAULTS, _NESTED_DEFAULTS = _defaults(_UavTelemetry)
+
+
+def uav_telemetry(text: str | bytes) -> dict[str, Any] | None:
+    """The envelope as JSON data when `text` is a valid UAV telemetry message (as
+    `decode(text, "asset_to_server")` would accept), None for anything else or anything unsure."""
+    if len(text) > MAX_MESSAGE_BYTES // 4:
+        return None
+    try:
+        message = _DECODER.decode(text)
+        data = orjson.loads(text)
+    except (msgspec.DecodeError, orjson.JSONDecodeError):
+        return None
+    if type(data) is not dict:
+        return None
+    # ids in their canonical form, as the models give them (a hyphenless or upper-case id is valid)
+    if not _canonical(data["id"]):
+        data["id"] = str(message.id)
+    if data.get("re") is not None and not _canonical(data["re"]):
+        data["re"] = str(message.re)
+    elif "re" in data and data["re"] is None:
+        del data["re"]  # the models leave an empty `re` out
+    payload = data["payload"]
+    if len(payload) < len(_PAYLOAD_DEFAULTS) + 1:
+        for name, value in _PAYLOAD_DEFAULTS.items():
+            payload.setdefault(name, value)
+    for name, defaults in _NESTED_DEFAULTS.items():
+        inner = payload[name]
+        if inner is not None:
+            for key, value in defaults.items():
+                inner.setdefault(key, value)
+    return data
+
+
+def _canonical(text: str) -> bool:
+    return len(text) == 36 and text == text.lower()
+
+
+def operator_text(
+    raw: str, msg: Envelope, salvaged: bool, asset_id: str
+) -> tuple[str, dict[str, Any]]:
+    """A durable message that took the models' path as operators receive it (with `asset_id`),
+    and the payload to store.
+
+    Telemetry as received is valid (the model accepted it, extra keys are refused) and is
+    re-emitted from its parsed JSON with `asset_id` set; anything else (events, command results,
+    a message without its non-finite numbers) is dumped from the model.
+    """
+    if msg.type == "telemetry" and not salvaged:
+        try:
+            data = orjson.loads(raw)
+            data["payload"]["asset_id"] = asset_id
+            return orjson.dumps(data).decode(), data["payload"]
+        except (orjson.JSONDecodeError, orjson.JSONEncodeError):
+            pass  # an integer past 64 bits: orjson refuses it, pydantic did not
+    data = msg.model_dump(mode="json")
+    data["payload"]["asset_id"] = asset_id
+    return json.dumps(data, separators=(",", ":")), data["payload"]
+
+
+def ack_text(seq: int) -> str:
+    """An `ack` envelope (what `encode(envelope(AckPayload(seq=seq)))` gives, formatted directly)."""
+    return (
+        f'{{"v":1,"id":"{uuid.uuid4()}","seq":0,"ts":{int(time.time() * 1000)},'
+        f'"type":"ack","payload":{{"seq":{seq}}}}}'
+    )
