@@ -6,7 +6,7 @@ import uuid
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AwareDatetime, BaseModel, ConfigDict, Field
 
 from server.kit.types import Name, Text
 from server.missions.items import MissionItem
@@ -150,10 +150,18 @@ class MissionOut(BaseModel):
 
 
 class ValidateRequest(BaseModel):
-    """Check a mission, optionally against one UAV's endurance."""
+    """Check a mission, optionally against one UAV's endurance and a base's airspace."""
 
     model_config = ConfigDict(extra="forbid")
     uav_id: uuid.UUID | None = None
+    base_id: uuid.UUID | None = Field(
+        default=None,
+        description="the base it would fly from: its own zones (operating area) apply too; "
+        "the organisation's zones and the plan's geoFence apply always",
+    )
+    at: AwareDatetime | None = Field(
+        default=None, description="when it would fly (zones' time windows); null: now"
+    )
 
 
 class UavLimitsOut(BaseModel):

@@ -28,6 +28,7 @@ from server.assets.models import Asset
 from server.commands import service as commands
 from server.kit import metrics
 from server.kit.periodic import Periodic
+from server.kit.principal import Principal, Role
 from server.kit.time import utcnow
 from server.realtime.channels import asset_channel, command_channel
 from server.runs import repository as repo
@@ -263,6 +264,25 @@ class RunEngine:
             if row.command_id and (cmd := found.get(row.command_id)) is not None
         }
 
+    async def _airspace(self, db: Any, run: Run) -> str:
+        """Why the run's mission breaks the airspace active now ("" when it does not)."""
+        from server.airspace.service import flight_problems
+        from server.missions.models import Mission
+
+        mission = await db.get(Mission, run.mission_id)
+        if mission is None:
+            return ""
+        system = Principal(
+            kind="user",
+            session_id=uuid.UUID(int=0),
+            organization_id=run.organization_id,
+            role=Role.viewer,
+            label=f"run {run.id}",
+        )
+        problems = await flight_problems(db, system, mission, run.base_id)
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        return f"{problems[0].what}{more}" if problems else ""
+
     async def _observe(self, db: Any, run: Run) -> Observations:
         outcomes = await self._outcomes(db, await repo.step_commands(db, run.id))
         since = run.step_started_at
@@ -282,7 +302,9 @@ class RunEngine:
             and uav.get("armed") is False
             and _after(uav.get("ts"), since)
         )
+        airspace = await self._airspace(db, run) if run.state == State.checking.value else ""
         return Observations(
+            airspace=airspace,
             elapsed_s=(utcnow() - since).total_seconds(),
             timeout_s=self.timeout_s(State(run.state)),
             commands=outcomes,

@@ -124,6 +124,7 @@ class Observations:
     abort_requested: bool = False
     abort_reason: str = ""
     took_off: bool = False
+    airspace: str = ""  # why the mission's path breaks the airspace now ("": it does not)
 
 
 @dataclass(frozen=True)
@@ -170,6 +171,7 @@ class Seen:
             "label": step.label.lower(),
             "missing": " and ".join(missing),
             "mass": f"{obs.base_mass_g:.0f} g" if obs.base_mass_g is not None else "no reading",
+            "airspace": obs.airspace,
         }
 
 
@@ -207,6 +209,11 @@ def mission_finished(seen: Seen) -> bool:
 def uav_landed(seen: Seen) -> bool:
     """The UAV reports it has landed."""
     return seen.obs.uav_landed or "landed" in seen.obs.uav_events
+
+
+def airspace_refused(seen: Seen) -> bool:
+    """The mission's path breaks a zone active now (checked again at the start: zones change)."""
+    return bool(seen.obs.airspace)
 
 
 def scale_confirms(seen: Seen) -> bool:
@@ -299,6 +306,8 @@ STEPS: dict[State, Step] = {
             State.checking, 1, "Checking weather, base and UAV readiness",
             (Action("base", CheckAvailability), Action("uav", CheckAvailability)), 60,
             done=(
+                Exit(State.aborted, "the mission's path breaks the airspace: {airspace}",
+                     "airspace", when=airspace_refused),
                 Exit(State.opening, "weather, base and UAV are all within limits",
                      when=all_succeeded),
             ),

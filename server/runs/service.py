@@ -8,6 +8,7 @@ from collections import Counter, defaultdict
 from datetime import datetime, timedelta
 from typing import Any
 
+from server.airspace.service import flight_problems, refused
 from server.assets.models import AssetKind
 from server.assets.repository import AssetRepository
 from server.kit.errors import Conflict, Unprocessable
@@ -57,6 +58,9 @@ async def create_run(
         )
     if not mission.items:
         raise Unprocessable(f"mission {mission.name} has no items", code="invalid_run")
+    airspace = await flight_problems(runs.db, runs.principal, mission, base.id, scheduled_for)
+    if airspace:
+        raise refused(airspace)
     busy = await runs.busy([uav.id, base.id])
     if busy is not None:
         raise Conflict(
