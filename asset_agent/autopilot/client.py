@@ -28,6 +28,7 @@ from typing import Any
 from asset_agent.autopilot import mission, translate
 from asset_agent.autopilot.actions import ActionsMixin
 from asset_agent.autopilot.errors import AutopilotTimeout, CommandRejected, LinkLost
+from asset_agent.autopilot.fence import FenceMixin
 from asset_agent.autopilot.flight_state import MissionWatch, Thresholds, infer_landed_state
 from asset_agent.autopilot.items import MissionItem
 from asset_agent.autopilot.link import MavlinkLink
@@ -73,7 +74,7 @@ class AutopilotConfig:
     streams: dict[int, float] = field(default_factory=lambda: dict(DEFAULT_STREAMS))
 
 
-class Autopilot(ActionsMixin, SetpointsMixin):
+class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
     """One autopilot over MAVLink, as seen from the companion computer."""
 
     def __init__(self, config: AutopilotConfig | None = None) -> None:

@@ -9,8 +9,9 @@ from typing import Any
 from pydantic import ValidationError
 
 from server.airspace.check import AirspaceProblem, ZoneShape
+from server.airspace.fence import Fence, build_fence
 from server.airspace.models import AirspaceZone
-from server.airspace.plan import check_flight
+from server.airspace.plan import check_flight, plan_fence_zones
 from server.airspace.repository import ZoneRepository
 from server.airspace.schemas import FeatureCollectionIn, ZoneIn
 from server.airspace.zones import (
@@ -202,4 +203,23 @@ def refused(problems: list[AirspaceProblem], code: str = "airspace") -> Unproces
         f"the mission's path breaks the airspace: {first.what}{more}",
         code=code,
         details=[p.as_dict() for p in problems],
+    )
+
+
+async def flight_fence(
+    db: Any, principal: Principal, mission: Any, base_id: uuid.UUID, at: datetime | None = None
+) -> Fence | None:
+    """The fence and rally points to upload for flying `mission` from `base_id` (None when the
+    mission has no home to anchor a fence and a return point to)."""
+    from server.missions.build import home_of
+    from server.missions.items import items_of
+
+    home = home_of(mission.home)
+    if home is None:
+        return None
+    rows = await ZoneRepository(db, principal).applicable(base_id)
+    when = at or utcnow()
+    zones = [shape_of(z) for z in rows if is_active(z, when)]
+    return build_fence(
+        items_of(mission.items), home, [*zones, *plan_fence_zones(mission.extras)], mission.extras
     )

@@ -216,6 +216,11 @@ def airspace_refused(seen: Seen) -> bool:
     return bool(seen.obs.airspace)
 
 
+def fence_breached(seen: Seen) -> bool:
+    """The UAV's autopilot reports a geofence breach (it has switched to RTL on its own)."""
+    return "fence_breach" in seen.obs.uav_events
+
+
 def scale_confirms(seen: Seen) -> bool:
     """The base's scale confirms the UAV on the lift."""
     return "landing_confirmed" in seen.obs.base_events or seen.obs.base_confirms
@@ -350,7 +355,12 @@ STEPS: dict[State, Step] = {
         ),
         Step(
             State.flying, 4, "Flying the mission", (Action("uav", StartMission),), 3600,
-            done=(Exit(State.landing, "mission finished", when=mission_finished),),
+            done=(
+                Exit(State.landing, "the UAV breached the geofence: its autopilot is returning "
+                     "it to the base; landing there", "fence_breach", alert=True,
+                     when=fence_breached),
+                Exit(State.landing, "mission finished", when=mission_finished),
+            ),
             # once it has taken off, a failed start is not a failure: the mission is flying
             failure=(
                 Exit(State.failed, "the UAV could not start the mission: {failure}; "

@@ -22,6 +22,7 @@ from server.runs.models import Run
 from server.runs.repository import RunRepository
 from server.runs.schemas import (
     AssetSummary,
+    BreachOut,
     FleetReport,
     LandingReport,
     RunOut,
@@ -135,6 +136,23 @@ async def report(runs: RunRepository, store: Any, run_id: uuid.UUID) -> RunRepor
         landing_error_m=run.landing_error_m if run.landing_error_m is not None else measured,
         landing=landing,
         track=track,
+        airspace_breaches=[breach_out(e) for e in await runs.flight_events(run, "fence_breach")],
+    )
+
+
+def breach_out(event: AssetEvent) -> BreachOut:
+    """A `fence_breach` event of the UAV as the report shows it."""
+    d = event.data or {}
+    text = {k: d.get(k) if isinstance(d.get(k), str) else None for k in ("breach_type", "mode")}
+    count = d.get("breach_count")
+    return BreachOut(
+        at=event.ts,
+        breach_type=text["breach_type"] or "BOUNDARY",
+        breach_count=count if isinstance(count, int) and not isinstance(count, bool) else None,
+        mode=text["mode"],
+        lat=_number(d, "lat"),
+        lon=_number(d, "lon"),
+        alt_rel_m=_number(d, "alt_rel_m"),
     )
 
 
