@@ -74,8 +74,13 @@ def derive_events(prev: UavState, cur: UavState, limits: EventLimits | None = No
     was_ok = prev.battery_pct is None or prev.battery_pct >= thr
     if was_ok and cur.battery_pct is not None and cur.battery_pct < thr:
         out.append(_event("low_battery", battery_pct=cur.battery_pct, threshold_pct=thr))
-    # FENCE_STATUS counts breaches: a higher count is a new one (the autopilot acts on it: RTL)
-    if cur.fence_breach_count > prev.fence_breach_count and cur.fence_breached:
+    # FENCE_STATUS counts breaches (from boot): a higher count than the last one heard is a new
+    # breach, even when the status that carries it says the vehicle is already back inside
+    if (
+        prev.fence_breach_count is not None
+        and cur.fence_breach_count is not None
+        and cur.fence_breach_count > prev.fence_breach_count
+    ):
         out.append(
             _event(
                 "fence_breach",

@@ -62,7 +62,7 @@ class UavState:
     home_lon: float | None = None
     home_alt_msl: float | None = None
     fence_breached: bool = False  # FENCE_STATUS.breach_status
-    fence_breach_count: int = 0  # FENCE_STATUS.breach_count: rises with each new breach
+    fence_breach_count: int | None = None  # FENCE_STATUS.breach_count (None: none heard yet)
     fence_breach_type: str = "NONE"  # NONE | MINALT | MAXALT | BOUNDARY
 
     @property

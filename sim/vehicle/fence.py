@@ -45,6 +45,7 @@ TYPE_ALT_MAX, TYPE_POLYGON = 1, 4
 BREACH_NONE, BREACH_MAXALT, BREACH_BOUNDARY = 0, 2, 3
 GIVE_UP_DISTANCE_M = 100.0  # AC_FENCE_GIVE_UP_DISTANCE
 PARAM_INT8, PARAM_REAL32 = 2, 9
+CAP_MISSION_INT, CAP_MAVLINK2, CAP_MISSION_FENCE, CAP_MISSION_RALLY = 4, 8192, 16384, 32768
 DEFAULT_PARAMS: dict[str, tuple[float, int]] = {
     "FENCE_ENABLE": (0.0, PARAM_INT8),
     "FENCE_TYPE": (7.0, PARAM_INT8),  # Copter's default: max altitude, circle, polygon
@@ -184,6 +185,7 @@ class FenceMixin:
     """Fence and rally storage, fence parameters and enforcement of `Copter`."""
 
     origin: GeoOrigin
+    config: Any
     armed: bool
     mode: int
     t: float
@@ -213,6 +215,19 @@ class FenceMixin:
             state = self.__dict__["_fence_state"] = FenceState()
         return state
 
+    def autopilot_version(self) -> Any:
+        """AUTOPILOT_VERSION: MAVLink 2, MISSION_INT, and fence/rally over the mission protocol
+        when this release has them (habit `mission_fence`)."""
+        caps = CAP_MISSION_INT | CAP_MAVLINK2
+        if self.config.habits.mission_fence:
+            caps |= CAP_MISSION_FENCE | CAP_MISSION_RALLY
+        version = (
+            (4 << 24) | (5 << 16) if self.config.habits.mission_fence else (3 << 24) | (7 << 16)
+        )
+        return mavlink.MAVLink_autopilot_version_message(
+            caps, version, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0
+        )
+
     def param(self, name: str) -> float:
         """A parameter's value."""
         return self.fence.params[name][0]
@@ -223,7 +238,7 @@ class FenceMixin:
 
     def _typed_count(self, msg: Any, link: Any) -> None:
         kind = msg.mission_type
-        if kind not in self.fence.stored:
+        if kind not in self.fence.stored or not self.config.habits.mission_fence:
             self._ack(link, ms.UNSUPPORTED, kind)
             return
         limit = MAX_FENCE_ITEMS if kind == MISSION_TYPE_FENCE else MAX_RALLY_POINTS

@@ -177,7 +177,13 @@ def test_a_new_fence_breach_is_one_event():
     from asset_agent.events import derive_events
 
     flying = UavState(
-        armed=True, landed_state="IN_AIR", mode="AUTO", lat=41.0, lon=-8.0, alt_rel=12.0
+        armed=True,
+        landed_state="IN_AIR",
+        mode="AUTO",
+        lat=41.0,
+        lon=-8.0,
+        alt_rel=12.0,
+        fence_breach_count=0,
     )
     breached = flying.__class__(
         **{
@@ -191,3 +197,27 @@ def test_a_new_fence_breach_is_one_event():
     (event,) = [e for e in derive_events(flying, breached) if e.kind == "fence_breach"]
     assert event.detail["breach_type"] == "BOUNDARY" and event.detail["mode"] == "RTL"
     assert [e for e in derive_events(breached, breached) if e.kind == "fence_breach"] == []
+
+
+async def test_an_autopilot_without_the_fence_protocol_keeps_its_mission_and_refuses_a_fence():
+    """ArduPilot before 4.0 says no MAV_PROTOCOL_CAPABILITY_MISSION_FENCE: nothing of another
+    mission type is sent to it (it could take it for a mission); a fence is refused by name."""
+    from asset_agent.autopilot.fence import FenceUnsupported
+    from sim.vehicle.copter import CopterConfig
+    from sim.vehicle.habits import profile
+    from sim.vehicle.server import run_vehicle
+    from tests.asset_agent.conftest import fast_config
+
+    config = CopterConfig(seed=5, habits=profile("ardupilot-3.7", boot_s=0.0))
+    pad = OpenPad()
+    async with run_vehicle(speed=20.0, base=pad, config=config) as vehicle:
+        ap = Autopilot(fast_config(f"udpout:127.0.0.1:{vehicle.udp_port}", link_timeout_s=3.0))
+        await ap.start()
+        try:
+            await ap.wait_link(10)
+            await ap.upload_fence([], [])  # nothing to enforce: skipped, not an error
+            origin = GeoOrigin(*pad.pad_geodetic)
+            with pytest.raises(FenceUnsupported, match="MISSION_FENCE"):
+                await ap.upload_fence(items_from_dicts(fence_around(origin)), [])
+        finally:
+            await ap.close()
