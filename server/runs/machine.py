@@ -125,6 +125,7 @@ class Observations:
     abort_reason: str = ""
     took_off: bool = False
     airspace: str = ""  # why the mission's path breaks the airspace now ("": it does not)
+    return_margin_pct: float | None = None  # battery left above the reserve after going home now
 
 
 @dataclass(frozen=True)
@@ -172,6 +173,7 @@ class Seen:
             "missing": " and ".join(missing),
             "mass": f"{obs.base_mass_g:.0f} g" if obs.base_mass_g is not None else "no reading",
             "airspace": obs.airspace,
+            "margin": f"{obs.return_margin_pct:.1f}" if obs.return_margin_pct is not None else "",
         }
 
 
@@ -214,6 +216,12 @@ def uav_landed(seen: Seen) -> bool:
 def airspace_refused(seen: Seen) -> bool:
     """The mission's path breaks a zone active now (checked again at the start: zones change)."""
     return bool(seen.obs.airspace)
+
+
+def reserve_reached(seen: Seen) -> bool:
+    """Going home now would leave no more than the battery reserve (reserve.py)."""
+    margin = seen.obs.return_margin_pct
+    return margin is not None and margin <= 0 and took_off(seen)
 
 
 def fence_breached(seen: Seen) -> bool:
@@ -360,6 +368,9 @@ STEPS: dict[State, Step] = {
                      "it to the base; landing there", "fence_breach", alert=True,
                      when=fence_breached),
                 Exit(State.landing, "mission finished", when=mission_finished),
+                Exit(State.landing, "the battery is at its return reserve (margin {margin} % "
+                     "after flying home against the wind); returning to the base",
+                     "battery_reserve", alert=True, when=reserve_reached),
             ),
             # once it has taken off, a failed start is not a failure: the mission is flying
             failure=(

@@ -109,6 +109,10 @@ class RunReport(BaseModel):
     airspace_breaches: list[BreachOut] = Field(
         default_factory=list, description="geofence breaches during the flight, oldest first"
     )
+    battery_margin_at_touchdown_pct: float | None = Field(
+        default=None,
+        description="battery at touchdown less the UAV's reserve (null before the landing)",
+    )
 
 
 class AssetSummary(BaseModel):

@@ -20,6 +20,7 @@ from server.runs.engine import progress_payload
 from server.runs.machine import FINAL, State
 from server.runs.models import Run
 from server.runs.repository import RunRepository
+from server.runs.reserve import return_model
 from server.runs.schemas import (
     AssetSummary,
     BreachOut,
@@ -137,7 +138,40 @@ async def report(runs: RunRepository, store: Any, run_id: uuid.UUID) -> RunRepor
         landing=landing,
         track=track,
         airspace_breaches=[breach_out(e) for e in await runs.flight_events(run, "fence_breach")],
+        battery_margin_at_touchdown_pct=await _touchdown_margin(runs, run, rows, landing),
     )
+
+
+async def _touchdown_margin(
+    runs: RunRepository, run: Run, rows: list[dict[str, Any]], landing: LandingReport | None
+) -> float | None:
+    """The battery at touchdown (the last reading before the agent's `landed`) less the UAV's
+    reserve (runs/reserve.py): what the return left to spare."""
+    from server.assets.models import Asset
+    from server.missions.models import Mission
+
+    if landing is None or landing.landed_at is None:
+        return None
+    before = [
+        r["battery.percent"]
+        for r in rows
+        if isinstance(r.get("battery.percent"), int | float)
+        and (ts := _parsed(r.get("ts"))) is not None
+        and ts <= landing.landed_at
+    ]
+    if not before:
+        return None
+    uav = await runs.db.get(Asset, run.uav_id)
+    mission = await runs.db.get(Mission, run.mission_id)
+    model = return_model((uav.attributes if uav else None) or {}, mission)
+    return round(float(before[-1]) - model.reserve_pct, 2)
+
+
+def _parsed(ts: Any) -> datetime | None:
+    try:
+        return datetime.fromisoformat(str(ts).replace("Z", "+00:00"))
+    except ValueError:
+        return None
 
 
 def breach_out(event: AssetEvent) -> BreachOut:
