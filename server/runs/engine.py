@@ -32,6 +32,7 @@ from server.kit.principal import Principal, Role
 from server.kit.time import utcnow
 from server.realtime.channels import asset_channel, command_channel
 from server.runs import repository as repo
+from server.runs.energy import return_margin
 from server.runs.machine import (
     FINAL,
     STEPS,
@@ -44,8 +45,6 @@ from server.runs.machine import (
     advance,
 )
 from server.runs.models import Run, RunStepCommand
-from server.runs.reserve import finite as _finite
-from server.runs.reserve import return_margin_pct, return_model
 from server.runs.settle import settle
 from server.services import Services
 
@@ -281,29 +280,6 @@ class RunEngine:
 
         return await flight_fence(db, _system(run), mission, run.base_id)
 
-    async def _return_margin(
-        self, db: Any, run: Run, uav: dict[str, Any], base: dict[str, Any]
-    ) -> float | None:
-        """Battery left above the reserve if the UAV flew home now (reserve.py); None unknown."""
-        from server.missions.models import Mission
-
-        mission = await db.get(Mission, run.mission_id)
-        asset = await db.get(Asset, run.uav_id)
-        home = (mission.home or {}) if mission else {}
-        fields = ("position.lat", "position.lon", "position.alt_rel_m", "battery.percent")
-        values = [_finite(uav.get(k)) for k in fields]
-        if "lat" not in home or any(v is None for v in values):
-            return None
-        lat, lon, alt, battery = (float(v) for v in values if v is not None)
-        return return_margin_pct(
-            battery,
-            (lat, lon, alt),
-            (float(home["lat"]), float(home["lon"])),
-            _finite(base.get("weather.wind_m_s")),
-            _finite(base.get("weather.direction_deg")),
-            return_model((asset.attributes if asset else None) or {}, mission),
-        )
-
     async def _airspace(self, db: Any, run: Run) -> str:
         """Why the run's mission breaks the airspace active now ("" when it does not)."""
         from server.airspace.service import flight_problems
@@ -337,9 +313,7 @@ class RunEngine:
         )
         airspace = await self._airspace(db, run) if run.state == State.checking.value else ""
         margin = (
-            await self._return_margin(db, run, uav, base)
-            if run.state == State.flying.value
-            else None
+            await return_margin(db, run, uav, base) if run.state == State.flying.value else None
         )
         return Observations(
             airspace=airspace,
