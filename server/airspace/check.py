@@ -209,14 +209,15 @@ def _circle_cuts(a: Vec, b: Vec, c: Vec, r: float) -> list[float]:
 
 
 @dataclass(frozen=True)
-class _Local:
-    """A zone in local metres."""
+class LocalZone:
+    """A zone in local metres: inside a point, and a segment split at its boundary."""
 
     zone: ZoneShape
     ring: tuple[Vec, ...] = ()
     center: Vec | None = None
 
     def inside(self, p: Vec) -> bool:
+        """True when `p` is in the zone (on a circle's edge counts as in)."""
         if self.center is not None:
             return math.dist(p, self.center) <= self.zone.radius_m
         return _inside_ring(p, self.ring)
@@ -239,10 +240,11 @@ class _Local:
         return out
 
 
-def _localise(zone: ZoneShape, proj: LocalProjection) -> _Local:
+def localise(zone: ZoneShape, proj: LocalProjection) -> LocalZone:
+    """The zone in the projection's metres."""
     if zone.center is not None:
-        return _Local(zone, center=proj.to_local(*zone.center))
-    return _Local(zone, ring=tuple(proj.to_local(lat, lon) for lon, lat in open_ring(zone.ring)))
+        return LocalZone(zone, center=proj.to_local(*zone.center))
+    return LocalZone(zone, ring=tuple(proj.to_local(lat, lon) for lon, lat in open_ring(zone.ring)))
 
 
 def _band(zone: ZoneShape, home: Home | None) -> tuple[float, float]:
@@ -277,7 +279,7 @@ def check_path(
     path = flight_path(items, home, proj)
     problems: list[AirspaceProblem] = []
     for zone in zones:
-        local = _localise(zone, proj)
+        local = localise(zone, proj)
         floor, ceiling = _band(zone, home)
         for seg in path:
             a, b = seg.a[:2], seg.b[:2]

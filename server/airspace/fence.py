@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from server.airspace.check import ZoneShape, _Local, _localise, flight_path
+from server.airspace.check import LocalZone, ZoneShape, flight_path, localise
 from server.missions.geometry import LocalProjection
 from server.missions.items import MissionItem
 from server.missions.validate import Home
@@ -103,7 +103,7 @@ def simplify_ring(ring: Sequence[Vec], limit: int = MAX_VERTICES) -> list[Vec]:
         tolerance *= 2
 
 
-def _crosses(local: _Local, path: Sequence[Any]) -> bool:
+def _crosses(local: LocalZone, path: Sequence[Any]) -> bool:
     for seg in path:
         a, b = seg.a[:2], seg.b[:2]
         if math.dist(a, b) == 0:
@@ -134,7 +134,7 @@ def build_fence(
     left: list[str] = []
     ceilings: list[float] = []
     for zone in zones:
-        local = _localise(zone, proj)
+        local = localise(zone, proj)
         if zone.kind == "exclusion" and _crosses(local, path):
             left.append(zone.name)
             continue
