@@ -1,7 +1,7 @@
 """Pure derivation of the agent's events from successive UavState values and notifications.
 
 Kinds: armed, took_off, waypoint_reached, mission_finished, landing, landed, disarmed,
-failsafe, low_battery, autopilot_lost, autopilot_recovered.
+failsafe, low_battery, fence_breach, autopilot_lost, autopilot_recovered.
 
     tracker = EventTracker(EventLimits(low_battery_pct=30))
     events = tracker.update(autopilot.state)          # on every telemetry tick
@@ -19,7 +19,8 @@ from asset_agent.autopilot.state import Notification, UavState
 
 EVENT_KINDS = (
     "armed", "took_off", "waypoint_reached", "mission_finished", "landing", "landed",
-    "disarmed", "failsafe", "low_battery", "autopilot_lost", "autopilot_recovered",
+    "disarmed", "failsafe", "low_battery", "fence_breach", "autopilot_lost",
+    "autopilot_recovered",
 )  # fmt: skip
 
 
@@ -73,6 +74,24 @@ def derive_events(prev: UavState, cur: UavState, limits: EventLimits | None = No
     was_ok = prev.battery_pct is None or prev.battery_pct >= thr
     if was_ok and cur.battery_pct is not None and cur.battery_pct < thr:
         out.append(_event("low_battery", battery_pct=cur.battery_pct, threshold_pct=thr))
+    # FENCE_STATUS counts breaches (from boot): a higher count than the last one heard is a new
+    # breach, even when the status that carries it says the vehicle is already back inside
+    if (
+        prev.fence_breach_count is not None
+        and cur.fence_breach_count is not None
+        and cur.fence_breach_count > prev.fence_breach_count
+    ):
+        out.append(
+            _event(
+                "fence_breach",
+                breach_type=cur.fence_breach_type,
+                breach_count=cur.fence_breach_count,
+                mode=cur.mode,
+                lat=cur.lat,
+                lon=cur.lon,
+                alt_rel_m=cur.alt_rel,
+            )
+        )
     if prev.armed and not cur.armed:
         out.append(_event("disarmed"))
     return out

@@ -10,6 +10,7 @@ one in RTL mode; so it answers what is already happening instead.
 from __future__ import annotations
 
 from collections.abc import AsyncIterator, Awaitable, Callable
+from typing import Any
 
 from asset_agent.autopilot import (
     Autopilot,
@@ -75,30 +76,63 @@ class Handlers:
     async def upload_mission(
         self, request: CommandRequest[UploadMission]
     ) -> AsyncIterator[CommandProgress | CommandResultPayload]:
-        """Upload the items, read them back and compare what the autopilot keeps (autopilot/verify.py)."""
+        """Upload the items, read them back and compare what the autopilot keeps (autopilot/verify.py);
+        with a fence, upload it and the rally points the same way and enable the fence (RTL)."""
+        cmd = request.command
         try:
-            items = items_from_dicts([i.model_dump() for i in request.command.items])
+            items = items_from_dicts([i.model_dump() for i in cmd.items])
+            fence = items_from_dicts([i.model_dump() for i in cmd.fence or ()])
+            rally = items_from_dicts([i.model_dump() for i in cmd.rally])
         except InvalidMissionItem as err:
             yield result("rejected", str(err))
             return
+        total = 2 if cmd.fence is None else 4
         yield CommandProgress(
-            step="upload", index=1, total=2, message=f"uploading {len(items)} items"
+            step="upload", index=1, total=total, message=f"uploading {len(items)} items"
         )
         try:
             await self.autopilot.upload_mission(items, verify=True)
         except AutopilotError as err:
             yield _failure(err)
             return
-        self._mission = tuple(int(i.command) for i in request.command.items)
+        self._mission = tuple(int(i.command) for i in cmd.items)
         yield CommandProgress(
             step="verify",
             index=2,
-            total=2,
+            total=total,
             message="read back: as sent, as far as the autopilot keeps it",
         )
-        yield result(
-            "succeeded", f"{len(items)} items uploaded and verified", {"count": len(items)}
-        )
+        data: dict[str, Any] = {"count": len(items)}
+        if cmd.fence is not None:
+            yield CommandProgress(
+                step="fence",
+                index=3,
+                total=total,
+                message=f"uploading a fence of {len(fence)} items and {len(rally)} rally points",
+            )
+            try:
+                data |= await self._fence(cmd, fence, rally, total)
+            except AutopilotError as err:
+                yield _failure(err)
+                return
+            yield CommandProgress(
+                step="fence", index=4, total=total, message="fence read back and enabled"
+            )
+        what = f"{len(items)} items uploaded and verified"
+        if cmd.fence is not None:
+            what += f"; fence of {len(fence)} items and {len(rally)} rally points verified"
+            what += ", fence enabled" if fence else ""
+        yield result("succeeded", what, data)
+
+    async def _fence(
+        self, cmd: UploadMission, fence: list[Any], rally: list[Any], total: int
+    ) -> dict[str, Any]:
+        """Fence and rally points uploaded and read back, then the fence enabled (when any)."""
+        await self.autopilot.upload_fence(fence, rally)
+        out: dict[str, Any] = {"fence_items": len(fence), "rally_points": len(rally)}
+        if fence:
+            out["fence_params"] = await self.autopilot.enable_fence(cmd.fence_alt_max_m)
+        return out
 
     async def start_mission(self, request: CommandRequest[StartMission]) -> CommandResultPayload:
         """Arm and start the uploaded mission (AUTO)."""

@@ -43,6 +43,7 @@ LANDED = {
 SEVERITY: dict[str, Severity] = {
     "failsafe": "critical",
     "autopilot_lost": "critical",
+    "fence_breach": "critical",
     "low_battery": "warning",
 }
 MESSAGES = {
@@ -54,6 +55,7 @@ MESSAGES = {
     "disarmed": "motors disarmed",
     "failsafe": "the autopilot reports a failsafe",
     "low_battery": "battery low",
+    "fence_breach": "geofence breached: the autopilot is returning to the base",
     "autopilot_lost": "no HEARTBEAT from the autopilot",
     "autopilot_recovered": "autopilot link back",
 }

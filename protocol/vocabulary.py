@@ -78,6 +78,13 @@ class UploadMission(CommandParams):
     name: ClassVar[str] = "upload_mission"
     mission_id: uuid.UUID | None = None
     items: Annotated[tuple[MissionItem, ...], Field(min_length=1, max_length=1000)]
+    # the geofence (MAV_CMD_NAV_FENCE_* items, uploaded as MAV_MISSION_TYPE_FENCE) and the rally
+    # points (MAV_CMD_NAV_RALLY_POINT, MAV_MISSION_TYPE_RALLY): with `fence` given (even empty,
+    # which clears the autopilot's) both are uploaded and read back, and the fence is enabled
+    # with RTL as its action when it has items; null leaves the autopilot's fence as it is
+    fence: Annotated[tuple[MissionItem, ...], Field(max_length=1000)] | None = None
+    rally: Annotated[tuple[MissionItem, ...], Field(max_length=100)] = ()
+    fence_alt_max_m: Annotated[float, Field(gt=0, le=10_000)] | None = None
 
 
 class StartMission(CommandParams):

@@ -160,6 +160,16 @@ FIELDS: dict[str, tuple[str, Any]] = {
     # health
     "checks": ("each dependency: `ok` or `unreachable: <why>`", None),
     "version": ("the server's version", "0.1.0"),
+    # airspace (zones, breaches)
+    "geometry": ("a GeoJSON Polygon (inclusion/exclusion area) or Point (a circle's centre)", None),
+    "radius_m": ("a circle's radius in metres (with a Point geometry); null for a polygon", None),
+    "floor_m": ("lowest altitude the zone applies from, metres (see `altitude_ref`)", None),
+    "ceiling_m": ("highest altitude the zone applies to, metres (see `altitude_ref`)", 120.0),
+    "altitude_ref": ("what the zone's altitudes are measured from: above the base or AMSL", None),
+    "windows": ("when the zone is active: RFC 3339 `start`/`end` pairs; null: always", None),
+    "features": ("GeoJSON Features, each Feature's properties a zone's fields", None),
+    "breach_count": ("how many breaches the autopilot has counted (FENCE_STATUS)", 1),
+    "alt_rel_m": ("altitude above home at the breach, metres", 32.5),
 }
 
 OVERRIDES: dict[str, tuple[str, Any]] = {

@@ -13,6 +13,7 @@ from fastapi.middleware.gzip import GZipMiddleware
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
 from server import api_fields, migrate
+from server.airspace.endpoints import router as airspace_router
 from server.assets.endpoints import router as assets_router
 from server.audit.endpoints import router as audit_router
 from server.auth.endpoints import router as auth_router
@@ -177,6 +178,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         telemetry_router,
         realtime_router,
         missions_router,
+        airspace_router,
         runs_router,
         schedules_router,
     ):

@@ -1,5 +1,6 @@
 """Imports every table so that metadata (and Alembic autogenerate) sees them all."""
 
+from server.airspace.models import AirspaceZone
 from server.assets.models import Asset, AssetKind
 from server.audit.models import AuditEvent
 from server.auth.models import AuthSession, LoginFailure
@@ -13,6 +14,7 @@ from server.schedules.models import Schedule
 from server.telemetry.models import AssetEvent, AssetStream, TelemetrySample
 
 __all__ = [
+    "AirspaceZone",
     "Asset",
     "AssetCommand",
     "AssetEvent",

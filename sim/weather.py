@@ -18,6 +18,8 @@ import random
 from collections import deque
 from dataclasses import dataclass, field, replace
 
+from sim.wind import Gust, from_direction
+
 GUST_WINDOW_S = 10.0
 STEP_S = 0.25
 
@@ -104,12 +106,21 @@ class Weather:
         self.forced = Forced()
         self.sensor_fault = False
         self._scenario: list[tuple[float, Forced]] = []
+        self.gusts: list[Gust] = []  # discrete gusts scheduled by `gust()` (sim/wind.py)
 
     # --- control -------------------------------------------------------------------------
 
     def force(self, **values: float | None) -> None:
         """Force some values (keyword names of `Forced`); None releases one value."""
         self.forced = replace(self.forced, **values)
+
+    def gust(
+        self, peak_mps: float, direction_deg: float, duration_s: float = 4.0, in_s: float = 0.0
+    ) -> Gust:
+        """Schedule a discrete 1 - cosine gust (sim/wind.py) `in_s` simulated seconds from now."""
+        g = Gust(self._s.t + in_s, peak_mps, direction_deg, duration_s)
+        self.gusts.append(g)
+        return g
 
     def release(self) -> None:
         """Release every forced value and stop any scenario."""
@@ -211,11 +222,16 @@ class Weather:
         )
 
     def wind_ne(self, t_sim: float) -> tuple[float, float]:
-        """Air velocity (north, east) in m/s at `t_sim` (mean + gust), blowing FROM the direction."""
+        """Air velocity (north, east) in m/s at `t_sim` (mean + turbulence + gust events, and
+        the discrete gusts scheduled by `gust()`), blowing FROM the direction."""
         self.advance_to(t_sim)
         r = self.reading()
-        rad = math.radians(r.direction_deg)
-        return (-r.wind_mps * math.cos(rad), -r.wind_mps * math.sin(rad))
+        n, e = from_direction(r.wind_mps, r.direction_deg)
+        self.gusts = [g for g in self.gusts if not g.over(t_sim)]
+        for g in self.gusts:
+            gn, ge = from_direction(g.speed(t_sim), g.direction_deg)
+            n, e = n + gn, e + ge
+        return n, e
 
     def raining(self) -> bool:
         """Whether rain is falling now."""

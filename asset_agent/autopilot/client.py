@@ -29,6 +29,7 @@ from asset_agent.autopilot import mission, translate
 from asset_agent.autopilot.actions import ActionsMixin
 from asset_agent.autopilot.config import AutopilotConfig
 from asset_agent.autopilot.errors import AutopilotTimeout, CommandRejected, LinkLost
+from asset_agent.autopilot.fence import FenceMixin
 from asset_agent.autopilot.flight_state import MissionWatch, Thresholds, infer_landed_state
 from asset_agent.autopilot.items import MissionItem
 from asset_agent.autopilot.link import MavlinkLink
@@ -45,7 +46,7 @@ MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS = 0, 5
 REBOOT_SHIFT_S = 1.0  # the boot instant (arrival - time_boot_ms) moving later: a reboot
 
 
-class Autopilot(ActionsMixin, SetpointsMixin):
+class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
     """One autopilot over MAVLink, as seen from the companion computer."""
 
     def __init__(self, config: AutopilotConfig | None = None) -> None:

@@ -61,6 +61,9 @@ class UavState:
     home_lat: float | None = None
     home_lon: float | None = None
     home_alt_msl: float | None = None
+    fence_breached: bool = False  # FENCE_STATUS.breach_status
+    fence_breach_count: int | None = None  # FENCE_STATUS.breach_count (None: none heard yet)
+    fence_breach_type: str = "NONE"  # NONE | MINALT | MAXALT | BOUNDARY
 
     @property
     def fix_name(self) -> str:

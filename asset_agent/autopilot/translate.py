@@ -114,7 +114,20 @@ def _home(s: UavState, m: Any) -> UavState:
     )
 
 
+FENCE_BREACH_TYPES = {0: "NONE", 1: "MINALT", 2: "MAXALT", 3: "BOUNDARY"}
+
+
+def _fence_status(s: UavState, m: Any) -> UavState:
+    return replace(
+        s,
+        fence_breached=bool(m.breach_status),
+        fence_breach_count=int(m.breach_count),
+        fence_breach_type=FENCE_BREACH_TYPES.get(m.breach_type, str(m.breach_type)),
+    )
+
+
 TRANSLATORS: dict[str, Callable[[UavState, Any], UavState]] = {
+    "FENCE_STATUS": _fence_status,
     "HEARTBEAT": _heartbeat,
     "SYS_STATUS": _sys_status,
     "BATTERY_STATUS": _battery_status,

@@ -52,9 +52,19 @@ PARAM_RULES: dict[int, tuple[Kind, Kind, Kind, Kind]] = {
     115: (F, F, N, N),  # CONDITION_YAW: angle, rate, direction (int8), relative (uint8)
     177: (N, N, X, X),  # DO_JUMP: target (uint16), repeat count (int16)
     178: (N, F, F, X),  # DO_CHANGE_SPEED: speed type (uint8), speed, throttle
+    # fence items (AC_PolyFence_loader): a vertex keeps its polygon's vertex count (uint8), a
+    # circle its radius (float, or uint32 when whole), a return point and a rally point no param
+    5000: (X, X, X, X),  # NAV_FENCE_RETURN_POINT
+    5001: (N, X, X, X),  # NAV_FENCE_POLYGON_VERTEX_INCLUSION
+    5002: (N, X, X, X),  # NAV_FENCE_POLYGON_VERTEX_EXCLUSION
+    5003: (F, X, X, X),  # NAV_FENCE_CIRCLE_INCLUSION
+    5004: (F, X, X, X),  # NAV_FENCE_CIRCLE_EXCLUSION
+    5100: (X, X, X, X),  # NAV_RALLY_POINT (its altitude kept in whole metres: send whole metres)
 }
 # MAV_CMDs that carry a position (AP_Mission::stored_in_location)
 POSITIONAL = frozenset((16, 17, 18, 19, 21, 22, 30, 31, 82, 84, 85, 92, 94, 179, 189, 191, 201))
+# fence and rally items carry a position too; a fence item's altitude is not kept (sent as 0)
+POSITIONAL |= frozenset((5000, 5001, 5002, 5003, 5004, 5100))
 # MAV_FRAME spellings that mean the same frame
 SAME_FRAME = {5: 0, 6: 3, 11: 10, 2: 0}
 ALT_TOLERANCE_M = 0.01  # ArduPilot keeps whole centimetres

@@ -232,8 +232,10 @@ async def export_mission(
 async def validate_mission(
     mission_id: uuid.UUID, body: ValidateRequest, missions: MissionsOperator
 ) -> ValidationReport:
-    """Check a mission against the limits and, with `uav_id`, the UAV's endurance (operators)."""
+    """Check a mission against the limits, the airspace (its path: every segment, the return leg)
+    and, with `uav_id`, the UAV's endurance (operators)."""
     mission = await missions.get(mission_id)
     uav = await missions.uav(body.uav_id)
-    report = await asyncio.to_thread(missions.check, mission, uav)
+    zones = await missions.zones(body.base_id, body.at)
+    report = await asyncio.to_thread(missions.check, mission, uav, zones)
     return ValidationReport.model_validate(report)

@@ -149,10 +149,18 @@ class MissionOut(BaseModel):
 
 
 class ValidateRequest(BaseModel):
-    """Check a mission, optionally against one UAV's endurance."""
+    """Check a mission, optionally against one UAV's endurance and a base's airspace."""
 
     model_config = ConfigDict(extra="forbid")
     uav_id: uuid.UUID | None = None
+    base_id: uuid.UUID | None = Field(
+        default=None,
+        description="the base it would fly from: its own zones (operating area) apply too; "
+        "the organisation's zones and the plan's geoFence apply always",
+    )
+    at: Timestamp | None = Field(
+        default=None, description="when it would fly (zones' time windows); null: now"
+    )
 
 
 class UavLimitsOut(BaseModel):

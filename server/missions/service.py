@@ -6,8 +6,11 @@ import asyncio
 import math
 import re
 import uuid
+from collections.abc import Sequence
 from typing import Any
 
+from server.airspace.check import ZoneShape
+from server.airspace.plan import check_flight
 from server.assets.models import Asset, AssetKind
 from server.assets.repository import AssetRepository
 from server.audit.service import record
@@ -33,6 +36,7 @@ from server.missions.validate import (
 )
 
 DEFAULT_ENDURANCE_S = 1200.0
+
 DEFAULT_CRUISE_MPS = 8.0
 RESERVE = 0.2
 
@@ -237,8 +241,21 @@ class MissionService(Service):
         """A mission of the caller's organisation (NotFound otherwise)."""
         return await self.repo.get(mission_id)
 
-    def check(self, mission: Mission, uav: Asset | None) -> dict[str, Any]:
-        """Every problem of a stored mission, and its flight against the UAV's endurance.
+    async def zones(self, base_id: uuid.UUID | None, at: Any = None) -> list[ZoneShape]:
+        """The airspace zones a flight from `base_id` at `at` must respect."""
+        from server.airspace.service import AirspaceService
+
+        if base_id is not None:
+            base = await AssetRepository(self.db, self.principal).get(base_id)
+            if base.kind != AssetKind.landing_base:
+                raise Unprocessable(f"asset {base.id} is not a landing base", code="not_a_base")
+        return await AirspaceService(self.uow, self.principal).applicable(base_id, at)
+
+    def check(
+        self, mission: Mission, uav: Asset | None, zones: Sequence[ZoneShape] = ()
+    ) -> dict[str, Any]:
+        """Every problem of a stored mission, its path against the airspace `zones` and the
+        plan's geoFence, and its flight against the UAV's endurance.
 
         Pure computation on loaded rows: callers on the event loop run it with asyncio.to_thread.
         """
@@ -247,6 +264,9 @@ class MissionService(Service):
         items = items_of(mission.items) if mission.kind == MissionKind.waypoints else None
         _, found = build(mission.kind, items, survey, home_of(mission.home), self.limits)
         problems += found
+        airspace = check_flight(
+            items_of(mission.items), home_of(mission.home), list(zones), mission.extras
+        )
         uav_out: dict[str, Any] | None = None
         cruise, endurance = DEFAULT_CRUISE_MPS, DEFAULT_ENDURANCE_S
         if uav is not None:
@@ -276,8 +296,8 @@ class MissionService(Service):
                         )
                     )
         return {
-            "valid": not problems,
-            "problems": [p.as_dict() for p in problems],
+            "valid": not problems and not airspace,
+            "problems": [p.as_dict() for p in problems] + [a.as_dict() for a in airspace],
             "estimate": flight.as_dict(),
             "uav": uav_out,
         }

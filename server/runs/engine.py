@@ -28,9 +28,11 @@ from server.assets.models import Asset
 from server.commands import service as commands
 from server.kit import metrics
 from server.kit.periodic import Periodic
+from server.kit.principal import Principal, Role
 from server.kit.time import utcnow
 from server.realtime.channels import asset_channel, command_channel
 from server.runs import repository as repo
+from server.runs.energy import return_margin
 from server.runs.machine import (
     FINAL,
     STEPS,
@@ -241,7 +243,16 @@ class RunEngine:
             mission = await db.get(Mission, run.mission_id)
             dicts = flight_items(mission.items, mission.speed_mps) if mission else []
             items = [MissionItem.model_validate(i) for i in dicts]
-            return UploadMission(mission_id=run.mission_id, items=tuple(items))
+            fence = await self._fence(db, run, mission) if mission else None
+            if fence is None:
+                return UploadMission(mission_id=run.mission_id, items=tuple(items))
+            return UploadMission(
+                mission_id=run.mission_id,
+                items=tuple(items),
+                fence=tuple(MissionItem.model_validate(i) for i in fence.items),
+                rally=tuple(MissionItem.model_validate(i) for i in fence.rally),
+                fence_alt_max_m=fence.alt_max_m,
+            )
         if action.target == "base" and action.command is CheckAvailability:
             uav = await db.get(Asset, run.uav_id)
             attrs = (uav.attributes if uav else None) or {}
@@ -263,6 +274,24 @@ class RunEngine:
             if row.command_id and (cmd := found.get(row.command_id)) is not None
         }
 
+    async def _fence(self, db: Any, run: Run, mission: Any) -> Any:
+        """The fence and rally points the UAV enforces on board (server/airspace/fence.py)."""
+        from server.airspace.service import flight_fence
+
+        return await flight_fence(db, _system(run), mission, run.base_id)
+
+    async def _airspace(self, db: Any, run: Run) -> str:
+        """Why the run's mission breaks the airspace active now ("" when it does not)."""
+        from server.airspace.service import flight_problems
+        from server.missions.models import Mission
+
+        mission = await db.get(Mission, run.mission_id)
+        if mission is None:
+            return ""
+        problems = await flight_problems(db, _system(run), mission, run.base_id)
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        return f"{problems[0].what}{more}" if problems else ""
+
     async def _observe(self, db: Any, run: Run) -> Observations:
         outcomes = await self._outcomes(db, await repo.step_commands(db, run.id))
         since = run.step_started_at
@@ -282,7 +311,13 @@ class RunEngine:
             and uav.get("armed") is False
             and _after(uav.get("ts"), since)
         )
+        airspace = await self._airspace(db, run) if run.state == State.checking.value else ""
+        margin = (
+            await return_margin(db, run, uav, base) if run.state == State.flying.value else None
+        )
         return Observations(
+            airspace=airspace,
+            return_margin_pct=margin,
             elapsed_s=(utcnow() - since).total_seconds(),
             timeout_s=self.timeout_s(State(run.state)),
             commands=outcomes,
@@ -296,6 +331,17 @@ class RunEngine:
             abort_reason=run.abort_reason,
             took_off="took_off" in uav_events or "armed" in uav_events,
         )
+
+
+def _system(run: Run) -> Principal:
+    """The run's own reader of its organisation's rows (zones)."""
+    return Principal(
+        kind="user",
+        session_id=uuid.UUID(int=0),
+        organization_id=run.organization_id,
+        role=Role.viewer,
+        label=f"run {run.id}",
+    )
 
 
 def observe_transition(left: str, entered: datetime | None, run: Run) -> None:

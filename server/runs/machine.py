@@ -127,6 +127,8 @@ class Observations:
     abort_requested: bool = False
     abort_reason: str = ""
     took_off: bool = False
+    airspace: str = ""  # why the mission's path breaks the airspace now ("": it does not)
+    return_margin_pct: float | None = None  # battery left above the reserve after going home now
 
 
 @dataclass(frozen=True)
@@ -173,6 +175,8 @@ class Seen:
             "label": step.label.lower(),
             "missing": " and ".join(missing),
             "mass": f"{obs.base_mass_g:.0f} g" if obs.base_mass_g is not None else "no reading",
+            "airspace": obs.airspace,
+            "margin": f"{obs.return_margin_pct:.1f}" if obs.return_margin_pct is not None else "",
         }
 
 
@@ -210,6 +214,22 @@ def mission_finished(seen: Seen) -> bool:
 def uav_landed(seen: Seen) -> bool:
     """The UAV reports it has landed."""
     return seen.obs.uav_landed or "landed" in seen.obs.uav_events
+
+
+def airspace_refused(seen: Seen) -> bool:
+    """The mission's path breaks a zone active now (checked again at the start: zones change)."""
+    return bool(seen.obs.airspace)
+
+
+def reserve_reached(seen: Seen) -> bool:
+    """Going home now would leave no more than the battery reserve (reserve.py)."""
+    margin = seen.obs.return_margin_pct
+    return margin is not None and margin <= 0 and took_off(seen)
+
+
+def fence_breached(seen: Seen) -> bool:
+    """The UAV's autopilot reports a geofence breach (it has switched to RTL on its own)."""
+    return "fence_breach" in seen.obs.uav_events
 
 
 def scale_confirms(seen: Seen) -> bool:
@@ -302,6 +322,8 @@ STEPS: dict[State, Step] = {
             State.checking, 1, "Checking weather, base and UAV readiness",
             (Action("base", CheckAvailability), Action("uav", CheckAvailability)), 60,
             done=(
+                Exit(State.aborted, "the mission's path breaks the airspace: {airspace}",
+                     "airspace", when=airspace_refused),
                 Exit(State.opening, "weather, base and UAV are all within limits",
                      when=all_succeeded),
             ),
@@ -344,7 +366,15 @@ STEPS: dict[State, Step] = {
         ),
         Step(
             State.flying, 4, "Flying the mission", (Action("uav", StartMission),), 3600,
-            done=(Exit(State.landing, "mission finished", when=mission_finished),),
+            done=(
+                Exit(State.landing, "the UAV breached the geofence: its autopilot is returning "
+                     "it to the base; landing there", "fence_breach", alert=True,
+                     when=fence_breached),
+                Exit(State.landing, "mission finished", when=mission_finished),
+                Exit(State.landing, "the battery is at its return reserve (margin {margin} % "
+                     "after flying home against the wind); returning to the base",
+                     "battery_reserve", alert=True, when=reserve_reached),
+            ),
             # once it has taken off, a failed start is not a failure: the mission is flying
             failure=(
                 Exit(State.failed, "the UAV could not start the mission: {failure}; "

@@ -75,6 +75,17 @@ class RunRepository(ScopedRepository[Run]):
             raise NotFound(f"{self.noun} {run_id} not found")
         return rows[0][0], [t for _, t in rows if t is not None]
 
+    async def flight_events(self, run: Run, name: str) -> list[AssetEvent]:
+        """The UAV's events called `name` during a run's flight, oldest first."""
+        stmt = scoped(AssetEvent, self.principal).where(
+            AssetEvent.asset_id == run.uav_id,
+            AssetEvent.name == name,
+            AssetEvent.created_at >= (run.flight_started_at or run.created_at),
+        )
+        if run.finished_at is not None:
+            stmt = stmt.where(AssetEvent.created_at <= run.finished_at)
+        return list((await self.db.execute(stmt.order_by(AssetEvent.created_at))).scalars())
+
     async def landing_events(self, run: Run) -> tuple[AssetEvent | None, AssetEvent | None]:
         """The UAV's last `landed` and the base's first `landing_confirmed` event of a run's flight."""
 

@@ -90,6 +90,18 @@ class LandingReport(BaseModel):
     base_mass_g: float | None
 
 
+class BreachOut(BaseModel):
+    """A geofence breach the UAV's autopilot reported during the run (it returned on its own)."""
+
+    at: Timestamp  # when the agent saw the autopilot's FENCE_STATUS breach
+    breach_type: str = Field(description="BOUNDARY (a polygon or circle), MAXALT or MINALT")
+    breach_count: int | None
+    mode: str | None = Field(description="the flight mode at the breach (RTL: the fence's action)")
+    lat: float | None
+    lon: float | None
+    alt_rel_m: float | None
+
+
 class RunReport(BaseModel):
     """The flight history of one run."""
 
@@ -103,6 +115,13 @@ class RunReport(BaseModel):
         description="what the agent and the base reported of the touchdown; null before it"
     )
     track: list[dict[str, Any]]
+    airspace_breaches: list[BreachOut] = Field(
+        default_factory=list, description="geofence breaches during the flight, oldest first"
+    )
+    battery_margin_at_touchdown_pct: float | None = Field(
+        default=None,
+        description="battery at touchdown less the UAV's reserve (null before the landing)",
+    )
 
 
 class AssetSummary(BaseModel):

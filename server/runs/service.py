@@ -8,6 +8,7 @@ from collections import Counter, defaultdict
 from datetime import datetime, timedelta
 from typing import Any
 
+from server.airspace.service import flight_problems, refused
 from server.assets.models import AssetKind
 from server.assets.repository import AssetRepository
 from server.kit.errors import Conflict, Unprocessable
@@ -20,8 +21,10 @@ from server.runs.engine import progress_payload
 from server.runs.machine import FINAL, State
 from server.runs.models import Run
 from server.runs.repository import RunRepository
+from server.runs.reserve import return_model
 from server.runs.schemas import (
     AssetSummary,
+    BreachOut,
     FleetReport,
     LandingReport,
     RunOut,
@@ -58,6 +61,9 @@ async def create_run(
         )
     if not mission.items:
         raise Unprocessable(f"mission {mission.name} has no items", code="invalid_run")
+    airspace = await flight_problems(runs.db, runs.principal, mission, base.id, scheduled_for)
+    if airspace:
+        raise refused(airspace)
     busy = await runs.busy([uav.id, base.id])
     if busy is not None:
         raise Conflict(
@@ -132,6 +138,56 @@ async def report(runs: RunRepository, store: Any, run_id: uuid.UUID) -> RunRepor
         landing_error_m=run.landing_error_m if run.landing_error_m is not None else measured,
         landing=landing,
         track=track,
+        airspace_breaches=[breach_out(e) for e in await runs.flight_events(run, "fence_breach")],
+        battery_margin_at_touchdown_pct=await _touchdown_margin(runs, run, rows, landing),
+    )
+
+
+async def _touchdown_margin(
+    runs: RunRepository, run: Run, rows: list[dict[str, Any]], landing: LandingReport | None
+) -> float | None:
+    """The battery at touchdown (the last reading before the agent's `landed`) less the UAV's
+    reserve (runs/reserve.py): what the return left to spare."""
+    from server.assets.models import Asset
+    from server.missions.models import Mission
+
+    if landing is None or landing.landed_at is None:
+        return None
+    before = [
+        r["battery.percent"]
+        for r in rows
+        if isinstance(r.get("battery.percent"), int | float)
+        and (ts := _parsed(r.get("ts"))) is not None
+        and ts <= landing.landed_at
+    ]
+    if not before:
+        return None
+    uav = await runs.db.get(Asset, run.uav_id)
+    mission = await runs.db.get(Mission, run.mission_id)
+    model = return_model((uav.attributes if uav else None) or {}, mission)
+    return round(float(before[-1]) - model.reserve_pct, 2)
+
+
+def _parsed(ts: Any) -> datetime | None:
+    try:
+        return datetime.fromisoformat(str(ts).replace("Z", "+00:00"))
+    except ValueError:
+        return None
+
+
+def breach_out(event: AssetEvent) -> BreachOut:
+    """A `fence_breach` event of the UAV as the report shows it."""
+    d = event.data or {}
+    text = {k: d.get(k) if isinstance(d.get(k), str) else None for k in ("breach_type", "mode")}
+    count = d.get("breach_count")
+    return BreachOut(
+        at=event.ts,
+        breach_type=text["breach_type"] or "BOUNDARY",
+        breach_count=count if isinstance(count, int) and not isinstance(count, bool) else None,
+        mode=text["mode"],
+        lat=_number(d, "lat"),
+        lon=_number(d, "lon"),
+        alt_rel_m=_number(d, "alt_rel_m"),
     )
 
 

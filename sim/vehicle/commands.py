@@ -24,6 +24,7 @@ Params = tuple[float, float, float, float, float, float, float]
 NAV_RETURN_TO_LAUNCH, NAV_LAND, NAV_TAKEOFF = 20, 21, 22
 DO_SET_MODE, DO_CHANGE_SPEED, MISSION_START, COMPONENT_ARM_DISARM = 176, 178, 300, 400
 GET_HOME_POSITION, SET_MESSAGE_INTERVAL, REQUEST_MESSAGE = 410, 511, 512
+REQUEST_AUTOPILOT_CAPABILITIES = 520
 CONDITION_YAW = 115
 PREFLIGHT_REBOOT_SHUTDOWN = 246
 NO_ANSWER = -1  # not a MAV_RESULT: send no COMMAND_ACK at all
@@ -95,6 +96,12 @@ def _request_message(c: Copter, p: Params, link: Any) -> int:
     return ACCEPTED if streams.send_once(int(p[0])) else FAILED
 
 
+def _capabilities(c: Copter, p: Params, link: Any) -> int:
+    """MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: AUTOPILOT_VERSION to the asking link."""
+    c.send(c.autopilot_version(), link)
+    return ACCEPTED
+
+
 def _home(c: Copter, p: Params, link: Any) -> int:
     return _request_message(c, (242, 0, 0, 0, 0, 0, 0), link)
 
@@ -118,6 +125,7 @@ COMMANDS: dict[int, Callable[[Copter, Params, Any], int]] = {
     REQUEST_MESSAGE: _request_message,
     GET_HOME_POSITION: _home,
     PREFLIGHT_REBOOT_SHUTDOWN: _reboot,
+    REQUEST_AUTOPILOT_CAPABILITIES: _capabilities,
 }
 
 

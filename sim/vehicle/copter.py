@@ -272,6 +272,7 @@ class Copter(MissionProtocolMixin, BootMixin):
             self.text(WARNING, "Base closed: cannot take off")
         self._blocked_told = blocked
         self.dyn.step(dt, wind_ne)
+        self.fence_tick(self.flying)
         self._check_landing()
         self._check_battery()
 

@@ -25,6 +25,8 @@ import math
 from dataclasses import dataclass, replace
 from enum import Enum
 
+from sim.wind import overpowering
+
 Vec3 = tuple[float, float, float]
 
 
@@ -50,6 +52,7 @@ class DynamicsParams:
     yaw_rate: float = math.radians(90.0)  # rad/s
     wind_leak: float = 0.1  # fraction of an unexpected wind change that shows in ground velocity
     wind_adapt_s: float = 1.0  # the controller learns a steady wind in about this long
+    wind_authority_mps: float = 15.0  # wind it can lean into; the excess carries it (sim/wind.py)
     mass_g: float = 1450.0
     battery_capacity_mah: float = 5000.0
     cells: int = 4
@@ -200,8 +203,9 @@ class Dynamics:
             self._wind_est[0] + (wind_ne[0] - self._wind_est[0]) * k,
             self._wind_est[1] + (wind_ne[1] - self._wind_est[1]) * k,
         )
-        leak_n = (wind_ne[0] - self._wind_est[0]) * p.wind_leak if airborne else 0.0
-        leak_e = (wind_ne[1] - self._wind_est[1]) * p.wind_leak if airborne else 0.0
+        push = overpowering(wind_ne, p.wind_authority_mps) if airborne else (0.0, 0.0)
+        leak_n = (wind_ne[0] - self._wind_est[0]) * p.wind_leak + push[0] if airborne else 0.0
+        leak_e = (wind_ne[1] - self._wind_est[1]) * p.wind_leak + push[1] if airborne else 0.0
         n = s.position[0] + (vn + leak_n) * dt
         e = s.position[1] + (ve + leak_e) * dt
         d = s.position[2] + vd * dt

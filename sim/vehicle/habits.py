@@ -15,6 +15,7 @@ did when an agent flew them (issue 13: ArduCopter 3.7-dev and 4.7.0-dev SITL):
 | `boot_s` | ~35 s to armable | ~40 s | pre-arm checks fail until the EKF and GPS are ready |
 | reboot | `MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN`, refused when armed | same | `GCS_MAVLINK::handle_preflight_reboot` |
 | speed | `WPNAV_SPEED` (10 m/s) until DO_CHANGE_SPEED | same | `AC_WPNav` defaults |
+| `mission_fence` | fence and rally over the mission protocol (types 1, 2), said in AUTOPILOT_VERSION | the old FENCE_POINT protocol only | `MissionItemProtocol_Fence` / `_Rally` came with 4.0 |
 
 `Habits()` (no profile named) keeps this simulator's historic defaults: every habit of 4.x but
 with every stream on at boot and no boot delay, so tests and the demo need not wait.
@@ -43,6 +44,7 @@ class Habits:
     extended_sys_state: bool = True  # False: EXTENDED_SYS_STATE is never sent
     mission_current_extensions: bool = True  # False: MISSION_CURRENT carries seq only
     ardupilot_storage: bool = True  # pack mission params as AP_Mission stores them
+    mission_fence: bool = True  # False: no MAV_PROTOCOL_CAPABILITY_MISSION_FENCE / _RALLY
     streams_at_boot: Literal["all", "heartbeat"] = "all"
     boot_s: float = 0.0  # simulated seconds from boot to armable
     reboot_s: float = 2.0  # wall seconds of silence while rebooting
@@ -60,6 +62,7 @@ PROFILES: dict[str, Habits] = {
         message_interval=False,
         extended_sys_state=False,
         mission_current_extensions=False,
+        mission_fence=False,
         streams_at_boot="heartbeat",
         boot_s=40.0,
         prearm_texts=("EKF attitude is bad", "Need 3D Fix", "Need Position Estimate"),

@@ -8,6 +8,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sim.vehicle import mission as ms
 from sim.vehicle.constants import AUTO, INFO
+from sim.vehicle.fence import FenceMixin
 from sim.vehicle.habits import stored
 
 
@@ -16,8 +17,11 @@ def mission_total(items: list[ms.Item]) -> int:
     return len(items) - 1 if len(items) > 1 else 0xFFFF
 
 
-class MissionProtocolMixin:
-    """MISSION_* handlers of `Copter`; state lives on the copter (items, upload, mission_current)."""
+class MissionProtocolMixin(FenceMixin):
+    """MISSION_* handlers of `Copter`; state lives on the copter (items, upload, mission_current).
+
+    Fence and rally lists (mission_type 1 and 2) go to `FenceMixin` (fence.py), which also keeps
+    the fence parameters and enforces the fence."""
 
     items: list[ms.Item]
     upload: ms.Upload | None
@@ -44,9 +48,7 @@ class MissionProtocolMixin:
     # --- mission protocol ------------------------------------------------------------------
     def _on_mission_count(self, msg: Any, link: Any) -> None:
         if getattr(msg, "mission_type", 0) != 0:
-            self.send(
-                mavlink.MAVLink_mission_ack_message(255, 0, ms.UNSUPPORTED, msg.mission_type), link
-            )
+            self._typed_count(msg, link)  # fence or rally points (fence.py)
             return
         if (
             self.upload is not None
@@ -71,6 +73,9 @@ class MissionProtocolMixin:
         self._on_mission_item_int(msg, link)
 
     def _on_mission_item_int(self, msg: Any, link: Any) -> None:
+        if getattr(msg, "mission_type", 0) != 0:
+            self._typed_item(msg, link)
+            return
         if self.upload is None or self.upload.done or link is not self.upload_link:
             return
         item = ms.Item(
@@ -96,9 +101,15 @@ class MissionProtocolMixin:
             self.text(INFO, f"Flight plan received ({len(self.items)} items)")
 
     def _on_mission_request_list(self, msg: Any, link: Any) -> None:
+        if getattr(msg, "mission_type", 0) != 0:
+            self._typed_request_list(msg, link)
+            return
         self.send(mavlink.MAVLink_mission_count_message(255, 0, len(self.items)), link)
 
     def _on_mission_request_int(self, msg: Any, link: Any) -> None:
+        if getattr(msg, "mission_type", 0) != 0:
+            self._typed_request(msg, link)
+            return
         if not 0 <= msg.seq < len(self.items):
             self.send(mavlink.MAVLink_mission_ack_message(255, 0, ms.INVALID_SEQUENCE), link)
             return
@@ -117,6 +128,9 @@ class MissionProtocolMixin:
         """The ground's ack closing a download: nothing to do."""
 
     def _on_mission_clear_all(self, msg: Any, link: Any) -> None:
+        if getattr(msg, "mission_type", 0) != 0:
+            self._typed_clear(msg, link)
+            return
         self.items = [self.home_item()]
         self.mission_current = 0
         self.guidance.mission_cleared()

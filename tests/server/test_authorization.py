@@ -111,7 +111,19 @@ class Victim:
             },
         )
         assert schedule.status_code == 201, schedule.text
+        zone = tenant.api.post(
+            "/api/v1/airspace/zones",
+            headers=tenant.h("operator"),
+            json={
+                "name": "walk-zone",
+                "kind": "exclusion",
+                "geometry": {"type": "Point", "coordinates": [8.6, 47.4]},
+                "radius_m": 50,
+            },
+        )
+        assert zone.status_code == 201, zone.text
         self.ids = {
+            "zone_id": zone.json()["id"],
             "run_id": run.json()["id"],
             "schedule_id": schedule.json()["id"],
             "asset_id": uav,

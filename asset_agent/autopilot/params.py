@@ -1,0 +1,70 @@
+"""Autopilot parameters: PARAM_SET answered by PARAM_VALUE, with retries, and the fence's set.
+
+ArduPilot answers a PARAM_SET with the parameter's PARAM_VALUE (the value it now holds); a
+name it does not know gets no answer at all. So a set is retried on silence and fails with
+ParamError after the retries, and a PARAM_VALUE with another value fails it at once.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from typing import TYPE_CHECKING, Any
+
+from asset_agent.autopilot.errors import AutopilotError
+
+if TYPE_CHECKING:
+    from asset_agent.autopilot.client import Autopilot
+
+MAV_PARAM_TYPE_INT8, MAV_PARAM_TYPE_REAL32 = 2, 9
+# ArduCopter's FENCE_TYPE bits (AC_Fence.h): max altitude, home circle, polygons and circles
+FENCE_TYPE_ALT_MAX, FENCE_TYPE_CIRCLE, FENCE_TYPE_POLYGON = 1, 2, 4
+FENCE_ACTION_RTL = 1  # AC_FENCE_ACTION_RTL_AND_LAND: RTL, or LAND when RTL is impossible
+
+
+class ParamError(AutopilotError):
+    """A parameter could not be set (no answer, or the autopilot kept another value)."""
+
+
+def _name(param_id: Any) -> str:
+    raw = param_id.decode("ascii", "replace") if isinstance(param_id, bytes) else str(param_id)
+    return raw.rstrip("\x00")
+
+
+async def set_param(
+    ap: Autopilot, name: str, value: float, param_type: int = MAV_PARAM_TYPE_REAL32
+) -> float:
+    """Set one parameter and return the value the autopilot reports it now holds."""
+    ap.require_link()
+    cfg = ap.config
+    wire = name.encode("ascii")
+    with ap.tap(lambda m: m.get_type() == "PARAM_VALUE" and _name(m.param_id) == name) as q:
+        for _ in range(cfg.command_retries + 1):
+            ap.send(
+                lambda mav: mav.param_set_send(
+                    cfg.target_system, cfg.target_component, wire, float(value), param_type
+                )
+            )
+            try:
+                msg = await asyncio.wait_for(q.get(), cfg.command_timeout_s)
+            except TimeoutError:
+                continue
+            got = float(msg.param_value)
+            if not math.isclose(got, float(value), rel_tol=1e-6, abs_tol=1e-6):
+                raise ParamError(f"{name}: set to {value}, the autopilot holds {got}")
+            return got
+    raise ParamError(f"{name}: no PARAM_VALUE after {cfg.command_retries + 1} tries")
+
+
+async def enable_fence(ap: Autopilot, alt_max_m: float | None) -> dict[str, float]:
+    """FENCE_TYPE (polygons and circles, and the altitude ceiling when given), FENCE_ALT_MAX,
+    FENCE_ACTION = RTL, then FENCE_ENABLE = 1; the values the autopilot holds."""
+    fence_type = FENCE_TYPE_POLYGON | (FENCE_TYPE_ALT_MAX if alt_max_m is not None else 0)
+    held = {"FENCE_TYPE": await set_param(ap, "FENCE_TYPE", fence_type, MAV_PARAM_TYPE_INT8)}
+    if alt_max_m is not None:
+        held["FENCE_ALT_MAX"] = await set_param(ap, "FENCE_ALT_MAX", alt_max_m)
+    held["FENCE_ACTION"] = await set_param(
+        ap, "FENCE_ACTION", FENCE_ACTION_RTL, MAV_PARAM_TYPE_INT8
+    )
+    held["FENCE_ENABLE"] = await set_param(ap, "FENCE_ENABLE", 1, MAV_PARAM_TYPE_INT8)
+    return held

@@ -1,0 +1,33 @@
+"""The run's margin to get home now, from what it observes (the pure rules are in reserve.py)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from server.assets.models import Asset
+from server.runs.models import Run
+from server.runs.reserve import finite, return_margin_pct, return_model
+
+
+async def return_margin(
+    db: Any, run: Run, uav: dict[str, Any], base: dict[str, Any]
+) -> float | None:
+    """Battery left above the reserve if the UAV flew home now (reserve.py); None unknown."""
+    from server.missions.models import Mission
+
+    mission = await db.get(Mission, run.mission_id)
+    asset = await db.get(Asset, run.uav_id)
+    home = (mission.home or {}) if mission else {}
+    fields = ("position.lat", "position.lon", "position.alt_rel_m", "battery.percent")
+    values = [finite(uav.get(k)) for k in fields]
+    if "lat" not in home or any(v is None for v in values):
+        return None
+    lat, lon, alt, battery = (float(v) for v in values if v is not None)
+    return return_margin_pct(
+        battery,
+        (lat, lon, alt),
+        (float(home["lat"]), float(home["lon"])),
+        finite(base.get("weather.wind_m_s")),
+        finite(base.get("weather.direction_deg")),
+        return_model((asset.attributes if asset else None) or {}, mission),
+    )
