@@ -67,6 +67,7 @@ class LandingPipeline:
         # predicted with, summed (where the vehicle is "now" against where a late frame saw
         # the pad from)
         self._track: deque[tuple[VehicleState, np.ndarray]] = deque()
+        self._detection_sent_t: float | None = None
 
     # -- inputs ------------------------------------------------------------------------------
 
@@ -192,13 +193,28 @@ class LandingPipeline:
                     state.attitude[2],
                     fresh=target is not None and target.kind != "held",
                 )
+            elif target is not None and self.config.steering == "autopilot":
+                lt = self._detection_target(target)
             elif target is not None:
                 lt = landing_target(
                     est.rel_ned, state.attitude, now, 2 * self.config.pad.pattern_radius
                 )
-                if not lt.below:  # level with the camera: the autopilot would refuse it
-                    lt = None
+            if lt is not None and not lt.below:  # level with the camera: the autopilot refuses it
+                lt = None
         return Tick(now, target, est, cmd, lt)
+
+    def _detection_target(self, target: FusedTarget) -> LandingTarget | None:
+        """steering "autopilot": each new measurement once, as the camera saw it — in the body
+        frame of its capture time, unfiltered — for the autopilot's own estimator (ArduPilot's
+        PLND takes it PLND_LAG late, with its attitude of then). Held values are not resent."""
+        if target.kind == "held" or target.t == self._detection_sent_t:
+            return None
+        state = self.state_at(target.t)
+        if state is None:
+            return None
+        self._detection_sent_t = target.t
+        size = 2 * self.config.pad.pattern_radius
+        return landing_target(target.rel_ned, state.attitude, target.t, size)
 
     def _moved_since(self, t: float) -> np.ndarray:
         i = self._index_at(t)

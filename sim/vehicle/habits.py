@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 from typing import Literal
 
 from sim.vehicle import mission as ms
+from sim.vehicle.plnd import PlndParams
 
 # MAV_CMDs whose position ArduPilot keeps (AP_Mission::stored_in_location)
 STORED_IN_LOCATION = (16, 17, 18, 19, 21, 22, 30, 31, 82, 92, 179, 189, 191, 201, 84, 85, 94)
@@ -46,6 +47,9 @@ class Habits:
     streams_at_boot: Literal["all", "heartbeat"] = "all"
     boot_s: float = 0.0  # simulated seconds from boot to armable
     reboot_s: float = 2.0  # wall seconds of silence while rebooting
+    # precision landing: None, the simulator's own (a LANDING_TARGET moves the landing point at
+    # once); PlndParams, ArduPilot's PLND with the companion backend (sim/vehicle/plnd.py)
+    plnd: PlndParams | None = None
     prearm_texts: tuple[str, ...] = (
         "AHRS: waiting for home",
         "GPS 1: Bad fix",
@@ -54,7 +58,9 @@ class Habits:
 
 
 PROFILES: dict[str, Habits] = {
-    "ardupilot-4": Habits(name="ardupilot-4", streams_at_boot="heartbeat", boot_s=35.0),
+    "ardupilot-4": Habits(
+        name="ardupilot-4", streams_at_boot="heartbeat", boot_s=35.0, plnd=PlndParams()
+    ),
     "ardupilot-3.7": Habits(
         name="ardupilot-3.7",
         message_interval=False,
@@ -63,6 +69,7 @@ PROFILES: dict[str, Habits] = {
         streams_at_boot="heartbeat",
         boot_s=40.0,
         prearm_texts=("EKF attitude is bad", "Need 3D Fix", "Need Position Estimate"),
+        plnd=PlndParams(position_fields=False),  # 3.x read the angle fields only
     ),
 }
 
