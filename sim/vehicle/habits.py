@@ -15,9 +15,11 @@ did when an agent flew them (issue 13: ArduCopter 3.7-dev and 4.7.0-dev SITL):
 | `boot_s` | ~35 s to armable | ~40 s | pre-arm checks fail until the EKF and GPS are ready |
 | reboot | `MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN`, refused when armed | same | `GCS_MAVLINK::handle_preflight_reboot` |
 | speed | `WPNAV_SPEED` (10 m/s) until DO_CHANGE_SPEED | same | `AC_WPNav` defaults |
+| `plnd` | ArduPilot's PLND (plnd.py) | same, angle fields only | `AC_PrecLand*`, `PosVelEKF`, Copter `mode.cpp` |
 
 `Habits()` (no profile named) keeps this simulator's historic defaults: every habit of 4.x but
-with every stream on at boot and no boot delay, so tests and the demo need not wait.
+with every stream on at boot and no boot delay, so tests and the demo need not wait, and the
+simulator's own precision landing (a LANDING_TARGET moves the landing point at once).
 """
 
 from __future__ import annotations

@@ -20,13 +20,15 @@ pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lan
 
 SPEED = 4.0  # slow enough for the detector to see the descent frame by frame
 SEED = 21
+# the autopilot as ArduPilot 4.x lands with LANDING_TARGET (its PLND), without the boot wait
+PLND = replace(profile("ardupilot-4"), streams_at_boot="all", boot_s=0.0)
 
 
 async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
     live_server, tenant: Tenant, tmp_path
 ):
     async with platform(
-        live_server.url, tenant, tmp_path, speed=SPEED, seed=SEED, precland={}
+        live_server.url, tenant, tmp_path, speed=SPEED, seed=SEED, precland={}, habits=PLND
     ) as p:
         p.world.weather.force(wind_mps=6.0, gust_mps=8.0)  # steady 6 m/s with gusts, not calm
         copter = p.copter
@@ -52,7 +54,7 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         error_m = copter.pad_distance()  # ground truth
         seen = (
             f"landing error {error_m * 100:.1f} cm, {lander.stats}, rate {lander.stats.target_rate_hz}"
-            f" Hz, accepted by the autopilot {copter.precland.accepted}"
+            f" Hz, accepted by the autopilot {copter.plnd.accepted}"
         )
         print(f"precland e2e: {seen}")
         assert error_m < 0.05, seen
@@ -68,9 +70,10 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         assert abs(landing["agent_offset_m"] - error_m) < 0.05, (landing, error_m)
         assert landing["agent_fix_sources"] and landing["agent_fix_age_s"] < 5, landing
         assert landing["base_confirmed"] and landing["base_mass_g"] > 0, landing
-        # the autopilot steered its descent with the agent's LANDING_TARGETs
+        # the autopilot steered its descent with the agent's LANDING_TARGETs (its PLND took them)
         assert lander.stats.landings >= 1 and lander.stats.targets_sent > 20, seen
-        assert copter.precland.accepted > 20 and copter.precland.rejected == 0, seen
+        assert copter.plnd.was_acquired, seen
+        assert copter.plnd.accepted > 20 and copter.plnd.rejected == 0, seen
         # The sending rate (20 Hz configured, >= 10 Hz enforced by the config; printed above) is a
         # figure of this machine's load, not of the code: the world runs 10x faster than the wall
         # clock, so a busy machine measured 2.3-6.5 Hz of world time in four runs while the
@@ -84,14 +87,13 @@ async def test_the_autopilots_own_precision_landing_fed_our_detections_lands_on_
     """Issue 19 item 5: the simulated autopilot with ArduPilot's PLND (companion backend, its
     estimator, descent and retry rules: sim/vehicle/plnd.py), the agent sending each detection
     unfiltered (steering "autopilot"); the autopilot's LAND lands within 10 cm of the pad."""
-    habits = replace(profile("ardupilot-4"), streams_at_boot="all", boot_s=0.0)
     async with platform(
         live_server.url,
         tenant,
         tmp_path,
         speed=SPEED,
         seed=SEED,
-        habits=habits,
+        habits=PLND,
         precland={"steering": "autopilot"},
     ) as p:
         copter, lander = p.copter, p.agent.lander
