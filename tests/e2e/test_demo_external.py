@@ -26,8 +26,8 @@ pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lan
 # whose wall-clock latency (about 0.2 s under load on this 2-core machine: at 5x the autopilot's
 # target led the moving vehicle by ~1 world second) counts N times in world seconds at Nx; 0.5-1 s
 # is more than a landing loop holds without oscillating
-# (ArduPilot's PLND_LAG compensates at most 0.25 s): runs landed 23 and 8 cm off and one RTK
-# dropout left the UAV 1.5 m off; at 2x 13 of 14 landings under load 10-12 seated the contacts
+# (ArduPilot's PLND_LAG compensates at most 0.25 s): runs landed 23 and 8 cm off and two RTK
+# dropouts left it 1.4-1.5 m off; at 2x 15 of 16 landings under load 7-12 seated the contacts
 # (README, "Flying an external autopilot").
 SPEED = "2"
 
