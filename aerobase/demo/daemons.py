@@ -21,6 +21,7 @@ def write_daemon_files(
     base: dict[str, Any],
     uav: dict[str, Any],
     autopilot_url: str,
+    steering: str = "agent",
 ) -> None:
     """Everything the two daemons read at start: their assets' files (as the API returned them
     on registration), the password that opens them, and base.toml / agent.toml (the agent flies
@@ -29,7 +30,7 @@ def write_daemon_files(
     write_secret(folder / "base.abcf", base64.b64decode(base["config_file"]))
     write_secret(folder / "uav.abcf", base64.b64decode(uav["config_file"]))
     (folder / "base.toml").write_text(base_toml(folder, ports, speed))
-    (folder / "agent.toml").write_text(agent_toml(folder, ports, autopilot_url))
+    (folder / "agent.toml").write_text(agent_toml(folder, ports, autopilot_url, steering))
 
 
 def base_toml(folder: Path, ports: dict[str, int], speed: float) -> str:
@@ -63,9 +64,11 @@ tcp_port = {ports["gnss"]}
 """
 
 
-def agent_toml(folder: Path, ports: dict[str, int], autopilot_url: str) -> str:
+def agent_toml(
+    folder: Path, ports: dict[str, int], autopilot_url: str, steering: str = "agent"
+) -> str:
     """The UAV agent's configuration: the autopilot at `autopilot_url`, precision landing when the
-    world serves a camera and an IR sensor."""
+    world serves a camera and an IR sensor, its descent steered by `steering` (agent, autopilot)."""
     return f"""# written by aerobase demo
 [server]
 config_file = "{folder / "uav.abcf"}"
@@ -82,6 +85,7 @@ rate_hz = 5
 [precland]
 camera_port = {ports["camera"]}
 ir_port = {ports["ir"]}
+steering = "{steering}"
 """
         if "camera" in ports and "ir" in ports
         else ""

@@ -102,6 +102,10 @@ async def wait_ready(c: httpx.AsyncClient, fleet: Fleet, procs: Processes) -> tu
             and b.json().get("plc_link") == "up"
             and b.json().get("uav_present")
             and u.json().get("gnss.fix") in ("3d", "dgps", "rtk_float", "rtk_fixed")
+            # the fix (GPS_RAW_INT) can be reported a sample before the position
+            # (GLOBAL_POSITION_INT): a loaded run once read the one without the other
+            and u.json().get("position.lat") is not None
+            and u.json().get("position.lon") is not None
         ):
             say(
                 f"both daemons are reporting: base PLC up, UAV on the scale, UAV GNSS {u.json()['gnss.fix']}"

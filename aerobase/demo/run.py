@@ -110,7 +110,14 @@ async def run_mission(
         fleet = await register(c, passwords)
         autopilot = args.autopilot or f"tcp:127.0.0.1:{ports['mavlink']}"
         write_daemon_files(
-            folder, ports, args.speed, passwords["asset"], fleet.base, fleet.uav, autopilot
+            folder,
+            ports,
+            args.speed,
+            passwords["asset"],
+            fleet.base,
+            fleet.uav,
+            autopilot,
+            args.precland_steering,
         )
         say("starting the landing-base daemon and the UAV agent")
         procs.start("base-station", ["base-station", "--config", str(folder / "base.toml")], env)
@@ -183,6 +190,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         type=float,
         default=120.0,
         help="seconds to wait for the external autopilot's home (HOME_POSITION)",
+    )
+    parser.add_argument(
+        "--precland-steering",
+        choices=("agent", "autopilot"),
+        default="agent",
+        help="who steers the precision landing's descent: the agent's own filter (a "
+        "LANDING_TARGET every control step) or the autopilot's precision landing fed the "
+        "agent's detections (ArduPilot PLND_TYPE=1)",
     )
     args = parser.parse_args(argv)
     if bool(args.autopilot) != bool(args.autopilot_watch):

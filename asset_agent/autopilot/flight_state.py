@@ -13,7 +13,8 @@ PX4; the adapter asks for it). Until then, and for autopilots that never send it
 | TAKEOFF | IN_AIR | above `airborne_alt_m` and the climb below `still_mps` (0.3 m/s): the take-off altitude is reached |
 | IN_AIR | LANDING | descending faster than `descent_mps` (0.3 m/s) while landing where it is (LAND mode, or AUTO on a NAV_LAND item), or while returning (RTL / SMART_RTL / AUTO_RTL mode, or AUTO on a NAV_RETURN_TO_LAUNCH item) within `home_radius_m` (5 m) of home: RTL's final descent, never its climb or a descent on the way |
 | LANDING | LANDING | while still landing or returning (a pause in the descent is no take-off) |
-| IN_AIR / LANDING / TAKEOFF | ON_GROUND | below `airborne_alt_m` with the vertical speed under `still_mps` (touched down; the disarm follows) |
+| IN_AIR / TAKEOFF | ON_GROUND | below `airborne_alt_m` with the vertical speed under `still_mps` (touched down; the disarm follows) |
+| LANDING | ON_GROUND | below `airborne_alt_m` with the vertical speed under `landing_still_mps` (0.08 m/s: a precision landing's final descent, ArduPilot PLND's 0.1-0.25 m/s below 2 m, is no touchdown) |
 
 A hover below 1 m reads as ON_GROUND; no flight of this platform does that.
 
@@ -62,6 +63,7 @@ class Thresholds:
     airborne_alt_m: float = 1.0
     climb_mps: float = 0.5
     still_mps: float = 0.3
+    landing_still_mps: float = 0.08  # below PLND's slowest descent, 0.1 m/s
     descent_mps: float = 0.3
     home_radius_m: float = 5.0
 
@@ -101,7 +103,9 @@ def infer_landed_state(
     low = s.alt_rel < t.airborne_alt_m
     if prev in ("UNDEFINED", "ON_GROUND"):
         return "TAKEOFF" if climb > t.climb_mps or not low else "ON_GROUND"
-    if low and abs(climb) < t.still_mps:
+    # a precision landing's final metres are slower than still_mps (ArduPilot's PLND descends at
+    # 0.1-0.25 m/s between 2 m and 0.35 m): while landing, touched down means stopped
+    if low and abs(climb) < (t.landing_still_mps if prev == "LANDING" else t.still_mps):
         return "ON_GROUND"
     if prev == "TAKEOFF":
         return "IN_AIR" if not low and climb < t.still_mps else "TAKEOFF"

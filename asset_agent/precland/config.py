@@ -195,6 +195,11 @@ class PrecisionLandingConfig(_Model):
     """The whole precision-landing configuration of the agent."""
 
     mode: Literal["landing_target", "companion"] = "companion"
+    # mode landing_target: who steers the descent. "agent": a LANDING_TARGET every control step
+    # from the agent's own filter (the autopilot goes where it is told); "autopilot": each new
+    # measurement once, unfiltered, in the body frame of its capture, for the autopilot's own
+    # estimator and descent (ArduPilot PLND_TYPE=1, PX4's landing-target estimator)
+    steering: Literal["agent", "autopilot"] = "agent"
     pad: PadGeometry = PadGeometry()
     camera: CameraModel = CameraModel()
     detector: DetectorConfig = DetectorConfig()

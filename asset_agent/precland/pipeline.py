@@ -67,6 +67,7 @@ class LandingPipeline:
         # predicted with, summed (where the vehicle is "now" against where a late frame saw
         # the pad from)
         self._track: deque[tuple[VehicleState, np.ndarray]] = deque()
+        self._detection_sent_t: float | None = None
 
     # -- inputs ------------------------------------------------------------------------------
 
@@ -192,13 +193,40 @@ class LandingPipeline:
                     state.attitude[2],
                     fresh=target is not None and target.kind != "held",
                 )
+            elif target is not None and self.config.steering == "autopilot":
+                lt = self._detection_target(target)
             elif target is not None:
-                lt = landing_target(
-                    est.rel_ned, state.attitude, now, 2 * self.config.pad.pattern_radius
-                )
-                if not lt.below:  # level with the camera: the autopilot would refuse it
-                    lt = None
+                rel = self._predicted(est.rel_ned, state, now)
+                lt = landing_target(rel, state.attitude, now, 2 * self.config.pad.pattern_radius)
+            if lt is not None and not lt.below:  # level with the camera: the autopilot refuses it
+                lt = None
         return Tick(now, target, est, cmd, lt)
+
+    @staticmethod
+    def _predicted(rel_ned, state: VehicleState, now: float) -> np.ndarray:
+        """The estimate (relative to the vehicle at its last reported state) carried to `now` by
+        the vehicle's reported velocity: the autopilot adds the LANDING_TARGET to where it is when
+        the message arrives, so a vector as old as the state would lead a moving vehicle by its
+        velocity times that age (at 25 Hz of states, up to 40 ms; in a simulation run N times
+        faster than the wall clock, N times more world time), and a loop that leads oscillates."""
+        rel = np.asarray(rel_ned, dtype=np.float64)
+        if state.velocity_ned is None:
+            return rel
+        age = min(max(now - state.t, 0.0), 0.5)
+        return rel - np.asarray(state.velocity_ned) * age
+
+    def _detection_target(self, target: FusedTarget) -> LandingTarget | None:
+        """steering "autopilot": each new measurement once, as the camera saw it — in the body
+        frame of its capture time, unfiltered — for the autopilot's own estimator (ArduPilot's
+        PLND takes it PLND_LAG late, with its attitude of then). Held values are not resent."""
+        if target.kind == "held" or target.t == self._detection_sent_t:
+            return None
+        state = self.state_at(target.t)
+        if state is None:
+            return None
+        self._detection_sent_t = target.t
+        size = 2 * self.config.pad.pattern_radius
+        return landing_target(target.rel_ned, state.attitude, target.t, size)
 
     def _moved_since(self, t: float) -> np.ndarray:
         i = self._index_at(t)

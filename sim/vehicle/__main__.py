@@ -6,6 +6,7 @@
                           [--no-message-interval] [--silent-message-interval]
                           [--no-extended-sys-state]
                           [--keep-params] [--streams-at-boot all|heartbeat]
+                          [--plnd ardupilot|simple]
 
 Without a profile it keeps the simulator's defaults (ArduPilot 4.x habits, every stream on, no
 boot delay); a profile brings that release's habits (sim/vehicle/habits.py), 35-40 s of booting
@@ -22,11 +23,13 @@ import asyncio
 import contextlib
 import logging
 from collections.abc import Sequence
+from dataclasses import replace
 
 from sim.clock import SimClock
 from sim.vehicle.control import vehicle_router
 from sim.vehicle.copter import Copter, CopterConfig
 from sim.vehicle.habits import PROFILES, Habits, profile
+from sim.vehicle.plnd import PlndParams
 from sim.vehicle.server import VehicleServer
 from sim.vehicle.standalone import OpenPad
 
@@ -51,6 +54,13 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     ap.add_argument("--no-extended-sys-state", action="store_true")
     ap.add_argument("--keep-params", action="store_true", help="store params as sent (not packed)")
     ap.add_argument("--streams-at-boot", choices=("all", "heartbeat"), default=None)
+    ap.add_argument("--plnd-lag", type=float, default=None, help="PLND_LAG, seconds (0.02-0.25)")
+    ap.add_argument(
+        "--plnd",
+        choices=("ardupilot", "simple"),
+        default=None,
+        help="precision landing as ArduPilot's PLND (companion backend) or the simulator's own",
+    )
     return ap.parse_args(argv)
 
 
@@ -69,9 +79,15 @@ def habits_of(args: argparse.Namespace) -> Habits:
         over["ardupilot_storage"] = False
     if args.streams_at_boot:
         over["streams_at_boot"] = args.streams_at_boot
-    if args.autopilot_profile:
-        return profile(args.autopilot_profile, **over)
-    return Habits(**over)  # type: ignore[arg-type]
+    if args.plnd == "simple":
+        over["plnd"] = None
+    elif args.plnd == "ardupilot":
+        over["plnd"] = PlndParams()
+    habits = profile(args.autopilot_profile, **over) if args.autopilot_profile else Habits(**over)  # type: ignore[arg-type]
+    if args.plnd_lag is not None and habits.plnd is not None:
+        lag = min(max(args.plnd_lag, 0.02), 0.25)  # AC_PrecLand::init constrains it so
+        habits = replace(habits, plnd=replace(habits.plnd, lag_s=lag))
+    return habits
 
 
 def setup(args: argparse.Namespace) -> VehicleServer:

@@ -43,7 +43,9 @@ from sim.vehicle.gnss import FIX_3D, GnssModel, GnssParams, GnssReading
 from sim.vehicle.guidance import Guidance
 from sim.vehicle.habits import Habits
 from sim.vehicle.mission_link import MissionProtocolMixin
-from sim.vehicle.precland import PrecisionLanding, TargetReading
+from sim.vehicle.plnd import ArduPrecLand
+from sim.vehicle.plnd_flight import landing_target, plnd_update
+from sim.vehicle.precland import PrecisionLanding
 
 
 class Base(Protocol):
@@ -119,7 +121,8 @@ class Copter(MissionProtocolMixin, BootMixin):
         self.origin = GeoOrigin(*base.pad_geodetic)
         self.dyn = Dynamics(cfg.dynamics)
         self.gnss = GnssModel(cfg.gnss, seed=cfg.seed)
-        self.precland = PrecisionLanding()
+        self.precland = PrecisionLanding()  # the simulator's own, when no PLND habit
+        self.plnd = ArduPrecLand(cfg.habits.plnd) if cfg.habits.plnd is not None else None
         self.guidance = Guidance(self)
         self.faults = Faults()
         self.t = 0.0  # simulated seconds since the simulation started
@@ -266,6 +269,7 @@ class Copter(MissionProtocolMixin, BootMixin):
             action = self.upload.update(wall)
             if action:
                 self._upload_action(action)
+        plnd_update(self, dt)
         blocked = self.on_pad() and self.armed and not self.base.can_vehicle_leave()
         self.guidance.update(dt, blocked)
         if blocked and not self._blocked_told:
@@ -362,17 +366,7 @@ class Copter(MissionProtocolMixin, BootMixin):
             self.guidance.guided_global_target(msg)
 
     def _on_landing_target(self, msg: Any, link: Any) -> None:
-        reading = TargetReading(
-            msg.frame, msg.angle_x, msg.angle_y, msg.distance, msg.x, msg.y, msg.z,
-            bool(msg.position_valid),
-        )  # fmt: skip
-        est = self.estimated_position()
-        s = self.dyn.state
-        reason = self.precland.handle(
-            reading, self.t, (est[0], est[1]), s.altitude, (s.roll, s.pitch, s.yaw)
-        )
-        if reason:
-            self.text(WARNING, reason, throttle_s=2.0)
+        landing_target(self, msg)
 
     def _on_gps_rtcm_data(self, msg: Any, link: Any) -> None:
         # as a GNSS receiver does: the injected bytes are one stream, re-framed and CRC-checked

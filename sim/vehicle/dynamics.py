@@ -50,6 +50,7 @@ class DynamicsParams:
     max_accel: float = 3.0  # m/s^2, every axis
     pos_gain: float = 1.0  # 1/s, position error -> velocity
     yaw_rate: float = math.radians(90.0)  # rad/s
+    attitude_tau_s: float = 0.15  # roll/pitch follow the demanded tilt with this time constant
     wind_leak: float = 0.1  # fraction of an unexpected wind change that shows in ground velocity
     wind_adapt_s: float = 1.0  # the controller learns a steady wind in about this long
     wind_authority_mps: float = 15.0  # wind it can lean into; the excess carries it (sim/wind.py)
@@ -228,6 +229,13 @@ class Dynamics:
         lim = math.radians(35.0)
         pitch = _clip(-math.atan2(fwd, 9.81), -lim, lim) if not landed else 0.0
         roll = _clip(math.atan2(right, 9.81), -lim, lim) if not landed else 0.0
+        if not landed and p.attitude_tau_s > 0:
+            # the attitude loop follows the tilt the acceleration asks for with a time constant:
+            # a real copter takes ~0.1-0.2 s to bank, never the 17 degrees in one 10 ms step that
+            # a bang-bang acceleration would read as (a line of sight seen from 5 m swings metres)
+            k = min(1.0, dt / p.attitude_tau_s)
+            pitch = s.pitch + (pitch - s.pitch) * k
+            roll = s.roll + (roll - s.roll) * k
         phase = Phase.GROUND if landed else self._phase(vn, ve, vd)
         new = replace(
             s,

@@ -31,6 +31,7 @@ from sim.vehicle.constants import (
     RTL,
     TAKEOFF,
 )  # fmt: skip
+from sim.vehicle.plnd_flight import land_with_plnd
 
 if TYPE_CHECKING:
     from sim.vehicle.copter import Copter
@@ -78,6 +79,9 @@ class Guidance:
         """A mode change happened: set up what the new mode flies."""
         c = self.c
         self.rtl_phase = None
+        if c.plnd is not None:  # AC_PrecLand_StateMachine::init, on every mode change
+            c.plnd.machine_reset()
+            c.plnd.retries = 0
         if self.mission_state == MISSION_ACTIVE and mode != AUTO:
             self.mission_state = MISSION_PAUSED
         if not c.armed:
@@ -269,6 +273,9 @@ class Guidance:
             dyn.set_position_target(
                 (g.n - err[0], g.e - err[1], g.d), yaw=self.yaw_target, speed_h=g.speed
             )
+            return
+        if c.plnd is not None:
+            land_with_plnd(self)
             return
         tn, te = g.n, g.e
         target = c.precland.target_ne(c.t)

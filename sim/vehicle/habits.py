@@ -16,9 +16,11 @@ did when an agent flew them (issue 13: ArduCopter 3.7-dev and 4.7.0-dev SITL):
 | reboot | `MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN`, refused when armed | same | `GCS_MAVLINK::handle_preflight_reboot` |
 | speed | `WPNAV_SPEED` (10 m/s) until DO_CHANGE_SPEED | same | `AC_WPNav` defaults |
 | `mission_fence` | fence and rally over the mission protocol (types 1, 2), said in AUTOPILOT_VERSION | the old FENCE_POINT protocol only | `MissionItemProtocol_Fence` / `_Rally` came with 4.0 |
+| `plnd` | ArduPilot's PLND (plnd.py) | same, angle fields only | `AC_PrecLand*`, `PosVelEKF`, Copter `mode.cpp` |
 
 `Habits()` (no profile named) keeps this simulator's historic defaults: every habit of 4.x but
-with every stream on at boot and no boot delay, so tests and the demo need not wait.
+with every stream on at boot and no boot delay, so tests and the demo need not wait, and the
+simulator's own precision landing (a LANDING_TARGET moves the landing point at once).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from dataclasses import dataclass, replace
 from typing import Literal
 
 from sim.vehicle import mission as ms
+from sim.vehicle.plnd import PlndParams
 
 # MAV_CMDs whose position ArduPilot keeps (AP_Mission::stored_in_location)
 STORED_IN_LOCATION = (16, 17, 18, 19, 21, 22, 30, 31, 82, 92, 179, 189, 191, 201, 84, 85, 94)
@@ -48,6 +51,9 @@ class Habits:
     streams_at_boot: Literal["all", "heartbeat"] = "all"
     boot_s: float = 0.0  # simulated seconds from boot to armable
     reboot_s: float = 2.0  # wall seconds of silence while rebooting
+    # precision landing: None, the simulator's own (a LANDING_TARGET moves the landing point at
+    # once); PlndParams, ArduPilot's PLND with the companion backend (sim/vehicle/plnd.py)
+    plnd: PlndParams | None = None
     prearm_texts: tuple[str, ...] = (
         "AHRS: waiting for home",
         "GPS 1: Bad fix",
@@ -56,7 +62,9 @@ class Habits:
 
 
 PROFILES: dict[str, Habits] = {
-    "ardupilot-4": Habits(name="ardupilot-4", streams_at_boot="heartbeat", boot_s=35.0),
+    "ardupilot-4": Habits(
+        name="ardupilot-4", streams_at_boot="heartbeat", boot_s=35.0, plnd=PlndParams()
+    ),
     "ardupilot-3.7": Habits(
         name="ardupilot-3.7",
         message_interval=False,
@@ -66,6 +74,7 @@ PROFILES: dict[str, Habits] = {
         streams_at_boot="heartbeat",
         boot_s=40.0,
         prearm_texts=("EKF attitude is bad", "Need 3D Fix", "Need Position Estimate"),
+        plnd=PlndParams(position_fields=False),  # 3.x read the angle fields only
     ),
 }
 

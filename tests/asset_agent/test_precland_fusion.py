@@ -265,3 +265,43 @@ def test_no_landing_target_is_made_once_the_pad_is_level_with_the_camera():
     p.ir(0.02, True, 0.0, 0.0)
     level = p.tick(0.03)
     assert level.target is not None and level.landing_target is None
+
+
+def test_agent_steering_carries_the_estimate_to_now_by_the_vehicles_velocity():
+    """The autopilot adds a LANDING_TARGET to where it is on arrival: an estimate relative to the
+    vehicle's last reported state is carried to `now` by its velocity, or it leads the vehicle."""
+    p = LandingPipeline(PrecisionLandingConfig(mode="landing_target"))
+    p.vehicle(vehicle_state(0.0, (0.0, 0.0, -3.0), (0.5, 0.0, 0.0)))
+    p.set_pad_prior((1.0, 0.0, 3.0), 0.01)
+    p.fusion.submit(Measurement("ir", 0.15, (1.0, 0.0, 3.0), None))
+    lt = p.tick(0.2).landing_target  # 0.2 s after the state: 0.1 m further north by now
+    assert lt is not None and lt.x == pytest.approx(0.9, abs=0.01) and lt.z == pytest.approx(3.0)
+    still = LandingPipeline(PrecisionLandingConfig(mode="landing_target"))
+    still.vehicle(vehicle_state(0.0, (0.0, 0.0, -3.0)))  # no velocity reported: as estimated
+    still.set_pad_prior((1.0, 0.0, 3.0), 0.01)
+    still.fusion.submit(Measurement("ir", 0.15, (1.0, 0.0, 3.0), None))
+    assert still.tick(0.2).landing_target.x == pytest.approx(1.0, abs=0.01)  # type: ignore[union-attr]
+
+
+def test_autopilot_steering_sends_each_new_measurement_once_as_the_camera_saw_it():
+    """steering "autopilot": the fused measurement itself (not the filter's estimate), in the body
+    frame of its capture time, once; held values and ticks without a new one send nothing."""
+    cfg = PrecisionLandingConfig(mode="landing_target", steering="autopilot")
+    p = LandingPipeline(cfg)
+    banked = VehicleState(0.0, (0.0, 0.0, -4.0), (math.radians(10), 0.0, 0.0))
+    p.vehicle(banked)
+    p.vehicle(VehicleState(0.1, (0.0, 0.0, -4.0), (0.0, 0.0, math.pi / 2)))  # level, facing east
+    p.set_pad_prior((0.0, 0.0, 4.0), 0.5)  # the filter believes otherwise: not what is sent
+    p.fusion.submit(Measurement("aruco", 0.0, (0.4, 0.0, 4.0), None))
+    first = p.tick(0.12).landing_target
+    assert first is not None and first.time_usec == 0  # stamped with its capture time
+    # de-rotated with the capture attitude (10 degrees of roll, facing north), not the latest
+    body = np.array([first.x, first.y, first.z])
+    c, s = math.cos(math.radians(10)), math.sin(math.radians(10))
+    expected = np.array([[1, 0, 0], [0, c, s], [0, -s, c]]) @ np.array([0.4, 0.0, 4.0])
+    assert body == pytest.approx(expected, abs=1e-6)
+    assert math.atan2(first.y, first.z) == pytest.approx(first.angle_x)  # both fields filled
+    assert first.position_valid == 1 and first.distance == pytest.approx(np.linalg.norm(body))
+    assert p.tick(0.15).landing_target is None  # held: nothing new to send
+    p.fusion.submit(Measurement("aruco", 0.1, (0.3, 0.0, 4.0), None))
+    assert p.tick(0.16).landing_target is not None

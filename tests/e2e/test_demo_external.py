@@ -2,7 +2,9 @@
 not start: our simulated one, served alone by `aerobase sim autopilot` as its own process on its
 own two TCP ports, as ArduPilot SITL serves SERIAL0 and SERIAL1, with a real release's habits:
 ArduPilot 4.x (35 s from boot to armable, only HEARTBEAT until streams are asked for on each port)
-and 3.7 (no SET_MESSAGE_INTERVAL, no EXTENDED_SYS_STATE: the world and the agent infer landed)."""
+and 3.7 (no SET_MESSAGE_INTERVAL, no EXTENDED_SYS_STATE: the world and the agent infer landed);
+both land with ArduPilot's own precision landing (PLND, sim/vehicle/plnd.py) on the agent's
+LANDING_TARGETs, and must seat the charging contacts (5 cm) for charging to start."""
 
 from __future__ import annotations
 
@@ -19,7 +21,15 @@ from tests.polling import wait_for
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
-SPEED = "5"
+# The world and the autopilot at 2x, not the demo's 5x: precision landing closes a loop through
+# five processes (autopilot -> world's camera -> agent's detector -> LANDING_TARGET -> autopilot)
+# whose wall-clock latency (about 0.2 s under load on this 2-core machine: at 5x the autopilot's
+# target led the moving vehicle by ~1 world second) counts N times in world seconds at Nx; 0.5-1 s
+# is more than a landing loop holds without oscillating
+# (ArduPilot's PLND_LAG compensates at most 0.25 s): runs landed 23 and 8 cm off and two RTK
+# dropouts left it 1.4-1.5 m off; at 2x 15 of 16 landings under load 7-12 seated the contacts
+# (README, "Flying an external autopilot").
+SPEED = "2"
 
 
 def start_autopilot(folder: Path, habits: str) -> tuple[subprocess.Popen[bytes], str, str]:
@@ -57,7 +67,7 @@ def run_demo(folder: Path, habits: str) -> tuple[str, list[str]]:
             ],
             capture_output=True,
             text=True,
-            timeout=300,
+            timeout=420,
         )
     finally:
         proc.terminate()
@@ -66,13 +76,10 @@ def run_demo(folder: Path, habits: str) -> tuple[str, list[str]]:
     assert r.returncode == 0, out
     for step in (*DEMO_STEPS, "Completed: "):
         assert step in out, (step, out)
-    # The run completes either way; the charging contacts seat only within 5 cm of the pad centre.
-    # Precision landing from the followed pose usually lands 6-24 mm off, but one CI-like run in
-    # about five on this loaded machine touched down 9.8 cm off: on the scale, off the contacts
-    # (charging refused, the run completed with an alert). That precision is measured (the
-    # follower's line below), and asserted by the precision-landing e2e tests, not here.
-    seated = "Completed: charging; the run is over" in out
-    assert seated or "UAV contacts not seated on the pad" in out, out
+    # precision landing seated the charging contacts (within 5 cm of the pad centre): charging
+    # started; a landing beside them completes the run with an alert instead, and fails here
+    assert "Completed: charging; the run is over" in out, out
+    assert "UAV contacts not seated on the pad" not in out, out
     assert "around the autopilot at " + url in out
     timeline = next(line for line in out.splitlines() if "timeline:" in line)
     assert "flying (mission uploaded and verified)" in timeline, timeline
@@ -86,8 +93,8 @@ def run_demo(folder: Path, habits: str) -> tuple[str, list[str]]:
     world = (folder / "demo" / "world.log").read_text()
     assert "the vehicle's home (the pad) is (41.178, -8.596, 120.0)" in world, world
     follower = [line for line in world.splitlines() if "follower:" in line]
-    # where the world saw it land: on the scale, and on the contacts when charging started
-    assert ("seated on the pad" if seated else "on the pad") in follower[-1], follower
+    # where the world saw it land: on the scale's contacts
+    assert "seated on the pad" in follower[-1], follower
     # precision landing flew it: LANDING_TARGET from the rendered camera and IR went to the autopilot
     agent = (folder / "demo" / "agent.log").read_text()
     assert "precland: active" in agent, agent

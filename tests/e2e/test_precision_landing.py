@@ -7,9 +7,11 @@ import asyncio
 import itertools
 import socket
 import time
+from dataclasses import replace
 
 import pytest
 
+from sim.vehicle.habits import profile
 from tests.conftest import Tenant
 from tests.e2e.harness import FINAL, platform
 from tests.polling import eventually
@@ -18,13 +20,15 @@ pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lan
 
 SPEED = 4.0  # slow enough for the detector to see the descent frame by frame
 SEED = 21
+# the autopilot as ArduPilot 4.x lands with LANDING_TARGET (its PLND), without the boot wait
+PLND = replace(profile("ardupilot-4"), streams_at_boot="all", boot_s=0.0)
 
 
 async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
     live_server, tenant: Tenant, tmp_path
 ):
     async with platform(
-        live_server.url, tenant, tmp_path, speed=SPEED, seed=SEED, precland={}
+        live_server.url, tenant, tmp_path, speed=SPEED, seed=SEED, precland={}, habits=PLND
     ) as p:
         p.world.weather.force(wind_mps=6.0, gust_mps=8.0)  # steady 6 m/s with gusts, not calm
         copter = p.copter
@@ -50,7 +54,7 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         error_m = copter.pad_distance()  # ground truth
         seen = (
             f"landing error {error_m * 100:.1f} cm, {lander.stats}, rate {lander.stats.target_rate_hz}"
-            f" Hz, accepted by the autopilot {copter.precland.accepted}"
+            f" Hz, accepted by the autopilot {copter.plnd.accepted}"
         )
         print(f"precland e2e: {seen}")
         assert error_m < 0.05, seen
@@ -66,14 +70,53 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         assert abs(landing["agent_offset_m"] - error_m) < 0.05, (landing, error_m)
         assert landing["agent_fix_sources"] and landing["agent_fix_age_s"] < 5, landing
         assert landing["base_confirmed"] and landing["base_mass_g"] > 0, landing
-        # the autopilot steered its descent with the agent's LANDING_TARGETs
+        # the autopilot steered its descent with the agent's LANDING_TARGETs (its PLND took them)
         assert lander.stats.landings >= 1 and lander.stats.targets_sent > 20, seen
-        assert copter.precland.accepted > 20 and copter.precland.rejected == 0, seen
+        assert copter.plnd.was_acquired, seen
+        assert copter.plnd.accepted > 20 and copter.plnd.rejected == 0, seen
         # The sending rate (20 Hz configured, >= 10 Hz enforced by the config; printed above) is a
         # figure of this machine's load, not of the code: the world runs 10x faster than the wall
         # clock, so a busy machine measured 2.3-6.5 Hz of world time in four runs while the
         # landings above still held. What the autopilot did with the targets is asserted instead.
         assert lander.stats.target_rate_hz is not None, seen
+
+
+async def test_the_autopilots_own_precision_landing_fed_our_detections_lands_on_the_pad(
+    live_server, tenant: Tenant, tmp_path
+):
+    """Issue 19 item 5: the simulated autopilot with ArduPilot's PLND (companion backend, its
+    estimator, descent and retry rules: sim/vehicle/plnd.py), the agent sending each detection
+    unfiltered (steering "autopilot"); the autopilot's LAND lands within 10 cm of the pad."""
+    async with platform(
+        live_server.url,
+        tenant,
+        tmp_path,
+        speed=SPEED,
+        seed=SEED,
+        habits=PLND,
+        precland={"steering": "autopilot"},
+    ) as p:
+        copter, lander = p.copter, p.agent.lander
+        assert lander is not None and copter.plnd is not None
+        run_id = await p.start_run()
+        await p.wait_state(run_id, ("flying",), 60)
+        await eventually(
+            lambda: (p.agent.autopilot.state.alt_rel or 0) > 10, 60, "the UAV to climb out"
+        )
+        copter.gnss.bias_ne_m = (0.3, -0.27)  # 40 cm of multipath: GNSS alone lands beside
+        await p.wait_state(run_id, ("landing",), 90)
+        body = await p.wait_state(run_id, FINAL, 120)
+        error_m = copter.pad_distance()  # ground truth
+        seen = (
+            f"landing error {error_m * 100:.1f} cm, {lander.stats}, accepted by the autopilot "
+            f"{copter.plnd.accepted}, its estimator {copter.plnd.state}"
+        )
+        print(f"precland e2e (autopilot steering): {seen}")
+        assert error_m < 0.10, seen
+        assert body["state"] == "completed", (body["reason"], body["timeline"], seen)
+        # the autopilot's estimator took the detections and steered: it found and kept the target
+        assert copter.plnd.was_acquired and copter.plnd.accepted > 20, seen
+        assert copter.plnd.rejected == 0, seen
 
 
 async def test_unreachable_sensors_leave_the_landing_to_gnss(live_server, tenant: Tenant, tmp_path):

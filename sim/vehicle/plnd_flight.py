@@ -1,0 +1,70 @@
+"""The simulated autopilot's precision landing in flight: LANDING_TARGET in, the estimator run every
+step, and LAND as ArduPilot flies it with PLND on (`Habits.plnd`; the estimator is plnd.py)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any
+
+from sim.vehicle.constants import CRITICAL, INFO, WARNING
+from sim.vehicle.precland import TargetReading
+
+if TYPE_CHECKING:
+    from sim.vehicle.copter import Copter
+    from sim.vehicle.guidance import Guidance
+
+
+def landing_target(c: Copter, msg: Any) -> None:
+    """LANDING_TARGET: to ArduPilot's precision landing (habit) or the simulator's own."""
+    reading = TargetReading(
+        msg.frame, msg.angle_x, msg.angle_y, msg.distance, msg.x, msg.y, msg.z,
+        bool(msg.position_valid),
+    )  # fmt: skip
+    est = c.estimated_position()
+    s = c.dyn.state
+    if c.plnd is not None:
+        reason = c.plnd.handle(reading, c.t)
+    else:
+        reason = c.precland.handle(
+            reading, c.t, (est[0], est[1]), s.altitude, (s.roll, s.pitch, s.yaw)
+        )
+    if reason:
+        c.text(WARNING, reason, throttle_s=2.0)
+
+
+def plnd_update(c: Copter, dt: float) -> None:
+    """ArduPilot's precision landing runs every loop (Copter::update_precland)."""
+    if c.plnd is None:
+        return
+    s = c.dyn.state
+    est = c.estimated_position()
+    c.plnd.update(c.t, dt, (s.roll, s.pitch, s.yaw), s.velocity[:2], est, s.altitude)
+    for text in c.plnd.texts:
+        c.text(CRITICAL if text.endswith("Lost") else INFO, text)
+    c.plnd.texts.clear()
+
+
+def land_with_plnd(guidance: Guidance) -> None:
+    """LAND as ArduPilot flies it with precision landing on (`Habits.plnd`, sim/vehicle/plnd.py):
+    towards the target while it is acquired (else on to where it was last), at LAND's speed
+    unless precision landing holds or slows the descent; a retry flies to its position."""
+    c, dyn, cfg = guidance.c, guidance.c.dyn, guidance.c.config
+    assert c.plnd is not None
+    err = c.reading.error_ned
+    est = c.estimated_position()
+    d = c.plnd.descent(c.t, est, cfg.land_speed)
+    if d.retry_ned is not None:
+        n, e, down = d.retry_ned
+        dyn.set_position_target((n - err[0], e - err[1], down), yaw=guidance.yaw_target)
+        return
+    if d.target_ne is not None:
+        guidance.goal = replace(guidance.goal, n=d.target_ne[0], e=d.target_ne[1])
+    alt = dyn.state.altitude
+    descend = cfg.land_speed if alt < cfg.land_alt_low else cfg.land_speed_high
+    if d.descent is not None:
+        descend = min(descend, d.descent)
+    n, e = guidance.goal.n - err[0], guidance.goal.e - err[1]
+    if descend <= 0:
+        dyn.set_position_target((n, e, dyn.state.position[2]), yaw=guidance.yaw_target)
+    else:
+        dyn.set_position_target((n, e, 1.0), yaw=guidance.yaw_target, speed_down=descend)
