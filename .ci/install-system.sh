@@ -1,10 +1,15 @@
 #!/usr/bin/env bash
 # System packages the tests run as real programs: nginx (the reverse proxy of the deployment
-# topology) and docker-compose (validates docker-compose.yml; no image is pulled). Idempotent.
+# topology), docker-compose (validates docker-compose.yml; no image is pulled), and for live video
+# chromium (the browser Playwright drives: never `playwright install`), janus and coturn
+# (turnserver), which the video tests start themselves. Idempotent.
 set -euo pipefail
 need=()
 command -v nginx >/dev/null 2>&1 || [ -x /usr/sbin/nginx ] || need+=(nginx)
 command -v docker-compose >/dev/null 2>&1 || need+=(docker-compose)
+[ -x /usr/bin/chromium ] || need+=(chromium)
+command -v janus >/dev/null 2>&1 || need+=(janus)
+command -v turnserver >/dev/null 2>&1 || need+=(coturn)
 if [ ${#need[@]} -eq 0 ]; then
     echo "system packages already installed"
     exit 0
@@ -14,10 +19,10 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 $SUDO apt-get update
 $SUDO apt-get install -y "${need[@]}"
-# the package's own nginx service would hold port 80 for nothing: the tests start their own
+# the packages' own services would hold ports for nothing: the tests start their own
 if command -v systemctl >/dev/null 2>&1 && [ -d /run/systemd/system ]; then
-    $SUDO systemctl disable --now nginx >/dev/null 2>&1 || true
+    $SUDO systemctl disable --now nginx janus coturn >/dev/null 2>&1 || true
 elif command -v service >/dev/null 2>&1; then
-    $SUDO service nginx stop >/dev/null 2>&1 || true
+    for svc in nginx janus coturn; do $SUDO service "$svc" stop >/dev/null 2>&1 || true; done
 fi
 echo "installed: ${need[*]}"

@@ -42,6 +42,8 @@ from server.stations.service import BaseCorrections, caster_authenticator
 from server.telemetry.endpoints import router as telemetry_router
 from server.telemetry.sql import SqlTelemetryStore
 from server.telemetry.store import TelemetryStore, retention_loop
+from server.video.endpoints import router as video_router
+from server.video.lifecycle import make_gateway
 
 log = logging.getLogger(__name__)
 VERSION = "0.1.0"
@@ -83,6 +85,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         hub = Hub(broker, sessionmaker)
         await hub.start()
         metrics.watch_hub(hub)
+        video = make_gateway(settings)
         services = Services(
             settings=settings,
             passwords=passwords,
@@ -93,6 +96,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             ingest=ingest,
             hub=hub,
             session_end_listeners=(hub.sessions_ended,),
+            video=video,
         )
         set_services(app, services)
         runs = RunEngine(services, hub.node)
@@ -110,6 +114,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             retention.cancel()
+            await video.close()
             await scheduler.stop()
             await runs.stop()
             await hub.stop()
@@ -168,6 +173,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         missions_router,
         runs_router,
         schedules_router,
+        video_router,
     ):
         app.include_router(router)
 

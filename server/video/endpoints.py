@@ -1,0 +1,153 @@
+"""HTTP routes of live video: the stream's description, WHEP for viewers, WHIP for the asset."""
+
+from __future__ import annotations
+
+import uuid
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Depends, Request, Response
+
+from server.deps import CurrentPrincipal, ServicesDep, UoW, Viewer
+from server.kit.errors import NotFound
+from server.kit.principal import Principal
+from server.video.errors import UnsupportedMediaType
+from server.video.gateway import MediaGateway
+from server.video.schemas import VideoOut
+from server.video.service import VideoService, check_sdp, whep_path, whip_path
+
+router = APIRouter(tags=["video"])
+
+SDP = "application/sdp"
+TRICKLE = "application/trickle-ice-sdpfrag"
+
+
+def _gateway(services: ServicesDep) -> MediaGateway:
+    if services.video is None:
+        raise NotFound("live video is not enabled on this server", code="video_disabled")
+    return services.video  # type: ignore[no-any-return]
+
+
+def _build(uow: UoW, principal: Principal, services: ServicesDep) -> VideoService:
+    return VideoService(uow, principal, services.settings, _gateway(services))
+
+
+def _viewer_service(uow: UoW, principal: Viewer, services: ServicesDep) -> VideoService:
+    return _build(uow, principal, services)
+
+
+def _publisher_service(
+    uow: UoW, principal: CurrentPrincipal, services: ServicesDep
+) -> VideoService:
+    return _build(uow, principal, services)
+
+
+Video = Annotated[VideoService, Depends(_viewer_service)]
+Publisher = Annotated[VideoService, Depends(_publisher_service)]
+
+
+async def _body(request: Request, content_type: str) -> bytes:
+    got = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if got != content_type:
+        raise UnsupportedMediaType(f"send {content_type}, not {got or 'no content type'}")
+    return await request.body()
+
+
+def _sdp_body(description: str) -> dict[str, Any]:
+    return {
+        "requestBody": {
+            "required": True,
+            "description": description,
+            "content": {SDP: {"schema": {"type": "string"}}},
+        }
+    }
+
+
+_ANSWER: dict[int | str, dict[str, Any]] = {
+    201: {
+        "description": "the SDP answer; `Location` names the session",
+        "content": {SDP: {"schema": {"type": "string"}}},
+        "headers": {"Location": {"schema": {"type": "string"}}},
+    }
+}
+
+
+@router.get("/api/v1/assets/{asset_id}/video", response_model=VideoOut)
+async def describe_video(asset_id: uuid.UUID, video: Video) -> VideoOut:
+    """The asset's stream (state, codec, size, fps, viewers, path) and ICE servers to watch it."""
+    return await video.describe(asset_id)
+
+
+@router.post(
+    "/api/v1/assets/{asset_id}/video/whep",
+    status_code=201,
+    response_class=Response,
+    responses={**_ANSWER, 503: {"description": "the viewer limit is reached (Retry-After)"}},
+    openapi_extra=_sdp_body("the viewer's SDP offer (receive-only video)"),
+)
+async def whep_offer(asset_id: uuid.UUID, request: Request, video: Video) -> Response:
+    """WHEP: open a viewer session from an SDP offer; answers the SDP answer."""
+    offer = check_sdp(await _body(request, SDP))
+    session = await video.view(asset_id, offer)
+    return Response(
+        content=session.answer,
+        status_code=201,
+        media_type=SDP,
+        headers={"Location": f"{whep_path(asset_id)}/{session.session_id}"},
+    )
+
+
+@router.patch(
+    "/api/v1/assets/{asset_id}/video/whep/{session_id}",
+    status_code=204,
+    response_class=Response,
+    openapi_extra={
+        "requestBody": {
+            "required": True,
+            "content": {TRICKLE: {"schema": {"type": "string"}}},
+        }
+    },
+)
+async def whep_trickle(
+    asset_id: uuid.UUID, session_id: uuid.UUID, request: Request, video: Video
+) -> Response:
+    """WHEP trickle ICE: the viewer's further candidates as an SDP fragment."""
+    fragment = (await _body(request, TRICKLE)).decode("utf-8", errors="replace")
+    await video.trickle(asset_id, session_id, fragment)
+    return Response(status_code=204)
+
+
+@router.delete(
+    "/api/v1/assets/{asset_id}/video/whep/{session_id}", status_code=204, response_class=Response
+)
+async def whep_stop(asset_id: uuid.UUID, session_id: uuid.UUID, video: Video) -> Response:
+    """WHEP: end a viewer session."""
+    await video.stop(asset_id, session_id)
+    return Response(status_code=204)
+
+
+@router.post(
+    "/api/v1/assets/{asset_id}/video/whip",
+    status_code=201,
+    response_class=Response,
+    responses=_ANSWER,
+    openapi_extra=_sdp_body("the asset's SDP offer (send-only VP8 video)"),
+)
+async def whip_offer(asset_id: uuid.UUID, request: Request, video: Publisher) -> Response:
+    """WHIP: the asset publishes its camera (asset sessions only, its own asset only)."""
+    offer = check_sdp(await _body(request, SDP))
+    session = await video.publish(asset_id, offer)
+    return Response(
+        content=session.answer,
+        status_code=201,
+        media_type=SDP,
+        headers={"Location": f"{whip_path(asset_id)}/{session.session_id}"},
+    )
+
+
+@router.delete(
+    "/api/v1/assets/{asset_id}/video/whip/{session_id}", status_code=204, response_class=Response
+)
+async def whip_stop(asset_id: uuid.UUID, session_id: uuid.UUID, video: Publisher) -> Response:
+    """WHIP: the asset ends its publication."""
+    await video.unpublish(asset_id, session_id)
+    return Response(status_code=204)

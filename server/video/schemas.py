@@ -1,0 +1,38 @@
+"""API shapes of live video."""
+
+from __future__ import annotations
+
+import uuid
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+
+class IceServerOut(BaseModel):
+    """One entry for `RTCPeerConnection({iceServers})`; TURN entries carry time-limited credentials."""
+
+    urls: list[str]
+    username: str | None = None
+    credential: str | None = None
+
+
+class VideoOut(BaseModel):
+    """An asset's live stream and how to watch it."""
+
+    asset_id: uuid.UUID
+    state: Literal["live", "offline"] = Field(
+        description="live: the asset is publishing; offline: it is not (viewers may still join and wait)"
+    )
+    path: Literal["embedded", "janus"]
+    codec: Literal["vp8"]
+    width: int
+    height: int
+    fps: float = Field(description="the frame rate of the camera description")
+    measured_fps: float | None = Field(
+        default=None, description="frames per second arriving from the asset, when live"
+    )
+    bitrate_kbps: int
+    viewers: int
+    max_viewers: int
+    whep_url: str
+    ice_servers: list[IceServerOut]

@@ -1,0 +1,119 @@
+"""Decisions about live video: who may publish and watch which asset's stream, and through what."""
+
+from __future__ import annotations
+
+import uuid
+
+from server.assets.models import Asset, AssetKind
+from server.assets.service import AssetService
+from server.config import Settings
+from server.kit.errors import Forbidden, NotFound, Unprocessable
+from server.kit.principal import Principal
+from server.kit.service import Service
+from server.kit.uow import UnitOfWork
+from server.video.camera import camera_of
+from server.video.gateway import MediaGateway, Negotiated
+from server.video.ice import ice_servers
+from server.video.schemas import IceServerOut, VideoOut
+
+MAX_SDP_BYTES = 64 * 1024
+
+
+def whep_path(asset_id: uuid.UUID) -> str:
+    """The WHEP endpoint of an asset's stream."""
+    return f"/api/v1/assets/{asset_id}/video/whep"
+
+
+def whip_path(asset_id: uuid.UUID) -> str:
+    """The WHIP endpoint the asset publishes to."""
+    return f"/api/v1/assets/{asset_id}/video/whip"
+
+
+def check_sdp(body: bytes) -> str:
+    """The body as SDP text (422 when it is not)."""
+    if len(body) > MAX_SDP_BYTES:
+        raise Unprocessable(f"an SDP body is at most {MAX_SDP_BYTES} bytes", code="bad_offer")
+    try:
+        text = body.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise Unprocessable("the SDP body is not UTF-8", code="bad_offer") from err
+    if not text.lstrip().startswith("v=0"):
+        raise Unprocessable(
+            "the body is not an SDP offer (it must start with v=0)", code="bad_offer"
+        )
+    return text
+
+
+class VideoService(Service):
+    """Describes, publishes and views the streams of the caller's organisation's UAVs."""
+
+    def __init__(
+        self, uow: UnitOfWork, principal: Principal, settings: Settings, gateway: MediaGateway
+    ) -> None:
+        super().__init__(uow, principal)
+        self.settings = settings
+        self.gateway = gateway
+        self.assets = AssetService(uow, principal, settings)
+
+    async def _uav(self, asset_id: uuid.UUID) -> Asset:
+        asset = await self.assets.get(asset_id)  # NotFound for another organisation's asset
+        if asset.kind != AssetKind.uav:
+            raise NotFound("this asset has no camera stream (it is not a UAV)", code="no_video")
+        return asset
+
+    async def describe(self, asset_id: uuid.UUID) -> VideoOut:
+        """The stream, its viewers and the ICE servers (with TURN credentials) to watch it."""
+        asset = await self._uav(asset_id)
+        camera = camera_of(asset.attributes)
+        status = self.gateway.status(asset_id)
+        user = str(self.principal.user_id or self.principal.asset_id)
+        return VideoOut(
+            asset_id=asset.id,
+            state="live" if status.live else "offline",
+            path=self.settings.effective_video_path,
+            codec=camera.codec,
+            width=camera.width,
+            height=camera.height,
+            fps=camera.fps,
+            measured_fps=round(status.fps, 1) if status.fps is not None else None,
+            bitrate_kbps=camera.bitrate_kbps,
+            viewers=status.viewers,
+            max_viewers=self.settings.video_max_viewers,
+            whep_url=whep_path(asset.id),
+            ice_servers=[
+                IceServerOut(urls=s.urls, username=s.username, credential=s.credential)
+                for s in ice_servers(self.settings, user)
+            ],
+        )
+
+    async def view(self, asset_id: uuid.UUID, offer: str) -> Negotiated:
+        """Open a viewer session (WHEP)."""
+        await self._uav(asset_id)
+        return await self.gateway.view(asset_id, offer, self.settings.video_max_viewers)
+
+    async def trickle(self, asset_id: uuid.UUID, session_id: uuid.UUID, fragment: str) -> None:
+        """Trickled ICE candidates of a viewer session."""
+        await self._uav(asset_id)
+        await self.gateway.trickle(asset_id, session_id, fragment)
+
+    async def stop(self, asset_id: uuid.UUID, session_id: uuid.UUID) -> None:
+        """End a viewer session."""
+        await self._uav(asset_id)
+        await self.gateway.stop(asset_id, session_id)
+
+    def _check_publisher(self, asset_id: uuid.UUID) -> None:
+        if self.principal.kind != "asset":
+            raise Forbidden("only the asset itself publishes its video", code="not_the_asset")
+        if self.principal.asset_id != asset_id:
+            raise NotFound(f"asset {asset_id} not found")
+
+    async def publish(self, asset_id: uuid.UUID, offer: str) -> Negotiated:
+        """The asset's own WHIP publish (a user, or another asset, may not)."""
+        self._check_publisher(asset_id)
+        asset = await self._uav(asset_id)
+        return await self.gateway.publish(asset_id, offer, camera_of(asset.attributes))
+
+    async def unpublish(self, asset_id: uuid.UUID, session_id: uuid.UUID) -> None:
+        """The asset ends its publication."""
+        self._check_publisher(asset_id)
+        await self.gateway.unpublish(asset_id, session_id)
