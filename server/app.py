@@ -44,6 +44,7 @@ from server.telemetry.sql import SqlTelemetryStore
 from server.telemetry.store import TelemetryStore, retention_loop
 from server.video.endpoints import router as video_router
 from server.video.lifecycle import make_gateway
+from server.video.page import router as video_page_router
 
 log = logging.getLogger(__name__)
 VERSION = "0.1.0"
@@ -174,6 +175,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         runs_router,
         schedules_router,
         video_router,
+        video_page_router,
     ):
         app.include_router(router)
 
