@@ -6,6 +6,7 @@ import base64
 import hashlib
 import hmac
 import time
+from typing import Any
 
 import httpx
 import pytest
@@ -18,11 +19,15 @@ from tests.video.peers import Viewer, publisher
 CAMERA = {"width": 320, "height": 240, "fps": 20}
 
 
-def uav_with_camera(tenant: Tenant, api: httpx.Client) -> tuple[str, str]:
-    """A UAV with a camera description, and its asset session token."""
+def uav_with_camera(
+    tenant: Tenant, api: httpx.Client, camera: dict[str, Any] | None = None
+) -> tuple[str, str]:
+    """A UAV with a camera description (CAMERA by default), and its asset session token."""
     from assetlink.configfile import decrypt_config
 
-    asset = tenant.create_asset("uav", password="asset-password-123", attributes={"camera": CAMERA})
+    asset = tenant.create_asset(
+        "uav", password="asset-password-123", attributes={"camera": camera or CAMERA}
+    )
     cfg = decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
     r = api.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret})
     assert r.status_code == 200, r.text

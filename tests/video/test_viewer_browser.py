@@ -23,13 +23,8 @@ CHROMIUM_ARGS = [
 async def test_headless_chromium_decodes_more_than_60_frames_on_the_viewer_page(
     video_server: LiveServer, video_api: httpx.Client, video_tenant: Tenant
 ):
-    asset_id, asset_token = uav_with_camera(video_tenant, video_api)
-    r = video_api.patch(
-        f"/api/v1/assets/{asset_id}",
-        json={"attributes": {"camera": {"width": 640, "height": 480, "fps": 30}}},
-        headers=video_tenant.h("admin"),
-    )
-    assert r.status_code == 200, r.text
+    camera = {"width": 640, "height": 480, "fps": 30}
+    asset_id, asset_token = uav_with_camera(video_tenant, video_api, camera)
     pub = publisher(video_server.url, asset_id, asset_token, 640, 480, 30)
     await pub.publish_once()
     try:
