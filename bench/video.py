@@ -1,0 +1,350 @@
+"""Live video through the embedded relay: glass-to-glass latency, frame rate and server CPU per
+viewer at 1, 5 and 10 viewers of one stream, in one run.
+
+    python bench/video.py [--width 640] [--height 480] [--fps 30] [--viewers 1,5,10]
+                          [--seconds 10] [--warmup 3] [--json]
+
+One `aerobase server` subprocess (its own SQLite file, loopback ICE allowed) relays a UAV's WHIP
+publication to WHEP viewers. The publisher (this process: the agent's CameraTrack and
+WhipPublisher, aiortc's VP8 encoder) draws a frame counter into each frame's top rows (16 black or
+white blocks) and keeps each counter's capture time; one probe viewer decodes every frame, reads
+the counter back and times capture → decoded (glass to glass, one clock). The other viewers are
+real WebRTC peers (ICE, DTLS, SRTP, RTCP) that count the frames they receive without decoding them
+(the relay's work per viewer is the same; decoding 10 streams here would starve the 2-core machine
+the server runs on). Server CPU comes from /proc/<pid>/stat over the measured window. Reference,
+same run: the CPU one VP8 encode of this stream costs (what aiortc's MediaRelay would spend per
+viewer, beside one decode per stream). The Janus path is not built yet, so there is no Janus
+column. A benchmark never fails a build: it exits 0 with its figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import base64
+import contextlib
+import fractions
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+import uuid
+from collections.abc import AsyncIterator
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import av
+import httpx
+import numpy as np
+from aiortc import RTCConfiguration, RTCPeerConnection, RTCSessionDescription
+from aiortc.mediastreams import MediaStreamError
+
+from asset_agent.video.source import CameraTrack
+from asset_agent.video.whip import WhipPublisher
+from assetlink.configfile import decrypt_config
+from bench._aerobase import ASSET_PASSWORD, SUPER_PASSWORD, start_server
+from bench._load import percentile, process_cpu
+from server.video.forward import tap_receiver
+from server.video.ice import allow_loopback_candidates
+
+BITS = 16
+BLOCK_H = 24
+
+
+def progress(message: str) -> None:
+    print(f"[video] {message}", file=sys.stderr, flush=True)
+
+
+class Stamped:
+    """The publisher's images: a moving scene with the frame counter in its top rows."""
+
+    def __init__(self, width: int, height: int, fps: float) -> None:
+        self.width, self.height, self.fps = width, height, fps
+        self.captured: dict[int, float] = {}
+        scene = np.zeros((height, width, 3), dtype=np.uint8)
+        scene[:, :, 1] = np.linspace(0, 200, width, dtype=np.uint8)[None, :]
+        scene[:, :, 2] = np.linspace(0, 200, height, dtype=np.uint8)[:, None]
+        self.scene = scene
+
+    def image(self, n: int) -> np.ndarray:
+        img = self.scene.copy()
+        x = (n * 9) % self.width
+        img[BLOCK_H:, x : x + 24, :] = 255
+        block = self.width // BITS
+        for b in range(BITS):
+            img[:BLOCK_H, b * block : (b + 1) * block, :] = 255 if (n >> b) & 1 else 0
+        return img
+
+    async def images(self) -> AsyncIterator[np.ndarray]:
+        n = 0
+        start = time.perf_counter()
+        while True:
+            img = self.image(n & 0xFFFF)
+            self.captured[n & 0xFFFF] = time.perf_counter()
+            yield img
+            n += 1
+            delay = start + n / self.fps - time.perf_counter()
+            await asyncio.sleep(max(0.0, delay))
+
+
+def read_counter(gray: np.ndarray) -> int:
+    block = gray.shape[1] // BITS
+    n = 0
+    for b in range(BITS):
+        cell = gray[4 : BLOCK_H - 4, b * block + 4 : (b + 1) * block - 4]
+        if float(cell.mean()) > 128:
+            n |= 1 << b
+    return n
+
+
+class Peer:
+    """A WHEP viewer: the probe decodes and reads counters; the others count encoded frames."""
+
+    def __init__(self, url: str, asset_id: str, token: str, probe: Stamped | None) -> None:
+        self.url, self.asset_id, self.token, self.probe = url, asset_id, token, probe
+        self.frames = 0
+        self.latencies: list[float] = []
+        self.pc: RTCPeerConnection | None = None
+        self.location: str | None = None
+        self.task: asyncio.Task[None] | None = None
+
+    async def start(self, api: httpx.AsyncClient) -> None:
+        pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
+        transceiver = pc.addTransceiver("video", direction="recvonly")
+
+        @pc.on("track")
+        def _track(track: Any) -> None:
+            if self.probe is not None:
+                self.task = asyncio.ensure_future(self._decode(track))
+
+        await pc.setLocalDescription(await pc.createOffer())
+        r = await api.post(
+            f"/api/v1/assets/{self.asset_id}/video/whep",
+            content=pc.localDescription.sdp,
+            headers={"Content-Type": "application/sdp", "Authorization": f"Bearer {self.token}"},
+        )
+        if r.status_code != 201:
+            raise RuntimeError(f"WHEP answered {r.status_code}: {r.text[:200]}")
+        self.location = r.headers["location"]
+        await pc.setRemoteDescription(RTCSessionDescription(sdp=r.text, type="answer"))
+        if self.probe is None:
+            tap_receiver(transceiver.receiver, self._count)
+        self.pc = pc
+
+    def _count(self, data: bytes, timestamp: int) -> None:
+        self.frames += 1
+
+    async def _decode(self, track: Any) -> None:
+        assert self.probe is not None
+        with contextlib.suppress(MediaStreamError):
+            while True:
+                frame = await track.recv()
+                now = time.perf_counter()
+                self.frames += 1
+                n = read_counter(frame.to_ndarray(format="gray"))
+                sent = self.probe.captured.get(n)
+                if sent is not None and 0 <= now - sent < 5:
+                    self.latencies.append(now - sent)
+
+    async def stop(self, api: httpx.AsyncClient) -> None:
+        if self.location:
+            with contextlib.suppress(httpx.HTTPError):
+                await api.delete(self.location, headers={"Authorization": f"Bearer {self.token}"})
+        if self.pc is not None:
+            await self.pc.close()
+        if self.task is not None:
+            self.task.cancel()
+
+
+def encode_reference(stamped: Stamped, frames: int) -> float:
+    """CPU seconds per second of video for one VP8 encode of this stream (aiortc's settings)."""
+    from aiortc.codecs.vpx import Vp8Encoder
+
+    encoder = Vp8Encoder()
+    images = [stamped.image(n) for n in range(frames)]
+    t0 = time.process_time()
+    for n, img in enumerate(images):
+        f = av.VideoFrame.from_ndarray(img, format="bgr24")
+        f.pts, f.time_base = n * 3000, fractions.Fraction(1, 90000)
+        encoder.encode(f)
+    return (time.process_time() - t0) / (frames / stamped.fps)
+
+
+async def set_up(url: str, superuser: str, camera: dict[str, Any]) -> tuple[str, str, str]:
+    """An organisation, a viewer, and a UAV with this camera: (asset id, asset token, viewer token)."""
+    async with httpx.AsyncClient(base_url=url, timeout=60) as api:
+        login = {"email": superuser, "password": SUPER_PASSWORD, "force": True}
+        root = (await api.post("/api/v1/auth/login", json=login)).json()["access_token"]
+        h = {"Authorization": f"Bearer {root}"}
+        org = (
+            await api.post(
+                "/api/v1/organizations", json={"name": f"v-{uuid.uuid4().hex[:8]}"}, headers=h
+            )
+        ).json()
+        root = (
+            await api.post("/api/v1/auth/login", json={**login, "organization_id": org["id"]})
+        ).json()["access_token"]
+        h = {"Authorization": f"Bearer {root}"}
+        email = f"viewer-{uuid.uuid4().hex[:6]}@bench.test"
+        await api.post(
+            "/api/v1/users",
+            json={"email": email, "password": SUPER_PASSWORD, "role": "viewer"},
+            headers=h,
+        )
+        viewer = (
+            await api.post("/api/v1/auth/login", json={"email": email, "password": SUPER_PASSWORD})
+        ).json()["access_token"]
+        body = {
+            "name": f"bench-cam-{uuid.uuid4().hex[:6]}",
+            "kind": "uav",
+            "password": ASSET_PASSWORD,
+            "attributes": {"camera": camera},
+        }
+        created = (await api.post("/api/v1/assets", json=body, headers=h)).json()
+        cfg = decrypt_config(base64.b64decode(created["config_file"]), ASSET_PASSWORD)
+        r = await api.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret})
+        return created["id"], r.json()["access_token"], viewer
+
+
+async def bench(args: argparse.Namespace) -> dict[str, Any]:
+    allow_loopback_candidates()  # the bench's peers, like the server, on a loopback-only host
+    os.environ.update(
+        AEROBASE_VIDEO_ICE_LOOPBACK="true",
+        AEROBASE_VIDEO_MAX_VIEWERS=str(max(args.viewers) + 1),
+        AEROBASE_ENVIRONMENT="development",
+    )
+    camera = {"width": args.width, "height": args.height, "fps": args.fps}
+    stamped = Stamped(args.width, args.height, args.fps)
+    progress("measuring the reference: one VP8 encode of the stream")
+    reference = await asyncio.to_thread(encode_reference, stamped, int(args.fps * 5))
+    with tempfile.TemporaryDirectory() as tmp:
+        superuser = f"root-{uuid.uuid4().hex[:6]}@bench.test"
+        server = start_server(Path(tmp), superuser, progress)
+        try:
+            asset_id, asset_token, viewer_token = await set_up(server.url, superuser, camera)
+            track = CameraTrack(stamped.images, args.width, args.height, args.fps)
+            pub = WhipPublisher(
+                f"{server.url}/api/v1/assets/{asset_id}/video/whip", lambda: asset_token, track
+            )
+            await pub.publish_once()
+            rows = []
+            async with httpx.AsyncClient(base_url=server.url, timeout=30) as api:
+                for count in args.viewers:
+                    rows.append(
+                        await level(api, server.pid, asset_id, viewer_token, stamped, count, args)
+                    )
+            await pub.stop()
+            await track.aclose()
+        finally:
+            server.stop()
+    pressure = Path("/proc/pressure/cpu").read_text().splitlines()[0]  # noqa: ASYNC240
+    return {
+        "stream": camera,
+        "reference_one_vp8_encode_core_pct": round(reference * 100, 1),
+        "levels": rows,
+        "machine": {
+            "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+            "cpu_pressure": pressure,
+        },
+    }
+
+
+async def level(
+    api: httpx.AsyncClient,
+    pid: int,
+    asset_id: str,
+    token: str,
+    stamped: Stamped,
+    count: int,
+    args: argparse.Namespace,
+) -> dict[str, Any]:
+    progress(f"{count} viewer(s): connecting")
+    peers = [
+        Peer(str(api.base_url), asset_id, token, stamped if i == 0 else None) for i in range(count)
+    ]
+    for p in peers:
+        await p.start(api)
+    await asyncio.sleep(args.warmup)
+    f0 = [p.frames for p in peers]
+    peers[0].latencies.clear()
+    c0, t0, b0 = process_cpu(pid), time.perf_counter(), sum(os.times()[:2])
+    await asyncio.sleep(args.seconds)
+    c1, t1, b1 = process_cpu(pid), time.perf_counter(), sum(os.times()[:2])
+    span = t1 - t0
+    fps = [(p.frames - f) / span for p, f in zip(peers, f0, strict=True)]
+    lat = peers[0].latencies
+    for p in peers:
+        await p.stop(api)
+    cpu = (c1 - c0) / span if c0 is not None and c1 is not None else None
+    row = {
+        "viewers": count,
+        "server_cpu_core_pct": round(cpu * 100, 1) if cpu is not None else None,
+        # this process: the publisher's encode, every viewer's SRTP and RTCP, the probe's decode
+        "bench_process_cpu_core_pct": round((b1 - b0) / span * 100, 1),
+        "probe_fps": round(fps[0], 1),
+        "min_viewer_fps": round(min(fps), 1),
+        "latency_ms_p50": round((percentile(lat, 50) or 0) * 1000, 1),
+        "latency_ms_p95": round((percentile(lat, 95) or 0) * 1000, 1),
+        "latency_samples": len(lat),
+    }
+    progress(json.dumps(row))
+    return row
+
+
+def parse(argv: list[str] | None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument("--width", type=int, default=640)
+    p.add_argument("--height", type=int, default=480)
+    p.add_argument("--fps", type=float, default=30.0)
+    p.add_argument("--viewers", type=lambda s: [int(v) for v in s.split(",")], default=[1, 5, 10])
+    p.add_argument("--seconds", type=float, default=10.0)
+    p.add_argument("--warmup", type=float, default=3.0)
+    p.add_argument("--json", action="store_true")
+    return p.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(argv)
+    result = asyncio.run(bench(args))
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0
+    s = result["stream"]
+    print(
+        f"stream {s['width']}x{s['height']} @ {s['fps']} fps VP8; reference: one VP8 encode = "
+        f"{result['reference_one_vp8_encode_core_pct']} % of a core"
+    )
+    print(
+        "viewers  server CPU %core  per viewer  bench CPU %core  probe fps  min fps  "
+        "latency p50/p95 ms"
+    )
+    base = result["levels"][0]["server_cpu_core_pct"] if result["levels"] else None
+    for r in result["levels"]:
+        per = (r["server_cpu_core_pct"] or 0) / r["viewers"]
+        print(
+            f"{r['viewers']:7d}  {r['server_cpu_core_pct']:15}  {per:10.1f}  "
+            f"{r['bench_process_cpu_core_pct']:15}  {r['probe_fps']:9}  "
+            f"{r['min_viewer_fps']:7}  {r['latency_ms_p50']}/{r['latency_ms_p95']}"
+        )
+    if base is not None and len(result["levels"]) > 1:
+        last = result["levels"][-1]
+        slope = (last["server_cpu_core_pct"] - base) / max(
+            1, last["viewers"] - result["levels"][0]["viewers"]
+        )
+        print(
+            f"marginal server CPU per added viewer: {slope:.1f} % of a core "
+            f"({slope / max(0.1, result['reference_one_vp8_encode_core_pct']):.2f}x one VP8 encode)"
+        )
+    print(f"machine: {result['machine']}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
