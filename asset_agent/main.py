@@ -30,6 +30,7 @@ from asset_agent.events import EventLimits, EventTracker
 from asset_agent.handlers import Handlers
 from asset_agent.precland.supervisor import PrecisionLander, stream_rates
 from asset_agent.uav_telemetry import to_event, to_telemetry
+from asset_agent.video.publish import video_publisher
 from assetlink.configfile import AssetConfig, ConfigFileError
 from assetlink.configfile_cli import PasswordSourceError, load_config
 from assetlink.link import Link
@@ -131,10 +132,17 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
     lander = None
     if agent.lander is not None:
         lander = asyncio.create_task(agent.lander.run(stop), name="precland")
+    video = video_publisher(
+        agent.config, agent.link.server_url, agent.asset.asset_id, lambda: agent.link.token
+    )
+    publishing = asyncio.create_task(video.run(), name="video") if video is not None else None
     try:
         await _report(agent, stop)
     finally:
-        await cancel_and_wait([lander])
+        await cancel_and_wait([lander, publishing])
+        if video is not None:
+            await video.stop()
+            await video.track.aclose()  # type: ignore[attr-defined]
         await agent.link.stop()
         await agent.autopilot.close()
 

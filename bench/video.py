@@ -46,10 +46,10 @@ from aiortc.mediastreams import MediaStreamError
 from asset_agent.video.source import CameraTrack
 from asset_agent.video.whip import WhipPublisher
 from assetlink.configfile import decrypt_config
+from asynckit.loopback_ice import allow_loopback_candidates
 from bench._aerobase import ASSET_PASSWORD, SUPER_PASSWORD, start_server
 from bench._load import percentile, process_cpu
 from server.video.forward import tap_receiver
-from server.video.ice import allow_loopback_candidates
 
 BITS = 16
 BLOCK_H = 24
@@ -235,7 +235,9 @@ async def bench(args: argparse.Namespace) -> dict[str, Any]:
             async with httpx.AsyncClient(base_url=server.url, timeout=30) as api:
                 for count in args.viewers:
                     rows.append(
-                        await level(api, server.pid, asset_id, viewer_token, stamped, count, args)
+                        await level(
+                            api, server.pid, asset_id, viewer_token, stamped, track, count, args
+                        )
                     )
             await pub.stop()
             await track.aclose()
@@ -260,6 +262,7 @@ async def level(
     asset_id: str,
     token: str,
     stamped: Stamped,
+    track: CameraTrack,
     count: int,
     args: argparse.Namespace,
 ) -> dict[str, Any]:
@@ -271,12 +274,14 @@ async def level(
         await p.start(api)
     await asyncio.sleep(args.warmup)
     f0 = [p.frames for p in peers]
+    sent0 = track.frames
     peers[0].latencies.clear()
     c0, t0, b0 = process_cpu(pid), time.perf_counter(), sum(os.times()[:2])
     await asyncio.sleep(args.seconds)
     c1, t1, b1 = process_cpu(pid), time.perf_counter(), sum(os.times()[:2])
     span = t1 - t0
     fps = [(p.frames - f) / span for p, f in zip(peers, f0, strict=True)]
+    sent_fps = (track.frames - sent0) / span
     lat = peers[0].latencies
     for p in peers:
         await p.stop(api)
@@ -286,6 +291,7 @@ async def level(
         "server_cpu_core_pct": round(cpu * 100, 1) if cpu is not None else None,
         # this process: the publisher's encode, every viewer's SRTP and RTCP, the probe's decode
         "bench_process_cpu_core_pct": round((b1 - b0) / span * 100, 1),
+        "publisher_fps": round(sent_fps, 1),  # frames the drone's encoder produced
         "probe_fps": round(fps[0], 1),
         "min_viewer_fps": round(min(fps), 1),
         "latency_ms_p50": round((percentile(lat, 50) or 0) * 1000, 1),
@@ -331,7 +337,8 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"{r['viewers']:7d}  {r['server_cpu_core_pct']:15}  {per:10.1f}  "
             f"{r['bench_process_cpu_core_pct']:15}  {r['probe_fps']:9}  "
-            f"{r['min_viewer_fps']:7}  {r['latency_ms_p50']}/{r['latency_ms_p95']}"
+            f"{r['min_viewer_fps']:7}  {r['latency_ms_p50']}/{r['latency_ms_p95']}  "
+            f"{r['publisher_fps']}"
         )
     if base is not None and len(result["levels"]) > 1:
         last = result["levels"][-1]

@@ -42,28 +42,3 @@ def ice_servers(settings: Settings, user: str, now: float | None = None) -> list
         cred = turn_credentials(settings.video_turn_secret, user, settings.video_turn_ttl_s, now)
         out.append(IceServer(list(settings.video_turn_urls), cred.username, cred.credential))
     return out
-
-
-_loopback_allowed = False
-
-
-def allow_loopback_candidates() -> None:
-    """Make aioice offer 127.0.0.1 as a host candidate (tests and development only).
-
-    aioice (`aioice.ice.get_host_addresses`) skips loopback, so on a host whose only interface
-    is `lo` nothing connects. This wraps that function once, process-wide; the settings refuse
-    it in production.
-    """
-    global _loopback_allowed
-    if _loopback_allowed:
-        return
-    import aioice.ice
-
-    original = aioice.ice.get_host_addresses
-
-    def with_loopback(use_ipv4: bool, use_ipv6: bool) -> list[str]:
-        found = original(use_ipv4, use_ipv6)
-        return [*found, "127.0.0.1"] if use_ipv4 and "127.0.0.1" not in found else found
-
-    aioice.ice.get_host_addresses = with_loopback
-    _loopback_allowed = True

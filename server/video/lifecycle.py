@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from aiortc import RTCConfiguration
 
+from asynckit.loopback_ice import allow_loopback_candidates
 from server.config import Settings
 from server.video.gateway import MediaGateway
-from server.video.ice import allow_loopback_candidates
 
 
 def make_gateway(settings: Settings) -> MediaGateway:

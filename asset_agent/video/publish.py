@@ -1,0 +1,42 @@
+"""The agent's video: its configured source published to the server for as long as it runs."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+
+from asset_agent.config import AgentConfig
+from asset_agent.video.source import CameraTrack, Images, sim_camera, video_file
+from asset_agent.video.whip import WhipPublisher
+from asynckit.loopback_ice import allow_loopback_candidates
+
+log = logging.getLogger(__name__)
+
+
+def source_of(config: AgentConfig) -> Images | None:
+    """The configured images: a file, else the camera stream ([video], else [precland])."""
+    video = config.video
+    if video.file is not None:
+        return video_file(str(video.file.expanduser()))
+    port = video.camera_port or config.precland.camera_port
+    if port is None:
+        return None
+    return sim_camera(video.camera_host or config.precland.camera_host, port)
+
+
+def video_publisher(
+    config: AgentConfig, server_url: str, asset_id: str, token: Callable[[], str | None]
+) -> WhipPublisher | None:
+    """The publisher of the asset's camera, or None when video is off or has no source."""
+    video = config.video
+    if not video.enabled:
+        return None
+    images = source_of(config)
+    if images is None:
+        log.warning("[video] is enabled but has no source (file or camera_port)")
+        return None
+    if video.allow_loopback_ice:
+        allow_loopback_candidates()
+    track = CameraTrack(images, video.width, video.height, video.fps)
+    url = f"{server_url.rstrip('/')}/api/v1/assets/{asset_id}/video/whip"
+    return WhipPublisher(url, token, track)
