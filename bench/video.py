@@ -329,7 +329,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(
         "viewers  server CPU %core  per viewer  bench CPU %core  probe fps  min fps  "
-        "latency p50/p95 ms"
+        "latency p50/p95 ms  publisher fps"
     )
     base = result["levels"][0]["server_cpu_core_pct"] if result["levels"] else None
     for r in result["levels"]:
