@@ -115,6 +115,12 @@ class Settings(BaseSettings):
     # test and development only: offer 127.0.0.1 as an ICE host candidate (aioice never does);
     # for hosts whose only interface is loopback. Refused in production.
     video_ice_loopback: bool = False
+    # recording (embedded path): each publication's frames as WebM segments, never re-encoded,
+    # under <dir>/<asset id>/; off when unset; oldest deleted beyond the age or the total size
+    video_record_dir: Path | None = None
+    video_record_segment_s: float = Field(default=60.0, ge=1)
+    video_record_max_age_days: float = Field(default=7.0, gt=0)
+    video_record_max_bytes: int = Field(default=10 * 1024**3, ge=1024**2)
 
     @field_validator("video_stun_urls", "video_turn_urls", mode="before")
     @classmethod

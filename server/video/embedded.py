@@ -27,6 +27,7 @@ from server.video.camera import CameraDescription
 from server.video.errors import ViewerLimit
 from server.video.forward import Channel, ForwardTrack, tap_receiver
 from server.video.gateway import Negotiated, StreamStatus
+from server.video.recording import Recorder, Recording
 
 log = logging.getLogger(__name__)
 
@@ -102,8 +103,13 @@ class EmbeddedRelay:
 
     name = "embedded"
 
-    def __init__(self, rtc_config: Callable[[], RTCConfiguration]) -> None:
+    def __init__(
+        self, rtc_config: Callable[[], RTCConfiguration], recording: Recording | None = None
+    ) -> None:
         self._rtc_config = rtc_config
+        self._recording = recording
+        self._recorders: dict[uuid.UUID, Recorder] = {}
+        self._retention: asyncio.Task[None] | None = None
         self._channels: dict[uuid.UUID, Channel] = {}
         self._publishers: dict[uuid.UUID, tuple[uuid.UUID, _Peer]] = {}
         self._viewers: dict[uuid.UUID, tuple[uuid.UUID, _Peer, ForwardTrack]] = {}
@@ -143,6 +149,7 @@ class EmbeddedRelay:
 
         previous = self._publishers.pop(asset_id, None)
         channel.attach(token, request_keyframe)
+        await self._record(asset_id, channel)
         peer = _Peer(pc, lambda: self._ended_publication(asset_id, session_id, token))
         self._publishers[asset_id] = (session_id, peer)
         if previous is not None:
@@ -150,13 +157,35 @@ class EmbeddedRelay:
         log.info("video published", extra={"asset_id": str(asset_id), "session": str(session_id)})
         return Negotiated(session_id, answer)
 
+    async def _record(self, asset_id: uuid.UUID, channel: Channel) -> None:
+        """Start recording the asset's publication (a new segment; the previous one ends)."""
+        if self._recording is None:
+            return
+        await self._stop_recording(asset_id, channel)
+        recorder = Recorder(
+            self._recording.folder, asset_id, self._recording.segment_s, channel.request_keyframe
+        )
+        self._recorders[asset_id] = recorder
+        channel.listeners.append(recorder.offer)
+        if self._retention is None:
+            self._retention = asyncio.create_task(self._recording.retention_loop())
+
+    async def _stop_recording(self, asset_id: uuid.UUID, channel: Channel) -> None:
+        recorder = self._recorders.pop(asset_id, None)
+        if recorder is not None:
+            with contextlib.suppress(ValueError):
+                channel.listeners.remove(recorder.offer)
+            await asyncio.to_thread(recorder.close)
+
     async def _ended_publication(
         self, asset_id: uuid.UUID, session_id: uuid.UUID, token: object
     ) -> None:
-        self._channel(asset_id).detach(token)
+        channel = self._channel(asset_id)
+        channel.detach(token)
         current = self._publishers.get(asset_id)
         if current is not None and current[0] == session_id:
             del self._publishers[asset_id]
+            await self._stop_recording(asset_id, channel)
             await current[1].close()
 
     async def unpublish(self, asset_id: uuid.UUID, session_id: uuid.UUID) -> None:
@@ -250,3 +279,7 @@ class EmbeddedRelay:
         for _, peer in list(self._publishers.values()):
             await peer.close()
         self._publishers.clear()
+        for asset_id in list(self._recorders):
+            await self._stop_recording(asset_id, self._channel(asset_id))
+        if self._retention is not None:
+            self._retention.cancel()

@@ -6,13 +6,14 @@ import uuid
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Request, Response
+from fastapi.responses import FileResponse
 
 from server.deps import CurrentPrincipal, ServicesDep, UoW, Viewer
 from server.kit.errors import NotFound
 from server.kit.principal import Principal
 from server.video.errors import UnsupportedMediaType
 from server.video.gateway import MediaGateway
-from server.video.schemas import VideoOut
+from server.video.schemas import RecordingOut, VideoOut
 from server.video.service import VideoService, check_sdp, whep_path, whip_path
 
 router = APIRouter(tags=["video"])
@@ -151,3 +152,26 @@ async def whip_stop(asset_id: uuid.UUID, session_id: uuid.UUID, video: Publisher
     """WHIP: the asset ends its publication."""
     await video.unpublish(asset_id, session_id)
     return Response(status_code=204)
+
+
+@router.get("/api/v1/assets/{asset_id}/video/recordings", response_model=list[RecordingOut])
+async def list_recordings(asset_id: uuid.UUID, video: Video) -> list[RecordingOut]:
+    """The asset's recorded segments, newest first (empty when recording is off)."""
+    return await video.recordings(asset_id)
+
+
+@router.get(
+    "/api/v1/assets/{asset_id}/video/recordings/{name}",
+    response_class=FileResponse,
+    responses={
+        200: {
+            "content": {"video/webm": {}, "application/jsonl": {}},
+            "description": "a segment, or its frame times",
+        }
+    },
+)
+async def get_recording(asset_id: uuid.UUID, name: str, video: Video) -> FileResponse:
+    """One recorded segment (`.webm`) or its frame times (`.times.jsonl`)."""
+    path = await video.recording_file(asset_id, name)
+    media = "video/webm" if name.endswith(".webm") else "application/jsonl"
+    return FileResponse(path, media_type=media, filename=name)

@@ -143,6 +143,7 @@ class Channel:
 
     def __init__(self) -> None:
         self.tracks: set[ForwardTrack] = set()
+        self.listeners: list[Callable[[EncodedFrame], None]] = []  # recorders
         self._publication: object | None = None
         self._offset = 0
         self._last_out: int | None = None
@@ -191,6 +192,8 @@ class Channel:
             frame = EncodedFrame(data, out, is_vp8_keyframe(data))
             for track in list(self.tracks):
                 track.offer(frame)
+            for listener in list(self.listeners):
+                listener(frame)
 
         return sink
 

@@ -7,6 +7,7 @@ from aiortc import RTCConfiguration
 from asynckit.loopback_ice import allow_loopback_candidates
 from server.config import Settings
 from server.video.gateway import MediaGateway
+from server.video.recording import Recording
 
 
 def make_gateway(settings: Settings) -> MediaGateway:
@@ -24,4 +25,12 @@ def make_gateway(settings: Settings) -> MediaGateway:
 
     from server.video.embedded import EmbeddedRelay
 
-    return EmbeddedRelay(rtc_config)
+    recording = None
+    if settings.video_record_dir is not None:
+        recording = Recording(
+            folder=settings.video_record_dir,
+            segment_s=settings.video_record_segment_s,
+            max_age_s=settings.video_record_max_age_days * 86400,
+            max_bytes=settings.video_record_max_bytes,
+        )
+    return EmbeddedRelay(rtc_config, recording)

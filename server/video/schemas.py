@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import uuid
+from datetime import datetime
 from typing import Literal
 
 from pydantic import BaseModel, Field
@@ -36,3 +37,15 @@ class VideoOut(BaseModel):
     max_viewers: int
     whep_url: str
     ice_servers: list[IceServerOut]
+
+
+class RecordingOut(BaseModel):
+    """One recorded segment (WebM, VP8 as the asset sent it) and its frame times."""
+
+    name: str
+    started_at: datetime
+    bytes: int
+    url: str = Field(description="the segment (video/webm)")
+    times_url: str = Field(
+        description="one JSON line per frame: pts (90 kHz) and t (unix ms, server clock)"
+    )

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import re
 import uuid
+from datetime import UTC, datetime
+from pathlib import Path
 
 from server.assets.models import Asset, AssetKind
 from server.assets.service import AssetService
@@ -14,9 +17,10 @@ from server.kit.uow import UnitOfWork
 from server.video.camera import camera_of
 from server.video.gateway import MediaGateway, Negotiated
 from server.video.ice import ice_servers
-from server.video.schemas import IceServerOut, VideoOut
+from server.video.schemas import IceServerOut, RecordingOut, VideoOut
 
 MAX_SDP_BYTES = 64 * 1024
+SEGMENT_NAME = re.compile(r"^(\d{8}T\d{6}\.\d{6}Z)\.(webm|times\.jsonl)$")
 
 
 def whep_path(asset_id: uuid.UUID) -> str:
@@ -117,3 +121,40 @@ class VideoService(Service):
         """The asset ends its publication."""
         self._check_publisher(asset_id)
         await self.gateway.unpublish(asset_id, session_id)
+
+    def _recording_folder(self, asset_id: uuid.UUID) -> Path | None:
+        root = self.settings.video_record_dir
+        return None if root is None else root / str(asset_id)
+
+    async def recordings(self, asset_id: uuid.UUID) -> list[RecordingOut]:
+        """The asset's recorded segments, newest first (empty when recording is off)."""
+        await self._uav(asset_id)
+        folder = self._recording_folder(asset_id)
+        if folder is None or not folder.is_dir():
+            return []
+        out = []
+        base = f"/api/v1/assets/{asset_id}/video/recordings"
+        for path in sorted(folder.glob("*.webm"), reverse=True):
+            found = SEGMENT_NAME.match(path.name)
+            if found is None:
+                continue
+            started = datetime.strptime(found[1], "%Y%m%dT%H%M%S.%fZ").replace(tzinfo=UTC)
+            times = path.with_suffix(".times.jsonl").name
+            out.append(
+                RecordingOut(
+                    name=path.name,
+                    started_at=started,
+                    bytes=path.stat().st_size,
+                    url=f"{base}/{path.name}",
+                    times_url=f"{base}/{times}",
+                )
+            )
+        return out
+
+    async def recording_file(self, asset_id: uuid.UUID, name: str) -> Path:
+        """A segment or its times file (NotFound for any other name)."""
+        await self._uav(asset_id)
+        folder = self._recording_folder(asset_id)
+        if folder is None or SEGMENT_NAME.match(name) is None or not (folder / name).is_file():
+            raise NotFound(f"no recording {name!r} of this asset")
+        return folder / name
