@@ -46,7 +46,7 @@ from aiortc.mediastreams import MediaStreamError
 from asset_agent.video.source import CameraTrack
 from asset_agent.video.whip import WhipPublisher
 from assetlink.configfile import decrypt_config
-from asynckit.loopback_ice import allow_loopback_candidates
+from asynckit.loopback_ice import loopback_candidates_only
 from bench._aerobase import ASSET_PASSWORD, SUPER_PASSWORD, start_server
 from bench._load import percentile, process_cpu
 from server.video.forward import tap_receiver
@@ -211,7 +211,7 @@ async def set_up(url: str, superuser: str, camera: dict[str, Any]) -> tuple[str,
 
 
 async def bench(args: argparse.Namespace) -> dict[str, Any]:
-    allow_loopback_candidates()  # the bench's peers, like the server, on a loopback-only host
+    loopback_candidates_only()  # the bench's peers, like the server, talk over loopback
     os.environ.update(
         AEROBASE_VIDEO_ICE_LOOPBACK="true",
         AEROBASE_VIDEO_MAX_VIEWERS=str(max(args.viewers) + 1),

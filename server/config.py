@@ -112,8 +112,8 @@ class Settings(BaseSettings):
     video_turn_urls: Annotated[list[str], NoDecode] = Field(default_factory=list)
     video_turn_secret: str | None = None
     video_turn_ttl_s: int = Field(default=3600, ge=60)
-    # test and development only: offer 127.0.0.1 as an ICE host candidate (aioice never does);
-    # for hosts whose only interface is loopback. Refused in production.
+    # test and development only: ICE host candidates on 127.0.0.1 and nowhere else (aioice never
+    # offers loopback), for everything on one machine (tests, the demo). Refused in production.
     video_ice_loopback: bool = False
     # recording (embedded path): each publication's frames as WebM segments, never re-encoded,
     # under <dir>/<asset id>/; off when unset; oldest deleted beyond the age or the total size

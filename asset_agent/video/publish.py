@@ -8,7 +8,7 @@ from collections.abc import Callable
 from asset_agent.config import AgentConfig
 from asset_agent.video.source import CameraTrack, Images, sim_camera, video_file
 from asset_agent.video.whip import WhipPublisher
-from asynckit.loopback_ice import allow_loopback_candidates
+from asynckit.loopback_ice import loopback_candidates_only
 
 log = logging.getLogger(__name__)
 
@@ -36,7 +36,7 @@ def video_publisher(
         log.warning("[video] is enabled but has no source (file or camera_port)")
         return None
     if video.allow_loopback_ice:
-        allow_loopback_candidates()
+        loopback_candidates_only()
     track = CameraTrack(images, video.width, video.height, video.fps)
     url = f"{server_url.rstrip('/')}/api/v1/assets/{asset_id}/video/whip"
     return WhipPublisher(url, token, track)

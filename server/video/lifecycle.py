@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from aiortc import RTCConfiguration
 
-from asynckit.loopback_ice import allow_loopback_candidates
+from asynckit.loopback_ice import loopback_candidates_only
 from server.config import Settings
 from server.video.gateway import MediaGateway
 from server.video.recording import Recording
@@ -15,7 +15,7 @@ def make_gateway(settings: Settings) -> MediaGateway:
     if settings.effective_video_path == "janus":
         raise RuntimeError("the Janus media path is not built yet (issue 15); unset JANUS_URL")
     if settings.video_ice_loopback:
-        allow_loopback_candidates()
+        loopback_candidates_only()
 
     def rtc_config() -> RTCConfiguration:
         # The relay answers with its host candidates only: the server is reachable at its own

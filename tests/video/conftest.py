@@ -15,7 +15,7 @@ MAX_VIEWERS = 3
 
 @pytest.fixture(scope="module")
 def video_server(database_url: str) -> Iterator[LiveServer]:
-    """A server whose relay offers loopback candidates, with a small viewer limit."""
+    """A server whose relay offers loopback candidates only, with a small viewer limit."""
     server = LiveServer(
         test_settings(
             database_url,
