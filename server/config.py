@@ -104,6 +104,8 @@ class Settings(BaseSettings):
     janus_url: str | None = Field(
         default=None, validation_alias=AliasChoices("JANUS_URL", "AEROBASE_JANUS_URL")
     )
+    # the address assets send RTP to on the Janus path (default: JANUS_URL's host)
+    janus_rtp_host: str | None = None
     video_max_viewers: int = Field(default=10, ge=1)
     video_retry_after_s: int = Field(default=5, ge=1)
     # ICE servers handed to viewers (and used by the relay), e.g. "stun:stun.example.com:3478";

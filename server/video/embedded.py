@@ -22,11 +22,11 @@ from aiortc import (
 )
 from aiortc.sdp import candidate_from_sdp
 
-from server.kit.errors import BadRequest, NotFound, Unprocessable
+from server.kit.errors import BadRequest, Conflict, NotFound, Unprocessable
 from server.video.camera import CameraDescription
 from server.video.errors import ViewerLimit
 from server.video.forward import Channel, ForwardTrack, tap_receiver
-from server.video.gateway import Negotiated, StreamStatus
+from server.video.gateway import Negotiated, RtpTarget, StreamStatus
 from server.video.recording import Recorder, Recording
 
 log = logging.getLogger(__name__)
@@ -102,6 +102,7 @@ class EmbeddedRelay:
     """The embedded media path (`MediaGateway`)."""
 
     name = "embedded"
+    viewer_offers = True
 
     def __init__(
         self, rtc_config: Callable[[], RTCConfiguration], recording: Recording | None = None
@@ -265,7 +266,18 @@ class EmbeddedRelay:
         self._viewer(asset_id, session_id)
         await self._drop_viewer(session_id)
 
-    def status(self, asset_id: uuid.UUID) -> StreamStatus:
+    async def answer(self, asset_id: uuid.UUID, session_id: uuid.UUID, sdp: str) -> None:
+        """Viewers offer on this path; there is no answer to take."""
+        self._viewer(asset_id, session_id)
+        raise Conflict("on the embedded path the viewer offers (POST); nothing to answer")
+
+    async def rtp_target(self, asset_id: uuid.UUID, camera: CameraDescription) -> RtpTarget:
+        """The embedded path takes WHIP, not plain RTP."""
+        raise Conflict(
+            "this server's media path is the embedded relay: publish with WHIP", code="use_whip"
+        )
+
+    async def status(self, asset_id: uuid.UUID) -> StreamStatus:
         """Live when a publication feeds the channel; viewers admitted; fps arriving."""
         channel = self._channels.get(asset_id)
         if channel is None:

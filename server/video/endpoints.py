@@ -13,7 +13,7 @@ from server.kit.errors import NotFound
 from server.kit.principal import Principal
 from server.video.errors import UnsupportedMediaType
 from server.video.gateway import MediaGateway
-from server.video.schemas import RecordingOut, VideoOut
+from server.video.schemas import RecordingOut, RtpTargetOut, VideoOut
 from server.video.service import VideoService, check_sdp, whep_path, whip_path
 
 router = APIRouter(tags=["video"])
@@ -46,10 +46,15 @@ Video = Annotated[VideoService, Depends(_viewer_service)]
 Publisher = Annotated[VideoService, Depends(_publisher_service)]
 
 
-async def _body(request: Request, content_type: str) -> bytes:
-    got = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if got != content_type:
-        raise UnsupportedMediaType(f"send {content_type}, not {got or 'no content type'}")
+def _content_type(request: Request) -> str:
+    return request.headers.get("content-type", "").split(";")[0].strip().lower()
+
+
+async def _body(request: Request, *content_types: str) -> bytes:
+    got = _content_type(request)
+    if got not in content_types:
+        wanted = " or ".join(content_types)
+        raise UnsupportedMediaType(f"send {wanted}, not {got or 'no content type'}")
     return await request.body()
 
 
@@ -86,8 +91,9 @@ async def describe_video(asset_id: uuid.UUID, video: Video) -> VideoOut:
     openapi_extra=_sdp_body("the viewer's SDP offer (receive-only video)"),
 )
 async def whep_offer(asset_id: uuid.UUID, request: Request, video: Video) -> Response:
-    """WHEP: open a viewer session from an SDP offer; answers the SDP answer."""
-    offer = check_sdp(await _body(request, SDP))
+    """WHEP: open a viewer session from an SDP offer; answers the SDP answer (Janus path: an
+    empty body, answered with Janus's offer)."""
+    offer = check_sdp(await _body(request, SDP), allow_empty=True)
     session = await video.view(asset_id, offer)
     return Response(
         content=session.answer,
@@ -104,16 +110,23 @@ async def whep_offer(asset_id: uuid.UUID, request: Request, video: Video) -> Res
     openapi_extra={
         "requestBody": {
             "required": True,
-            "content": {TRICKLE: {"schema": {"type": "string"}}},
+            "content": {
+                TRICKLE: {"schema": {"type": "string"}},
+                SDP: {"schema": {"type": "string"}},
+            },
         }
     },
 )
-async def whep_trickle(
+async def whep_patch(
     asset_id: uuid.UUID, session_id: uuid.UUID, request: Request, video: Video
 ) -> Response:
-    """WHEP trickle ICE: the viewer's further candidates as an SDP fragment."""
-    fragment = (await _body(request, TRICKLE)).decode("utf-8", errors="replace")
-    await video.trickle(asset_id, session_id, fragment)
+    """WHEP trickle ICE (an SDP fragment of candidates), or on the Janus path the viewer's SDP
+    answer to the offer the POST returned."""
+    body = await _body(request, TRICKLE, SDP)
+    if _content_type(request) == SDP:
+        await video.answer(asset_id, session_id, check_sdp(body))
+    else:
+        await video.trickle(asset_id, session_id, body.decode("utf-8", errors="replace"))
     return Response(status_code=204)
 
 
@@ -143,6 +156,13 @@ async def whip_offer(asset_id: uuid.UUID, request: Request, video: Publisher) ->
         media_type=SDP,
         headers={"Location": f"{whip_path(asset_id)}/{session.session_id}"},
     )
+
+
+@router.post("/api/v1/assets/{asset_id}/video/rtp", response_model=RtpTargetOut)
+async def rtp_target(asset_id: uuid.UUID, video: Publisher) -> RtpTargetOut:
+    """Janus path: where the asset sends its RTP (a mountpoint made from its camera description,
+    on the port Janus chose) — asset sessions only, its own asset only."""
+    return await video.rtp_target(asset_id)
 
 
 @router.delete(

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from urllib.parse import urlsplit
+
 from aiortc import RTCConfiguration
 
 from asynckit.loopback_ice import loopback_candidates_only
@@ -13,7 +15,11 @@ from server.video.recording import Recording
 def make_gateway(settings: Settings) -> MediaGateway:
     """The media path the settings choose (the embedded relay by default)."""
     if settings.effective_video_path == "janus":
-        raise RuntimeError("the Janus media path is not built yet (issue 15); unset JANUS_URL")
+        from server.video.janus import JanusGateway
+
+        assert settings.janus_url is not None  # the settings check it
+        rtp_host = settings.janus_rtp_host or (urlsplit(settings.janus_url).hostname or "127.0.0.1")
+        return JanusGateway(settings.janus_url, rtp_host)
     if settings.video_ice_loopback:
         loopback_candidates_only()
 

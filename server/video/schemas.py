@@ -36,6 +36,10 @@ class VideoOut(BaseModel):
     viewers: int
     max_viewers: int
     whep_url: str
+    viewer_offers: bool = Field(
+        description="true: POST your SDP offer to whep_url (WHEP); false (Janus path): POST an "
+        "empty body, answer the SDP offer it returns with PATCH (application/sdp) to its Location"
+    )
     ice_servers: list[IceServerOut]
 
 
@@ -49,3 +53,16 @@ class RecordingOut(BaseModel):
     times_url: str = Field(
         description="one JSON line per frame: pts (90 kHz) and t (unix ms, server clock)"
     )
+
+
+class RtpTargetOut(BaseModel):
+    """Where the asset sends its RTP (Janus path) and what to send."""
+
+    host: str
+    port: int
+    payload_type: int
+    codec: Literal["vp8"]
+    width: int
+    height: int
+    fps: float
+    bitrate_kbps: int

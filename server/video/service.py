@@ -17,7 +17,7 @@ from server.kit.uow import UnitOfWork
 from server.video.camera import camera_of
 from server.video.gateway import MediaGateway, Negotiated
 from server.video.ice import ice_servers
-from server.video.schemas import IceServerOut, RecordingOut, VideoOut
+from server.video.schemas import IceServerOut, RecordingOut, RtpTargetOut, VideoOut
 
 MAX_SDP_BYTES = 64 * 1024
 SEGMENT_NAME = re.compile(r"^(\d{8}T\d{6}\.\d{6}Z)\.(webm|times\.jsonl)$")
@@ -33,14 +33,16 @@ def whip_path(asset_id: uuid.UUID) -> str:
     return f"/api/v1/assets/{asset_id}/video/whip"
 
 
-def check_sdp(body: bytes) -> str:
-    """The body as SDP text (422 when it is not)."""
+def check_sdp(body: bytes, allow_empty: bool = False) -> str:
+    """The body as SDP text (422 when it is not; empty allowed where the gateway offers)."""
     if len(body) > MAX_SDP_BYTES:
         raise Unprocessable(f"an SDP body is at most {MAX_SDP_BYTES} bytes", code="bad_offer")
     try:
         text = body.decode("utf-8")
     except UnicodeDecodeError as err:
         raise Unprocessable("the SDP body is not UTF-8", code="bad_offer") from err
+    if allow_empty and not text.strip():
+        return ""
     if not text.lstrip().startswith("v=0"):
         raise Unprocessable(
             "the body is not an SDP offer (it must start with v=0)", code="bad_offer"
@@ -69,7 +71,7 @@ class VideoService(Service):
         """The stream, its viewers and the ICE servers (with TURN credentials) to watch it."""
         asset = await self._uav(asset_id)
         camera = camera_of(asset.attributes)
-        status = self.gateway.status(asset_id)
+        status = await self.gateway.status(asset_id)
         user = str(self.principal.user_id or self.principal.asset_id)
         return VideoOut(
             asset_id=asset.id,
@@ -84,6 +86,7 @@ class VideoService(Service):
             viewers=status.viewers,
             max_viewers=self.settings.video_max_viewers,
             whep_url=whep_path(asset.id),
+            viewer_offers=self.gateway.viewer_offers,
             ice_servers=[
                 IceServerOut(urls=s.urls, username=s.username, credential=s.credential)
                 for s in ice_servers(self.settings, user)
@@ -94,6 +97,11 @@ class VideoService(Service):
         """Open a viewer session (WHEP)."""
         await self._uav(asset_id)
         return await self.gateway.view(asset_id, offer, self.settings.video_max_viewers)
+
+    async def answer(self, asset_id: uuid.UUID, session_id: uuid.UUID, sdp: str) -> None:
+        """A viewer's SDP answer to the gateway's offer (Janus path)."""
+        await self._uav(asset_id)
+        await self.gateway.answer(asset_id, session_id, sdp)
 
     async def trickle(self, asset_id: uuid.UUID, session_id: uuid.UUID, fragment: str) -> None:
         """Trickled ICE candidates of a viewer session."""
@@ -116,6 +124,23 @@ class VideoService(Service):
         self._check_publisher(asset_id)
         asset = await self._uav(asset_id)
         return await self.gateway.publish(asset_id, offer, camera_of(asset.attributes))
+
+    async def rtp_target(self, asset_id: uuid.UUID) -> RtpTargetOut:
+        """The asset asks where to send its RTP (Janus path): the mountpoint's port."""
+        self._check_publisher(asset_id)
+        asset = await self._uav(asset_id)
+        camera = camera_of(asset.attributes)
+        target = await self.gateway.rtp_target(asset_id, camera)
+        return RtpTargetOut(
+            host=target.host,
+            port=target.port,
+            payload_type=target.payload_type,
+            codec=camera.codec,
+            width=camera.width,
+            height=camera.height,
+            fps=camera.fps,
+            bitrate_kbps=camera.bitrate_kbps,
+        )
 
     async def unpublish(self, asset_id: uuid.UUID, session_id: uuid.UUID) -> None:
         """The asset ends its publication."""
