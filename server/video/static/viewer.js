@@ -43,6 +43,20 @@ function gathered(pc, timeoutMs) {
 
 let session = null; // {pc, location}
 
+async function post(pc, url, sdp) {
+  const answered = await api(url, {
+    method: "POST", body: sdp, headers: { "Content-Type": "application/sdp" },
+  });
+  if (!answered.ok) {
+    pc.close();
+    const retry = Number(answered.headers.get("Retry-After") || 0);
+    const err = new Error(await errorOf(answered));
+    err.retryAfterS = answered.status === 503 || answered.status === 409 ? Math.max(1, retry || 2) : 0;
+    throw err;
+  }
+  return answered;
+}
+
 async function stop() {
   if (!session) return;
   const { pc, location: where } = session;
@@ -60,22 +74,27 @@ async function connect() {
     urls: s.urls, ...(s.username ? { username: s.username, credential: s.credential } : {}),
   }));
   const pc = new RTCPeerConnection({ iceServers });
-  pc.addTransceiver("video", { direction: "recvonly" });
   pc.ontrack = (event) => { video.srcObject = event.streams[0] || new MediaStream([event.track]); };
-  await pc.setLocalDescription(await pc.createOffer());
-  await gathered(pc, 2000);
-  const answered = await api(desc.whep_url, {
-    method: "POST", body: pc.localDescription.sdp, headers: { "Content-Type": "application/sdp" },
-  });
-  if (!answered.ok) {
-    pc.close();
-    const retry = Number(answered.headers.get("Retry-After") || 0);
-    const err = new Error(await errorOf(answered));
-    err.retryAfterS = answered.status === 503 ? Math.max(1, retry) : 0;
-    throw err;
+  if (desc.viewer_offers) {
+    // WHEP (RFC 9725): we offer, the server answers
+    pc.addTransceiver("video", { direction: "recvonly" });
+    await pc.setLocalDescription(await pc.createOffer());
+    await gathered(pc, 2000);
+    const answered = await post(pc, desc.whep_url, pc.localDescription.sdp);
+    session = { pc, location: answered.headers.get("Location") };
+    await pc.setRemoteDescription({ type: "answer", sdp: await answered.text() });
+  } else {
+    // the Janus path: the gateway offers (empty POST), we answer with PATCH
+    const offered = await post(pc, desc.whep_url, "");
+    session = { pc, location: offered.headers.get("Location") };
+    await pc.setRemoteDescription({ type: "offer", sdp: await offered.text() });
+    await pc.setLocalDescription(await pc.createAnswer());
+    await gathered(pc, 2000);
+    const patched = await api(session.location, {
+      method: "PATCH", body: pc.localDescription.sdp, headers: { "Content-Type": "application/sdp" },
+    });
+    if (!patched.ok) throw new Error(await errorOf(patched));
   }
-  session = { pc, location: answered.headers.get("Location") };
-  await pc.setRemoteDescription({ type: "answer", sdp: await answered.text() });
   pc.addEventListener("connectionstatechange", () => {
     if (["failed", "closed"].includes(pc.connectionState) && session && session.pc === pc) {
       show("reconnecting");

@@ -176,3 +176,38 @@ def test_the_private_network_is_what_janus_uses(janus: Janus):
     log = (janus.folder / "janus.log").read_text(errors="replace")
     assert "Error gathering candidates" not in log
     assert Path(janus.folder / "cfg" / "janus.jcfg").exists()
+
+
+@pytest.mark.slow
+async def test_headless_chromium_decodes_more_than_60_frames_through_janus(
+    server: LiveServer, tenant: Tenant
+):
+    from playwright.async_api import async_playwright
+
+    from tests.video.test_viewer_browser import CHROMIUM, CHROMIUM_ARGS
+
+    camera = {"width": 640, "height": 480, "fps": 30}
+    asset_id, token = uav_with_camera(tenant, httpx.Client(base_url=server.url), camera)
+    track = CameraTrack(pattern(640, 480), 640, 480, 30)
+    pub = RtpPublisher(server.url, asset_id, lambda: token, track, recheck_s=2.0)
+    sending = asyncio.create_task(pub.run())
+    try:
+        await eventually(lambda: pub.packets > 50, within=20, what="RTP sent to Janus")
+        async with async_playwright() as p:
+            browser = await p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+            try:
+                page = await browser.new_page()
+                viewer = tenant.tokens["viewer"]
+                await page.goto(f"{server.url}/video/viewer#asset={asset_id}&token={viewer}")
+                await page.wait_for_function(
+                    "window.aerobaseViewer && window.aerobaseViewer.frames > 60", timeout=60_000
+                )
+                state = await page.evaluate("window.aerobaseViewer")
+                assert state["state"] == "live" and state["error"] is None, state
+                assert (state["width"], state["height"]) == (640, 480), state
+                assert "janus" in (await page.text_content("#info") or "")
+            finally:
+                await browser.close()
+    finally:
+        sending.cancel()
+        await track.aclose()
