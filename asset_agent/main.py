@@ -142,7 +142,7 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
         await cancel_and_wait([lander, publishing])
         if video is not None:
             await video.stop()
-            await video.track.aclose()  # type: ignore[attr-defined]
+            await video.track.aclose()
         await agent.link.stop()
         await agent.autopilot.close()
 

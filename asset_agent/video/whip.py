@@ -45,6 +45,10 @@ class WhipError(Exception):
     """The server refused the publication (status and body in the message)."""
 
 
+class UseRtp(Exception):
+    """The server's media path takes plain RTP (Janus), not WHIP: ask POST .../video/rtp."""
+
+
 @dataclass
 class WhipPublisher:
     """Publishes one track to a WHIP endpoint and keeps it published."""
@@ -88,6 +92,8 @@ class WhipPublisher:
                 headers["Authorization"] = f"Bearer {token}"
             async with httpx.AsyncClient(timeout=15.0) as client:
                 r = await client.post(self.url, content=pc.localDescription.sdp, headers=headers)
+            if r.status_code == 409 and '"use_rtp"' in r.text:
+                raise UseRtp(r.text[:300])
             if r.status_code != 201:
                 raise WhipError(f"WHIP {r.status_code}: {r.text[:300]}")
             self._location = str(httpx.URL(self.url).join(r.headers.get("location", "")))

@@ -59,5 +59,5 @@ async def test_the_agent_streams_the_simulated_camera_at_the_configured_size(
         running.cancel()
         await viewer.close()
         await publisher.stop()
-        await publisher.track.aclose()  # type: ignore[attr-defined]
+        await publisher.track.aclose()
         await camera.stop()

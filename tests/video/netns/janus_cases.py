@@ -211,3 +211,34 @@ async def test_headless_chromium_decodes_more_than_60_frames_through_janus(
     finally:
         sending.cancel()
         await track.aclose()
+
+
+@pytest.mark.slow
+async def test_the_agent_switches_to_rtp_when_the_server_says_use_rtp(
+    server: LiveServer, tenant: Tenant
+):
+    from asset_agent.config import AgentConfig
+    from asset_agent.video.publish import video_publisher
+    from sim.camera.server import CameraServer
+    from tests.video.test_agent_video import WallClock
+
+    camera = CameraServer(lambda: (0.0, 0.0, 6.0, 0.0, 0.0, 0.0), WallClock(), fps=15)
+    port = await camera.start()
+    asset_id, token = uav_with_camera(tenant, httpx.Client(base_url=server.url))
+    config = AgentConfig.model_validate(
+        {"video": {"enabled": True, "camera_port": port, "width": 320, "height": 240, "fps": 15}}
+    )
+    publisher = video_publisher(config, server.url, asset_id, lambda: token)
+    assert publisher is not None
+    running = asyncio.create_task(publisher.run())
+    viewer = JanusViewer(server.url, asset_id, tenant.tokens["viewer"])
+    try:
+        await eventually(lambda: publisher.rtp.packets > 20, within=20, what="RTP from the agent")
+        assert (await viewer.start()).status_code == 201
+        await eventually(lambda: viewer.frames >= 20, within=30, what="the camera through Janus")
+        assert viewer.sizes == {(320, 240)}
+    finally:
+        await viewer.close()
+        running.cancel()
+        await publisher.track.aclose()
+        await camera.stop()
