@@ -27,6 +27,8 @@ import fractions
 import json
 import os
 import platform
+import shlex
+import subprocess
 import sys
 import tempfile
 import time
@@ -43,6 +45,7 @@ import numpy as np
 from aiortc import RTCConfiguration, RTCPeerConnection, RTCSessionDescription
 from aiortc.mediastreams import MediaStreamError
 
+from asset_agent.video.rtp import RtpPublisher
 from asset_agent.video.source import CameraTrack
 from asset_agent.video.whip import WhipPublisher
 from assetlink.configfile import decrypt_config
@@ -50,6 +53,7 @@ from asynckit.loopback_ice import loopback_candidates_only
 from bench._aerobase import ASSET_PASSWORD, SUPER_PASSWORD, start_server
 from bench._load import percentile, process_cpu
 from server.video.forward import tap_receiver
+from tests.video.netns.janus_env import Janus, free_port, in_private_network
 
 BITS = 16
 BLOCK_H = 24
@@ -112,27 +116,38 @@ class Peer:
         self.location: str | None = None
         self.task: asyncio.Task[None] | None = None
 
-    async def start(self, api: httpx.AsyncClient) -> None:
+    async def start(self, api: httpx.AsyncClient, viewer_offers: bool) -> None:
         pc = RTCPeerConnection(RTCConfiguration(iceServers=[]))
-        transceiver = pc.addTransceiver("video", direction="recvonly")
+        h = {"Content-Type": "application/sdp", "Authorization": f"Bearer {self.token}"}
+        url = f"/api/v1/assets/{self.asset_id}/video/whep"
 
         @pc.on("track")
         def _track(track: Any) -> None:
             if self.probe is not None:
                 self.task = asyncio.ensure_future(self._decode(track))
 
-        await pc.setLocalDescription(await pc.createOffer())
-        r = await api.post(
-            f"/api/v1/assets/{self.asset_id}/video/whep",
-            content=pc.localDescription.sdp,
-            headers={"Content-Type": "application/sdp", "Authorization": f"Bearer {self.token}"},
-        )
-        if r.status_code != 201:
-            raise RuntimeError(f"WHEP answered {r.status_code}: {r.text[:200]}")
+        if viewer_offers:  # WHEP: the viewer offers
+            pc.addTransceiver("video", direction="recvonly")
+            await pc.setLocalDescription(await pc.createOffer())
+            r = await api.post(url, content=pc.localDescription.sdp, headers=h)
+            if r.status_code != 201:
+                raise RuntimeError(f"WHEP answered {r.status_code}: {r.text[:200]}")
+            await pc.setRemoteDescription(RTCSessionDescription(sdp=r.text, type="answer"))
+        else:  # Janus: the gateway offers, the viewer answers with PATCH
+            r = await api.post(url, content=b"", headers=h)
+            if r.status_code != 201:
+                raise RuntimeError(f"WHEP answered {r.status_code}: {r.text[:200]}")
+            await pc.setRemoteDescription(RTCSessionDescription(sdp=r.text, type="offer"))
+            await pc.setLocalDescription(await pc.createAnswer())
+            patched = await api.patch(
+                r.headers["location"], content=pc.localDescription.sdp, headers=h
+            )
+            if patched.status_code != 204:
+                raise RuntimeError(f"PATCH answered {patched.status_code}: {patched.text[:200]}")
         self.location = r.headers["location"]
-        await pc.setRemoteDescription(RTCSessionDescription(sdp=r.text, type="answer"))
         if self.probe is None:
-            tap_receiver(transceiver.receiver, self._count)
+            receiver = next(t.receiver for t in pc.getTransceivers() if t.kind == "video")
+            tap_receiver(receiver, self._count)
         self.pc = pc
 
     def _count(self, data: bytes, timestamp: int) -> None:
@@ -211,74 +226,119 @@ async def set_up(url: str, superuser: str, camera: dict[str, Any]) -> tuple[str,
 
 
 async def bench(args: argparse.Namespace) -> dict[str, Any]:
-    loopback_candidates_only()  # the bench's peers, like the server, talk over loopback
-    os.environ.update(
-        AEROBASE_VIDEO_ICE_LOOPBACK="true",
-        AEROBASE_VIDEO_MAX_VIEWERS=str(max(args.viewers) + 1),
-        AEROBASE_ENVIRONMENT="development",
-    )
+    private = in_private_network()
+    if not private:
+        loopback_candidates_only()  # the bench's peers, like the server, talk over loopback
     camera = {"width": args.width, "height": args.height, "fps": args.fps}
     stamped = Stamped(args.width, args.height, args.fps)
     progress("measuring the reference: one VP8 encode of the stream")
     reference = await asyncio.to_thread(encode_reference, stamped, int(args.fps * 5))
+    paths = {}
+    for path in args.paths:
+        paths[path] = await run_path(path, args, camera, stamped, private)
+    pressure = Path("/proc/pressure/cpu").read_text().splitlines()[0]  # noqa: ASYNC240
+    return {
+        "stream": camera,
+        "reference_one_vp8_encode_core_pct": round(reference * 100, 1),
+        "paths": paths,
+        "machine": {
+            "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+            "cpu_pressure": pressure,
+            "private_network": private,
+        },
+    }
+
+
+async def run_path(
+    path: str,
+    args: argparse.Namespace,
+    camera: dict[str, Any],
+    stamped: Stamped,
+    private: bool,
+) -> list[dict[str, Any]]:
+    """One server (and for janus, one Janus) per path; the same stream and viewer levels."""
+    os.environ.update(
+        AEROBASE_VIDEO_MAX_VIEWERS=str(max(args.viewers) + 1), AEROBASE_ENVIRONMENT="development"
+    )
+    os.environ.pop("JANUS_URL", None)
+    os.environ.pop("AEROBASE_VIDEO_ICE_LOOPBACK", None)
+    if not private:
+        os.environ["AEROBASE_VIDEO_ICE_LOOPBACK"] = "true"
     with tempfile.TemporaryDirectory() as tmp:
+        janus = None
+        if path == "janus":
+            janus = Janus(Path(tmp) / "janus", free_port()).start()
+            os.environ.update(JANUS_URL=janus.url, AEROBASE_JANUS_RTP_HOST="127.0.0.1")
         superuser = f"root-{uuid.uuid4().hex[:6]}@bench.test"
         server = start_server(Path(tmp), superuser, progress)
         try:
             asset_id, asset_token, viewer_token = await set_up(server.url, superuser, camera)
             track = CameraTrack(stamped.images, args.width, args.height, args.fps)
-            pub = WhipPublisher(
-                f"{server.url}/api/v1/assets/{asset_id}/video/whip", lambda: asset_token, track
-            )
-            await pub.publish_once()
+            sender: asyncio.Task[None] | None = None
+            whip: WhipPublisher | None = None
+            if path == "janus":
+                rtp = RtpPublisher(server.url, asset_id, lambda: asset_token, track)
+                sender = asyncio.create_task(rtp.run())
+                await asyncio.sleep(2.0)  # the first target, then the stream runs
+            else:
+                whip = WhipPublisher(
+                    f"{server.url}/api/v1/assets/{asset_id}/video/whip", lambda: asset_token, track
+                )
+                await whip.publish_once()
             rows = []
+            pids = [server.pid] + ([janus.proc.pid] if janus and janus.proc else [])
             async with httpx.AsyncClient(base_url=server.url, timeout=30) as api:
                 for count in args.viewers:
                     rows.append(
                         await level(
-                            api, server.pid, asset_id, viewer_token, stamped, track, count, args
+                            api,
+                            pids,
+                            asset_id,
+                            viewer_token,
+                            stamped,
+                            track,
+                            count,
+                            args,
+                            viewer_offers=path != "janus",
                         )
                     )
-            await pub.stop()
+            if whip is not None:
+                await whip.stop()
+            if sender is not None:
+                sender.cancel()
             await track.aclose()
         finally:
             server.stop()
-    pressure = Path("/proc/pressure/cpu").read_text().splitlines()[0]  # noqa: ASYNC240
-    return {
-        "stream": camera,
-        "reference_one_vp8_encode_core_pct": round(reference * 100, 1),
-        "levels": rows,
-        "machine": {
-            "cpus": os.cpu_count(),
-            "python": platform.python_version(),
-            "cpu_pressure": pressure,
-        },
-    }
+            if janus is not None:
+                janus.stop()
+    return rows
 
 
 async def level(
     api: httpx.AsyncClient,
-    pid: int,
+    pids: list[int],
     asset_id: str,
     token: str,
     stamped: Stamped,
     track: CameraTrack,
     count: int,
     args: argparse.Namespace,
+    viewer_offers: bool,
 ) -> dict[str, Any]:
     progress(f"{count} viewer(s): connecting")
     peers = [
         Peer(str(api.base_url), asset_id, token, stamped if i == 0 else None) for i in range(count)
     ]
     for p in peers:
-        await p.start(api)
+        await p.start(api, viewer_offers)
     await asyncio.sleep(args.warmup)
     f0 = [p.frames for p in peers]
     sent0 = track.frames
     peers[0].latencies.clear()
-    c0, t0, b0 = process_cpu(pid), time.perf_counter(), sum(os.times()[:2])
+    c0, t0, b0 = cpu_of(pids), time.perf_counter(), sum(os.times()[:2])
     await asyncio.sleep(args.seconds)
-    c1, t1, b1 = process_cpu(pid), time.perf_counter(), sum(os.times()[:2])
+    c1, t1, b1 = cpu_of(pids), time.perf_counter(), sum(os.times()[:2])
     span = t1 - t0
     fps = [(p.frames - f) / span for p, f in zip(peers, f0, strict=True)]
     sent_fps = (track.frames - sent0) / span
@@ -302,6 +362,12 @@ async def level(
     return row
 
 
+def cpu_of(pids: list[int]) -> float | None:
+    """CPU seconds of the media path's processes (the server; with Janus, Janus too)."""
+    values = [process_cpu(pid) for pid in pids]
+    return None if any(v is None for v in values) else sum(v for v in values if v is not None)
+
+
 def parse(argv: list[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -312,12 +378,31 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--viewers", type=lambda s: [int(v) for v in s.split(",")], default=[1, 5, 10])
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--warmup", type=float, default=3.0)
+    p.add_argument(
+        "--paths",
+        type=lambda s: s.split(","),
+        default=["embedded"],
+        help="embedded,janus (janus runs in a private network namespace: the bench re-runs "
+        "itself under `unshare -n` with a veth pair, as the tests do)",
+    )
     p.add_argument("--json", action="store_true")
     return p.parse_args(argv)
 
 
+NETWORK = (
+    "ip link set lo up && ip link add v0 type veth peer name v1 && "
+    "ip addr add 198.18.0.1/24 dev v0 && ip addr add 198.18.0.2/24 dev v1 && "
+    "ip link set v0 up && ip link set v1 up"
+)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
+    if "janus" in args.paths and not in_private_network():
+        # Janus's ICE will not use loopback: run the whole bench in a private network namespace
+        argv = sys.argv[1:] if argv is None else list(argv)
+        inner = " ".join(shlex.quote(a) for a in [sys.executable, __file__, *argv])
+        return subprocess.call(["unshare", "-n", "sh", "-c", f"{NETWORK} && exec {inner}"])
     result = asyncio.run(bench(args))
     if args.json:
         print(json.dumps(result, indent=2))
@@ -327,29 +412,31 @@ def main(argv: list[str] | None = None) -> int:
         f"stream {s['width']}x{s['height']} @ {s['fps']} fps VP8; reference: one VP8 encode = "
         f"{result['reference_one_vp8_encode_core_pct']} % of a core"
     )
-    print(
-        "viewers  server CPU %core  per viewer  bench CPU %core  probe fps  min fps  "
-        "latency p50/p95 ms  publisher fps"
-    )
-    base = result["levels"][0]["server_cpu_core_pct"] if result["levels"] else None
-    for r in result["levels"]:
-        per = (r["server_cpu_core_pct"] or 0) / r["viewers"]
+    for path, levels in result["paths"].items():
+        print(f"\n{path} path (media CPU: the server{', plus Janus' if path == 'janus' else ''})")
         print(
-            f"{r['viewers']:7d}  {r['server_cpu_core_pct']:15}  {per:10.1f}  "
-            f"{r['bench_process_cpu_core_pct']:15}  {r['probe_fps']:9}  "
-            f"{r['min_viewer_fps']:7}  {r['latency_ms_p50']}/{r['latency_ms_p95']}  "
-            f"{r['publisher_fps']}"
+            "viewers  media CPU %core  per viewer  bench CPU %core  probe fps  min fps  "
+            "latency p50/p95 ms  publisher fps"
         )
-    if base is not None and len(result["levels"]) > 1:
-        last = result["levels"][-1]
-        slope = (last["server_cpu_core_pct"] - base) / max(
-            1, last["viewers"] - result["levels"][0]["viewers"]
-        )
-        print(
-            f"marginal server CPU per added viewer: {slope:.1f} % of a core "
-            f"({slope / max(0.1, result['reference_one_vp8_encode_core_pct']):.2f}x one VP8 encode)"
-        )
-    print(f"machine: {result['machine']}")
+        for r in levels:
+            per = (r["server_cpu_core_pct"] or 0) / r["viewers"]
+            print(
+                f"{r['viewers']:7d}  {r['server_cpu_core_pct']:14}  {per:10.1f}  "
+                f"{r['bench_process_cpu_core_pct']:15}  {r['probe_fps']:9}  "
+                f"{r['min_viewer_fps']:7}  {r['latency_ms_p50']}/{r['latency_ms_p95']}  "
+                f"{r['publisher_fps']}"
+            )
+        if len(levels) > 1:
+            first, last = levels[0], levels[-1]
+            slope = (last["server_cpu_core_pct"] - first["server_cpu_core_pct"]) / max(
+                1, last["viewers"] - first["viewers"]
+            )
+            ratio = slope / max(0.1, result["reference_one_vp8_encode_core_pct"])
+            print(
+                f"marginal media CPU per added viewer: {slope:.1f} % of a core "
+                f"({ratio:.2f}x one VP8 encode)"
+            )
+    print(f"\nmachine: {result['machine']}")
     return 0
 
 

@@ -21,7 +21,7 @@ import av
 import httpx
 from aiortc.rtp import RtpPacket
 
-from asset_agent.video.source import CameraTrack
+from asset_agent.video.source import TIME_BASE, CameraTrack
 
 log = logging.getLogger(__name__)
 
@@ -48,6 +48,7 @@ class Vp8Encoder:
         self.codec.pix_fmt = "yuv420p"
         self.codec.bit_rate = bitrate_kbps * 1000
         self.codec.gop_size = max(1, round(fps))
+        self.codec.time_base = TIME_BASE  # CameraTrack's pts; rate control needs the real clock
         self.codec.options = {"deadline": "realtime", "cpu-used": "8", "lag-in-frames": "0"}
 
     def encode(self, frame: av.VideoFrame) -> list[bytes]:
