@@ -336,9 +336,9 @@ async def level(
     f0 = [p.frames for p in peers]
     sent0 = track.frames
     peers[0].latencies.clear()
-    c0, t0, b0 = cpu_of(pids), time.perf_counter(), sum(os.times()[:2])
+    c0, s0, t0, b0 = cpu_of(pids), process_cpu(pids[0]), time.perf_counter(), sum(os.times()[:2])
     await asyncio.sleep(args.seconds)
-    c1, t1, b1 = cpu_of(pids), time.perf_counter(), sum(os.times()[:2])
+    c1, s1, t1, b1 = cpu_of(pids), process_cpu(pids[0]), time.perf_counter(), sum(os.times()[:2])
     span = t1 - t0
     fps = [(p.frames - f) / span for p, f in zip(peers, f0, strict=True)]
     sent_fps = (track.frames - sent0) / span
@@ -348,7 +348,11 @@ async def level(
     cpu = (c1 - c0) / span if c0 is not None and c1 is not None else None
     row = {
         "viewers": count,
+        # the media path's processes: the server, and on the Janus path Janus too
         "server_cpu_core_pct": round(cpu * 100, 1) if cpu is not None else None,
+        "server_process_only_core_pct": (
+            round((s1 - s0) / span * 100, 1) if s0 is not None and s1 is not None else None
+        ),
         # this process: the publisher's encode, every viewer's SRTP and RTCP, the probe's decode
         "bench_process_cpu_core_pct": round((b1 - b0) / span * 100, 1),
         "publisher_fps": round(sent_fps, 1),  # frames the drone's encoder produced
@@ -415,13 +419,14 @@ def main(argv: list[str] | None = None) -> int:
     for path, levels in result["paths"].items():
         print(f"\n{path} path (media CPU: the server{', plus Janus' if path == 'janus' else ''})")
         print(
-            "viewers  media CPU %core  per viewer  bench CPU %core  probe fps  min fps  "
-            "latency p50/p95 ms  publisher fps"
+            "viewers  media CPU %core  per viewer  server alone  bench CPU %core  probe fps  "
+            "min fps  latency p50/p95 ms  publisher fps"
         )
         for r in levels:
             per = (r["server_cpu_core_pct"] or 0) / r["viewers"]
             print(
                 f"{r['viewers']:7d}  {r['server_cpu_core_pct']:14}  {per:10.1f}  "
+                f"{r['server_process_only_core_pct']:12}  "
                 f"{r['bench_process_cpu_core_pct']:15}  {r['probe_fps']:9}  "
                 f"{r['min_viewer_fps']:7}  {r['latency_ms_p50']}/{r['latency_ms_p95']}  "
                 f"{r['publisher_fps']}"

@@ -1,9 +1,9 @@
 """Plain RTP to a media gateway (the Janus path): ask the server where, encode once, send.
 
 The paper's handshake (§2.2.2): `POST .../video/rtp` makes (or finds) the asset's Janus
-mountpoint and answers its host and port; the agent encodes its camera once (VP8 with PyAV, a
-keyframe every second: a viewer joining Janus waits for one, and there is no RTCP path back to ask)
-and sends RFC 7741 packets there over UDP. The target is asked again every `recheck_s`, so a Janus
+mountpoint and answers its host and port; the agent encodes its camera once (aiortc's VP8
+encoder, which also packetises per RFC 7741; a keyframe every second: a viewer joining Janus waits
+for one, and no RTCP path comes back to ask) and sends the packets there over UDP. The target is asked again every `recheck_s`, so a Janus
 that restarted (new mountpoint, maybe a new port) is followed.
 """
 
@@ -17,44 +17,23 @@ import socket
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-import av
 import httpx
+from aiortc.codecs.vpx import Vp8Encoder
 from aiortc.rtp import RtpPacket
 
-from asset_agent.video.source import TIME_BASE, CameraTrack
+from asset_agent.video.source import CameraTrack
 
 log = logging.getLogger(__name__)
 
-MAX_PAYLOAD = 1200
+KEYFRAME_EVERY_S = 1.0
 
 
-def vp8_payloads(frame: bytes, picture_id: int) -> list[bytes]:
-    """RFC 7741 payloads of one frame: descriptor (X, S on the first, a 15-bit PictureID)."""
-    out = []
-    for i, pos in enumerate(range(0, len(frame), MAX_PAYLOAD - 4)):
-        descriptor = bytes(
-            [0x90 if i == 0 else 0x80, 0x80, 0x80 | (picture_id >> 8) & 0x7F, picture_id & 0xFF]
-        )
-        out.append(descriptor + frame[pos : pos + MAX_PAYLOAD - 4])
-    return out
-
-
-class Vp8Encoder:
-    """One libvpx encoder for the stream: realtime, CBR at the camera's bitrate, GOP of 1 s."""
-
-    def __init__(self, width: int, height: int, fps: float, bitrate_kbps: int) -> None:
-        self.codec = av.CodecContext.create("libvpx", "w")
-        self.codec.width, self.codec.height = width, height
-        self.codec.pix_fmt = "yuv420p"
-        self.codec.bit_rate = bitrate_kbps * 1000
-        self.codec.gop_size = max(1, round(fps))
-        self.codec.time_base = TIME_BASE  # CameraTrack's pts; rate control needs the real clock
-        self.codec.options = {"deadline": "realtime", "cpu-used": "8", "lag-in-frames": "0"}
-
-    def encode(self, frame: av.VideoFrame) -> list[bytes]:
-        """The encoded frame(s) for one picture."""
-        frame = frame.reformat(format="yuv420p") if frame.format.name != "yuv420p" else frame
-        return [bytes(p) for p in self.codec.encode(frame)]
+def make_encoder(bitrate_kbps: int) -> Vp8Encoder:
+    """aiortc's VP8 encoder (libvpx realtime, CBR; it packetises per RFC 7741) at the camera's
+    bitrate, within aiortc's 250 kb/s - 1.5 Mb/s."""
+    encoder = Vp8Encoder()
+    encoder.target_bitrate = bitrate_kbps * 1000
+    return encoder
 
 
 @dataclass
@@ -88,7 +67,8 @@ class RtpPublisher:
             asyncio.DatagramProtocol, family=socket.AF_INET
         )
         encoder: Vp8Encoder | None = None
-        seq, picture_id, asked_at = random.getrandbits(16), random.getrandbits(15), -1e9
+        keyframe_every = 1
+        seq, asked_at, count = random.getrandbits(16), -1e9, 0
         try:
             while True:
                 if loop.time() - asked_at > self.recheck_s:
@@ -97,32 +77,31 @@ class RtpPublisher:
                         self.target = (t["host"], int(t["port"]))
                         self.payload_type = int(t["payload_type"])
                         if encoder is None:
-                            encoder = Vp8Encoder(
-                                t["width"], t["height"], t["fps"], t["bitrate_kbps"]
-                            )
+                            encoder = make_encoder(int(t["bitrate_kbps"]))
+                            keyframe_every = max(1, round(float(t["fps"]) * KEYFRAME_EVERY_S))
                     except (httpx.HTTPError, KeyError, ValueError) as err:
                         log.warning("video RTP target unknown (%s); asking again", err)
                     asked_at = loop.time()
                 frame = await self.track.recv()
                 if encoder is None or self.target is None:
                     continue
-                # CameraTrack stamps every frame in 1/90000 s
-                ts = int(frame.pts or 0) & 0xFFFFFFFF
-                for data in await asyncio.to_thread(encoder.encode, frame):
-                    payloads = vp8_payloads(data, picture_id)
-                    picture_id = (picture_id + 1) & 0x7FFF
-                    for i, payload in enumerate(payloads):
-                        packet = RtpPacket(
-                            payload_type=self.payload_type,
-                            sequence_number=seq,
-                            timestamp=ts,
-                            ssrc=self._ssrc,
-                            payload=payload,
-                        )
-                        packet.marker = int(i == len(payloads) - 1)
-                        with contextlib.suppress(OSError):
-                            transport.sendto(packet.serialize(), self.target)
-                        seq = (seq + 1) & 0xFFFF
-                        self.packets += 1
+                # a keyframe every second: a viewer joining Janus waits for one, and no RTCP
+                # path comes back from Janus to ask for it
+                force = count % keyframe_every == 0
+                count += 1
+                payloads, ts = await asyncio.to_thread(encoder.encode, frame, force)
+                for i, payload in enumerate(payloads):
+                    packet = RtpPacket(
+                        payload_type=self.payload_type,
+                        sequence_number=seq,
+                        timestamp=ts & 0xFFFFFFFF,
+                        ssrc=self._ssrc,
+                        payload=payload,
+                    )
+                    packet.marker = int(i == len(payloads) - 1)
+                    with contextlib.suppress(OSError):
+                        transport.sendto(packet.serialize(), self.target)
+                    seq = (seq + 1) & 0xFFFF
+                    self.packets += 1
         finally:
             transport.close()

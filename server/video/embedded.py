@@ -23,6 +23,7 @@ from aiortc import (
 from aiortc.sdp import candidate_from_sdp
 
 from server.kit.errors import BadRequest, Conflict, NotFound, Unprocessable
+from server.kit.metrics import VIDEO_PUBLISHERS, VIDEO_VIEWERS
 from server.video.camera import CameraDescription
 from server.video.errors import ViewerLimit
 from server.video.forward import Channel, ForwardTrack, tap_receiver
@@ -152,6 +153,8 @@ class EmbeddedRelay:
         channel.attach(token, request_keyframe)
         await self._record(asset_id, channel)
         peer = _Peer(pc, lambda: self._ended_publication(asset_id, session_id, token))
+        if previous is None:
+            VIDEO_PUBLISHERS.inc()
         self._publishers[asset_id] = (session_id, peer)
         if previous is not None:
             await previous[1].close()
@@ -186,6 +189,7 @@ class EmbeddedRelay:
         current = self._publishers.get(asset_id)
         if current is not None and current[0] == session_id:
             del self._publishers[asset_id]
+            VIDEO_PUBLISHERS.dec()
             await self._stop_recording(asset_id, channel)
             await current[1].close()
 
@@ -224,6 +228,7 @@ class EmbeddedRelay:
         channel.tracks.add(track)
         peer = _Peer(pc, lambda: self._drop_viewer(session_id))
         self._viewers[session_id] = (asset_id, peer, track)
+        VIDEO_VIEWERS.inc()
         channel.request_keyframe()
         return Negotiated(session_id, answer)
 
@@ -231,6 +236,7 @@ class EmbeddedRelay:
         found = self._viewers.pop(session_id, None)
         if found is None:
             return
+        VIDEO_VIEWERS.dec()
         asset_id, peer, track = found
         self._channel(asset_id).tracks.discard(track)
         track.stop()
@@ -290,6 +296,7 @@ class EmbeddedRelay:
             await self._drop_viewer(session_id)
         for _, peer in list(self._publishers.values()):
             await peer.close()
+        VIDEO_PUBLISHERS.dec(len(self._publishers))
         self._publishers.clear()
         for asset_id in list(self._recorders):
             await self._stop_recording(asset_id, self._channel(asset_id))

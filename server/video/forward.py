@@ -31,6 +31,8 @@ from typing import Any
 import av
 from aiortc.mediastreams import VIDEO_TIME_BASE, MediaStreamError, MediaStreamTrack
 
+from server.kit.metrics import VIDEO_FRAMES
+
 log = logging.getLogger(__name__)
 
 DECODER_QUEUE = "_RTCRtpReceiver__decoder_queue"
@@ -194,6 +196,7 @@ class Channel:
                 track.offer(frame)
             for listener in list(self.listeners):
                 listener(frame)
+            VIDEO_FRAMES.inc(len(self.tracks) + len(self.listeners))
 
         return sink
 

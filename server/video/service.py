@@ -15,6 +15,7 @@ from server.kit.principal import Principal
 from server.kit.service import Service
 from server.kit.uow import UnitOfWork
 from server.video.camera import camera_of
+from server.video.errors import ViewerLimit
 from server.video.gateway import MediaGateway, Negotiated
 from server.video.ice import ice_servers
 from server.video.schemas import IceServerOut, RecordingOut, RtpTargetOut, VideoOut
@@ -96,7 +97,10 @@ class VideoService(Service):
     async def view(self, asset_id: uuid.UUID, offer: str) -> Negotiated:
         """Open a viewer session (WHEP)."""
         await self._uav(asset_id)
-        return await self.gateway.view(asset_id, offer, self.settings.video_max_viewers)
+        try:
+            return await self.gateway.view(asset_id, offer, self.settings.video_max_viewers)
+        except ViewerLimit as err:  # the path knows the limit is reached; the settings say when
+            raise ViewerLimit(err.message, self.settings.video_retry_after_s) from None
 
     async def answer(self, asset_id: uuid.UUID, session_id: uuid.UUID, sdp: str) -> None:
         """A viewer's SDP answer to the gateway's offer (Janus path)."""

@@ -21,6 +21,7 @@ def video_server(database_url: str) -> Iterator[LiveServer]:
             database_url,
             video_ice_loopback=True,
             video_max_viewers=MAX_VIEWERS,
+            video_retry_after_s=7,
             video_stun_urls=["stun:127.0.0.1:3478"],
             video_turn_urls=["turn:127.0.0.1:3478?transport=udp"],
             video_turn_secret=TURN_SECRET,
