@@ -10,6 +10,9 @@ command -v docker-compose >/dev/null 2>&1 || need+=(docker-compose)
 [ -x /usr/bin/chromium ] || need+=(chromium)
 command -v janus >/dev/null 2>&1 || need+=(janus)
 command -v turnserver >/dev/null 2>&1 || need+=(coturn)
+# the Janus tests build a private network namespace (unshare, ip link ... type veth)
+command -v ip >/dev/null 2>&1 || need+=(iproute2)
+command -v unshare >/dev/null 2>&1 || need+=(util-linux)
 if [ ${#need[@]} -eq 0 ]; then
     echo "system packages already installed"
     exit 0

@@ -7,7 +7,9 @@ asset plus one VP8 encode per viewer. Below that API:
 - in: `RTCRtpReceiver._handle_rtp_packet` reassembles each frame in its jitter buffer and puts
   `(codec, JitterFrame)` on its decoder queue (`_RTCRtpReceiver__decoder_queue`, read at each
   put). `tap_receiver` replaces that queue with a `Tap` that hands the encoded frame to us and
-  forwards only the stop sentinel to the idle decoder thread, so nothing is decoded.
+  forwards only the stop sentinel to the idle decoder thread, so nothing is decoded; and the
+  jitter buffer with one that releases a frame at its marked last packet (`jitter.py`), not when
+  the next frame starts (one frame interval sooner).
 - out: `RTCRtpSender` packetises an `av.Packet` a track returns (`Encoder.pack`) without encoding;
   `ForwardTrack` returns one packet per forwarded frame.
 
@@ -32,6 +34,7 @@ import av
 from aiortc.mediastreams import VIDEO_TIME_BASE, MediaStreamError, MediaStreamTrack
 
 from server.kit.metrics import VIDEO_FRAMES
+from server.video.jitter import JITTER_BUFFER, MarkerJitterBuffer
 
 log = logging.getLogger(__name__)
 
@@ -76,12 +79,15 @@ class Tap:
         return self.original.get()
 
 
-def tap_receiver(receiver: Any, sink: Callable[[bytes, int], None]) -> None:
-    """Route a receiver's reassembled frames to `sink` instead of its decoder."""
+def tap_receiver(receiver: Any, sink: Callable[[bytes, int], None], at_marker: bool = True) -> None:
+    """Route a receiver's reassembled frames to `sink` instead of its decoder; with `at_marker`,
+    reassemble each frame as soon as its last packet is in (`jitter.MarkerJitterBuffer`)."""
     original = getattr(receiver, DECODER_QUEUE, None)
-    if not isinstance(original, queue.Queue):
-        raise RuntimeError("aiortc's RTCRtpReceiver has no decoder queue where 1.16 had it")
+    if not isinstance(original, queue.Queue) or not hasattr(receiver, JITTER_BUFFER):
+        raise RuntimeError("aiortc's RTCRtpReceiver is not built as in 1.16 (decoder queue)")
     setattr(receiver, DECODER_QUEUE, Tap(original, sink))
+    if at_marker:
+        setattr(receiver, JITTER_BUFFER, MarkerJitterBuffer())
 
 
 class ForwardTrack(MediaStreamTrack):
