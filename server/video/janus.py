@@ -127,7 +127,11 @@ class JanusGateway:
                 return
             try:
                 for event in await self.client.events(session):
-                    inbox = self._inboxes.get(int(event.get("sender", 0)))
+                    sender = int(event.get("sender", 0))
+                    if event.get("janus") == "hangup":
+                        await self._reap(sender)  # the viewer's peer went away
+                        continue
+                    inbox = self._inboxes.get(sender)
                     if inbox is not None:
                         inbox.put_nowait(event)
             except (JanusError, GatewayUnavailable) as err:
@@ -243,6 +247,16 @@ class JanusGateway:
                         return event
         except TimeoutError as err:
             raise GatewayUnavailable("Janus did not answer in time") from err
+
+    async def _reap(self, handle: int) -> None:
+        """Forget and detach a viewer handle whose peer Janus hung up."""
+        for viewer_id, (_, h) in list(self._viewers.items()):
+            if h == handle:
+                del self._viewers[viewer_id]
+                self._inboxes.pop(handle, None)
+                if self._session is not None:
+                    with contextlib.suppress(JanusError, GatewayUnavailable):
+                        await self.client.post(f"/{self._session}/{handle}", {"janus": "detach"})
 
     def _viewer(self, asset_id: uuid.UUID, session_id: uuid.UUID) -> int:
         found = self._viewers.get(session_id)

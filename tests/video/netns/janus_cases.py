@@ -136,7 +136,19 @@ async def test_a_viewer_gets_frames_through_janus(server: LiveServer, tenant: Te
         assert viewer.sizes == {(320, 240)}
         async with httpx.AsyncClient(base_url=server.url, timeout=30) as c:
             desc = await c.get(f"/api/v1/assets/{asset_id}/video", headers=tenant.h("viewer"))
-        assert desc.json()["state"] == "live" and desc.json()["viewers"] == 1
+            assert desc.json()["state"] == "live" and desc.json()["viewers"] == 1
+
+            # the viewer vanishes without a DELETE: Janus hangs up and the server reaps it
+            await viewer.pc.close()
+
+            async def reaped() -> bool:
+                r = await c.get(f"/api/v1/assets/{asset_id}/video", headers=tenant.h("viewer"))
+                return r.json()["viewers"] == 0
+
+            await eventually(reaped, within=40, what="the vanished viewer reaped", interval=0.5)
+            stale = await c.delete(str(viewer.location), headers=tenant.h("viewer"))
+            assert stale.status_code == 404  # its session is gone from the server too
+            viewer.location = None
     finally:
         await viewer.close()
         sending.cancel()
