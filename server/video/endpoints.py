@@ -93,6 +93,7 @@ async def describe_video(asset_id: uuid.UUID, video: Video) -> VideoOut:
 async def whep_offer(asset_id: uuid.UUID, request: Request, video: Video) -> Response:
     """WHEP: open a viewer session from an SDP offer; answers the SDP answer (Janus path: an
     empty body, answered with Janus's offer)."""
+    await video.require_stream(asset_id)  # another organisation's asset is 404 whatever the body
     offer = check_sdp(await _body(request, SDP), allow_empty=True)
     session = await video.view(asset_id, offer)
     return Response(
@@ -122,6 +123,7 @@ async def whep_patch(
 ) -> Response:
     """WHEP trickle ICE (an SDP fragment of candidates), or on the Janus path the viewer's SDP
     answer to the offer the POST returned."""
+    await video.require_stream(asset_id)
     body = await _body(request, TRICKLE, SDP)
     if _content_type(request) == SDP:
         await video.answer(asset_id, session_id, check_sdp(body))
@@ -148,6 +150,7 @@ async def whep_stop(asset_id: uuid.UUID, session_id: uuid.UUID, video: Video) ->
 )
 async def whip_offer(asset_id: uuid.UUID, request: Request, video: Publisher) -> Response:
     """WHIP: the asset publishes its camera (asset sessions only, its own asset only)."""
+    await video.require_publisher(asset_id)
     offer = check_sdp(await _body(request, SDP))
     session = await video.publish(asset_id, offer)
     return Response(

@@ -68,6 +68,15 @@ class VideoService(Service):
             raise NotFound("this asset has no camera stream (it is not a UAV)", code="no_video")
         return asset
 
+    async def require_stream(self, asset_id: uuid.UUID) -> None:
+        """404 unless the asset is a UAV of the caller's organisation (before a body is read)."""
+        await self._uav(asset_id)
+
+    async def require_publisher(self, asset_id: uuid.UUID) -> None:
+        """403/404 unless the caller is this asset (before a body is read)."""
+        self._check_publisher(asset_id)
+        await self._uav(asset_id)
+
     async def describe(self, asset_id: uuid.UUID) -> VideoOut:
         """The stream, its viewers and the ICE servers (with TURN credentials) to watch it."""
         asset = await self._uav(asset_id)
