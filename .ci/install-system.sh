@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # System packages the tests run as real programs: nginx (the reverse proxy of the deployment
-# topology), docker-compose (validates docker-compose.yml; no image is pulled), and for live video
-# chromium (the browser Playwright drives: never `playwright install`), janus and coturn
-# (turnserver), which the video tests start themselves. Idempotent.
+# topology), docker-compose (validates docker-compose.yml; no image is pulled), chromium (the
+# console's and the video viewer's browser tests drive Debian's headless Chromium; no browser is
+# downloaded), janus and coturn (the media services, started with the very configuration files
+# compose mounts, and by the video tests). Idempotent.
 set -euo pipefail
 need=()
 command -v nginx >/dev/null 2>&1 || [ -x /usr/sbin/nginx ] || need+=(nginx)

@@ -102,6 +102,15 @@ class VideoSection(BaseModel):
     allow_loopback_ice: bool = False
 
 
+class MetricsSection(BaseModel):
+    """The agent's own Prometheus /metrics (assetlink/metrics.py): off unless a port is set;
+    on this machine only unless `host` says otherwise."""
+
+    model_config = ConfigDict(extra="forbid")
+    port: int = Field(default=0, ge=0, le=65535)  # e.g. 9102
+    host: str = "127.0.0.1"
+
+
 class AgentConfig(BaseModel):
     """All of agent.toml."""
 
@@ -112,6 +121,7 @@ class AgentConfig(BaseModel):
     availability: AvailabilitySection = AvailabilitySection()
     precland: PreclandSection = PreclandSection()
     video: VideoSection = VideoSection()
+    metrics: MetricsSection = MetricsSection()
 
     @classmethod
     def load(cls, path: str | Path) -> AgentConfig:

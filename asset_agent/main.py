@@ -23,17 +23,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from asset_agent.autopilot import Autopilot, AutopilotConfig
-from asset_agent.autopilot.client import DEFAULT_STREAMS
+from asset_agent.autopilot.config import DEFAULT_STREAMS
 from asset_agent.availability import AvailabilityLimits
 from asset_agent.config import AgentConfig
 from asset_agent.events import EventLimits, EventTracker
 from asset_agent.handlers import Handlers
+from asset_agent.metrics import families
 from asset_agent.precland.supervisor import PrecisionLander, stream_rates
 from asset_agent.uav_telemetry import to_event, to_telemetry
 from asset_agent.video.publish import video_publisher
 from assetlink.configfile import AssetConfig, ConfigFileError
 from assetlink.configfile_cli import PasswordSourceError, load_config
 from assetlink.link import Link
+from assetlink.metrics import DaemonMetrics, MetricsServer
 from assetlink.settings import LinkSettings
 from asynckit.tasks import cancel_and_wait
 
@@ -136,9 +138,15 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
         agent.config, agent.link.server_url, agent.asset.asset_id, lambda: agent.link.token
     )
     publishing = asyncio.create_task(video.run(), name="video") if video is not None else None
+    metrics = None
+    if agent.config.metrics.port:
+        collector = DaemonMetrics(agent.link, lambda: families(agent.autopilot))
+        metrics = MetricsServer(collector, agent.config.metrics.host, agent.config.metrics.port)
     try:
         await _report(agent, stop)
     finally:
+        if metrics:
+            metrics.close()
         await cancel_and_wait([lander, publishing])
         if video is not None:
             await video.stop()

@@ -66,6 +66,8 @@ class LinkStats:
     bad_inbound: int
     commands_executed: int
     commands_redelivered: int
+    telemetry_queued: int = 0  # telemetry samples handed to the outbox since the link started
+    events_queued: int = 0
 
 
 def ws_url(server_url: str, path: str = "/ws/asset") -> str:
@@ -159,6 +161,8 @@ class Link:
             bad_inbound=c["bad"],
             commands_executed=commands.executed,
             commands_redelivered=commands.redelivered,
+            telemetry_queued=c["queued_telemetry"],
+            events_queued=c["queued_event"],
         )
 
     async def start(self) -> None:
@@ -261,6 +265,7 @@ class Link:
         if len(payload) + _ENVELOPE_OVERHEAD > MAX_MESSAGE_BYTES:
             raise ValueError(f"{kind} payload of {len(payload)} bytes exceeds the message limit")
         dropped = await core.outbox.append(kind, payload)
+        core.counts[f"queued_{kind}"] += 1
         if dropped:
             log.warning(
                 "outbox full (%d): dropped the %d oldest", self.settings.max_outbox, dropped

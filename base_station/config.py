@@ -48,6 +48,10 @@ Example `base.toml` (every key optional; these are the defaults)::
     tcp_port = 5021
     serial_device = ""
     baudrate = 115200
+
+    [metrics]
+    port = 0              # Prometheus /metrics of this daemon (0 = off), e.g. 9101
+    host = "127.0.0.1"    # listen on this machine only unless a scraper elsewhere needs it
 """
 
 from __future__ import annotations
@@ -137,6 +141,13 @@ class RtkConfig(_Section):
     baudrate: int = 115200
 
 
+class MetricsConfig(_Section):
+    """The daemon's own Prometheus /metrics (assetlink/metrics.py): off unless a port is set."""
+
+    port: int = Field(default=0, ge=0, le=65535)
+    host: str = "127.0.0.1"
+
+
 class StationConfig(_Section):
     """The whole daemon configuration."""
 
@@ -148,6 +159,7 @@ class StationConfig(_Section):
     charge: ChargeConfig = Field(default_factory=ChargeConfig)
     server: ServerConfig = Field(default_factory=ServerConfig)
     rtk: RtkConfig = Field(default_factory=RtkConfig)
+    metrics: MetricsConfig = Field(default_factory=MetricsConfig)
 
 
 def load_config(path: str | Path) -> StationConfig:

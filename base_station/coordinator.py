@@ -22,6 +22,7 @@ import contextlib
 import logging
 import time
 
+from asynckit.roundtrips import RoundTrips
 from asynckit.tasks import cancel_and_wait
 from base_station.config import StationConfig
 from base_station.devices.axis import AxisTracker
@@ -67,6 +68,7 @@ class Coordinator:
         self._heartbeat: tuple[int, float] | None = None  # last value, when it last changed
         self._reset_at: float | None = None  # when FAULT_RESET was last written for the watchdog
         self.watchdog_recoveries = 0
+        self.read_round_trips = RoundTrips()  # one poll's read of the PLC's state, over Modbus TCP
 
     # --- lifecycle -----------------------------------------------------------------------
 
@@ -108,7 +110,9 @@ class Coordinator:
             if not self.client.connected:
                 await self.client.connect()
                 log.info("coordinator: connected to PLC %s:%s", self.client.host, self.client.port)
+            asked = time.monotonic()
             plc = await self.client.read_state()
+            self.read_round_trips.observe(time.monotonic() - asked)
         except PlcLinkError as err:
             self._heartbeat = None
             self._publish(started, False, str(err), self.snapshot.plc)

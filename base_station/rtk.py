@@ -171,6 +171,7 @@ def to_telemetry(stats: RtkStats, stale_after_s: float = 5.0) -> Rtk:
     return Rtk(
         state=rtk_state(stats, stale_after_s),
         corrections_rate=stats.frames_per_s,
+        correction_age_s=stats.last_frame_age_s,
         frames_total=stats.good_frames,
         bad_frames=stats.bad_frames,
     )

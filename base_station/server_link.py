@@ -15,9 +15,11 @@ from pathlib import Path
 from assetlink.configfile import AssetConfig
 from assetlink.dispatch import CommandRequest, Handler
 from assetlink.link import Link
+from assetlink.metrics import DaemonMetrics, MetricsServer
 from asynckit.tasks import cancel_and_wait
 from base_station.config import StationConfig
 from base_station.events import Event, EventKind
+from base_station.metrics import families
 from base_station.rtk import RtkConfig as ReaderConfig
 from base_station.rtk import RtkReader, source_url, to_telemetry
 from base_station.station import Progress, Result, Station
@@ -81,6 +83,10 @@ def link_runner(link: Link):  # type: ignore[no-untyped-def]
                 ReaderConfig(source=source_url(**config.rtk.model_dump())), on_frame=link.send_rtcm
             )
             reader.start()
+        metrics = None
+        if config.metrics.port:
+            collector = DaemonMetrics(link, lambda: families(station.coord, reader))
+            metrics = MetricsServer(collector, config.metrics.host, config.metrics.port)
         events = station.subscribe()
 
         async def forward_events() -> None:
@@ -106,6 +112,8 @@ def link_runner(link: Link):  # type: ignore[no-untyped-def]
         finally:
             await cancel_and_wait([forwarder])
             events.close()
+            if metrics:
+                metrics.close()
             if reader:
                 await reader.stop()
             await link.stop()

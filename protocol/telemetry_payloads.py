@@ -145,6 +145,8 @@ class Rtk(Frozen):
 
     state: str
     corrections_rate: Annotated[float, Field(ge=0)] = 0.0
+    # seconds since the last good frame (None before the first): stale corrections degrade RTK
+    correction_age_s: Annotated[float, Field(ge=0, le=1e9)] | None = None
     frames_total: Annotated[int, Field(ge=0, le=MAX_SAFE_INT)] = 0
     bad_frames: Annotated[int, Field(ge=0, le=MAX_SAFE_INT)] = 0
 

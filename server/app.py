@@ -12,15 +12,16 @@ from fastapi.middleware.cors import CORSMiddleware
 from fastapi.middleware.gzip import GZipMiddleware
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
-from server import migrate
+from server import api_fields, migrate
 from server.assets.endpoints import router as assets_router
 from server.audit.endpoints import router as audit_router
 from server.auth.endpoints import router as auth_router
 from server.commands.endpoints import router as commands_router
 from server.config import Settings
+from server.console.endpoints import console_router
 from server.deps import services_of, set_services
 from server.health import router as health_router
-from server.kit import metrics
+from server.kit import metrics, openapi
 from server.kit.bodylimit import LimitBody
 from server.kit.db import make_engine, make_sessionmaker
 from server.kit.errors import RejectNulBytes, install_error_handlers
@@ -135,6 +136,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # `/path/` answers 404 rather than a 307 to an absolute http:// URL (wrong behind TLS)
         redirect_slashes=False,
         dependencies=[Depends(known_query_only)],
+        generate_unique_id_function=openapi.operation_id,
     )
     # the last added runs first: CORS headers go on every answer, refusals included
     app.add_middleware(GZipMiddleware, minimum_size=2048)
@@ -158,6 +160,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 "Location",
                 "Retry-After",
                 "X-Request-Id",
+                "X-Total-Count",
             ],
             max_age=600,
         )
@@ -178,6 +181,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         video_page_router,
     ):
         app.include_router(router)
+    app.include_router(console_router(tile_url=settings.map_tile_url))
+
+    openapi.install(app, api_fields.FIELDS, api_fields.OVERRIDES)
 
     # the caster's router exists before the lifespan builds the services: it reads them per request
     def services() -> Services:

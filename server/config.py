@@ -38,6 +38,10 @@ class Settings(BaseSettings):
     # browsers' origins allowed to call the API (CORS), e.g. "https://ops.example.com,http://localhost:5173";
     # empty: no cross-origin browser access (same-origin front-ends and non-browser clients need none)
     cors_origins: Annotated[list[str], NoDecode] = Field(default_factory=list)
+    # the console's map: a slippy-map tile URL template with {z}, {x}, {y} for sites that have a tile
+    # server (e.g. "https://tiles.example.com/{z}/{x}/{y}.png" or a same-origin "/tiles/{z}/{x}/{y}.png");
+    # unset: the map is drawn in metres around the base with no tiles and no request leaves the origin
+    map_tile_url: str | None = None
     # request bodies over these sizes are refused with 413 before they are read
     max_body_bytes: int = Field(default=1024 * 1024, ge=1024)
     max_import_bytes: int = Field(default=5 * 1024 * 1024, ge=1024)
@@ -78,6 +82,10 @@ class Settings(BaseSettings):
     schedule_grace_s: float = Field(
         default=60.0, ge=0, description="a due time later than this is 'missed'"
     )
+    # the shortest `interval_s` a schedule may have; a flight every minute is already a lot, so
+    # lower it only to exercise the scheduler (tests/deploy/test_schedule_replicas.py fires 20
+    # due times 4 s apart on two replicas)
+    schedule_min_interval_s: int = Field(default=60, ge=1, le=86400)
 
     # mission validation limits
     mission_min_alt_m: float = Field(default=2.0, ge=0)
@@ -140,6 +148,21 @@ class Settings(BaseSettings):
             value = [v for v in (part.strip() for part in value.split(",")) if v]
         if isinstance(value, list):
             return [v.rstrip("/") if isinstance(v, str) and v != "*" else v for v in value]
+        return value
+
+    @field_validator("map_tile_url")
+    @classmethod
+    def _tile_template(cls, value: str | None) -> str | None:
+        """An http(s) URL or a same-origin path holding {z}, {x} and {y}; empty means none."""
+        if not value:
+            return None
+        if not value.startswith(("https://", "http://", "/")) or value.startswith("//"):
+            raise ValueError("map_tile_url must be an http(s):// URL or a path starting with /")
+        missing = [k for k in ("{z}", "{x}", "{y}") if k not in value]
+        if missing or any(c in value for c in '"<> '):
+            raise ValueError(
+                f"map_tile_url needs {{z}}, {{x}} and {{y}} and no quotes or spaces: {value!r}"
+            )
         return value
 
     @model_validator(mode="after")

@@ -6,6 +6,7 @@ from collections.abc import AsyncIterator, Callable, Coroutine
 from typing import Annotated, Any
 
 from fastapi import Depends, FastAPI, Request
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.ext.asyncio import AsyncSession
 from starlette.requests import HTTPConnection
 
@@ -13,6 +14,7 @@ from server.auth.models import AuthSession
 from server.auth.service import SessionService
 from server.config import Settings
 from server.kit.errors import Forbidden, Unauthorized
+from server.kit.openapi import declares
 from server.kit.principal import Principal, Role
 from server.kit.security import Passwords
 from server.kit.uow import UnitOfWork, unit_of_work
@@ -76,13 +78,22 @@ SettingsDep = Annotated[Settings, Depends(get_settings)]
 PasswordsDep = Annotated[Passwords, Depends(get_passwords)]
 
 
-def bearer_token(request: Request) -> str | None:
-    """The bearer token of the request (header, or `token` query parameter for WebSockets)."""
-    header = request.headers.get("authorization", "")
-    scheme, _, value = header.partition(" ")
-    if scheme.lower() == "bearer" and value.strip():
-        return value.strip()
-    return None
+# the one security scheme of the document (`bearerAuth`): every operation that reads it declares it
+bearer = HTTPBearer(
+    scheme_name="bearerAuth",
+    bearerFormat="opaque",
+    description="The `access_token` of POST /api/v1/auth/login (users) or /api/v1/assets/login "
+    "(assets), sent as `Authorization: Bearer <token>`.",
+    auto_error=False,  # a missing token is our 401 with the error envelope, not FastAPI's 403
+)
+Credentials = Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]
+
+
+def bearer_token(credentials: HTTPAuthorizationCredentials | None) -> str | None:
+    """The bearer token of the request's `Authorization` header, if any."""
+    if credentials is None or not credentials.credentials.strip():
+        return None
+    return credentials.credentials.strip()
 
 
 async def principal_of(
@@ -126,24 +137,30 @@ async def principal_of(
     ), session
 
 
-async def current_session(request: Request, uow: UoW, settings: SettingsDep) -> AuthSession:
+@declares(Unauthorized)
+async def current_session(uow: UoW, settings: SettingsDep, credentials: Credentials) -> AuthSession:
     """The caller's live session."""
-    return (await principal_of(uow, settings, bearer_token(request)))[1]
+    return (await principal_of(uow, settings, bearer_token(credentials)))[1]
 
 
-async def current_principal(request: Request, uow: UoW, settings: SettingsDep) -> Principal:
+@declares(Unauthorized)
+async def current_principal(
+    request: Request, uow: UoW, settings: SettingsDep, credentials: Credentials
+) -> Principal:
     """The caller (user or asset), from its bearer token."""
-    principal, _ = await principal_of(uow, settings, bearer_token(request))
+    principal, _ = await principal_of(uow, settings, bearer_token(credentials))
     request.state.principal = principal
     return principal
 
 
 CurrentPrincipal = Annotated[Principal, Depends(current_principal)]
+CurrentSession = Annotated[AuthSession, Depends(current_session)]
 
 
 def require(role: Role) -> Callable[..., Coroutine[Any, Any, Principal]]:
     """A dependency admitting users whose role in their organisation is at least `role`."""
 
+    @declares(Forbidden)
     async def dependency(principal: CurrentPrincipal) -> Principal:
         if principal.kind != "user":
             raise Forbidden("asset sessions cannot call this endpoint")
@@ -156,6 +173,7 @@ def require(role: Role) -> Callable[..., Coroutine[Any, Any, Principal]]:
     return dependency
 
 
+@declares(Forbidden)
 async def require_superuser(principal: CurrentPrincipal) -> Principal:
     """A dependency admitting platform superusers only."""
     if principal.kind != "user" or not principal.is_superuser:

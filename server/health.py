@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Awaitable, Callable
+from typing import Literal
 
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse, Response
 from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
+from pydantic import BaseModel, Field
 from sqlalchemy import text
 
 from server.deps import ServicesDep
@@ -39,7 +41,34 @@ async def _check(probe: Callable[[], Awaitable[None]]) -> str:
     return "ok"
 
 
-@router.get("/api/health")
+class HealthOut(BaseModel):
+    """Liveness: this process serves and reaches its database."""
+
+    status: Literal["ok", "degraded"] = Field(
+        description="degraded when the database is not reached"
+    )
+    database: str = Field(description='"ok" or "unreachable: <why>"', examples=["ok"])
+    version: str = Field(description="the server's version", examples=["0.1.0"])
+    node: str = Field(description="this replica's id (for logs)", examples=["a1b2c3d4"])
+
+
+class ReadyOut(BaseModel):
+    """Readiness: every dependency this replica uses answers."""
+
+    status: Literal["ready", "not_ready"]
+    checks: dict[str, str] = Field(
+        description='each dependency: "ok" or "unreachable: <why>"',
+        examples=[{"database": "ok", "broker": "ok"}],
+    )
+    version: str = Field(description="the server's version", examples=["0.1.0"])
+
+
+@router.get(
+    "/api/health",
+    response_model=HealthOut,
+    operation_id="getHealth",
+    responses={503: {"model": HealthOut, "description": "the database is not reached"}},
+)
 async def health(request: Request, services: ServicesDep) -> JSONResponse:
     """200 with the database reachable, 503 when it is not."""
     database = await _check(lambda: _database(services))
@@ -55,7 +84,12 @@ async def health(request: Request, services: ServicesDep) -> JSONResponse:
     )
 
 
-@router.get("/api/ready")
+@router.get(
+    "/api/ready",
+    response_model=ReadyOut,
+    operation_id="getReadiness",
+    responses={503: {"model": ReadyOut, "description": "a dependency does not answer"}},
+)
 async def ready(request: Request, services: ServicesDep) -> JSONResponse:
     """200 when the database, the broker and (when configured) InfluxDB all answer; 503 naming
     the one that does not, so a proxy sends no traffic to a replica that cannot serve it."""

@@ -33,8 +33,11 @@ def _healthy(url: str) -> bool:
         return False
 
 
-def start_server(database_url: str, port: int, log: IO[bytes]) -> subprocess.Popen[bytes]:
-    """One replica on `port` (fast password hashing, Redis broker); returns once it is healthy."""
+def start_server(
+    database_url: str, port: int, log: IO[bytes], settings: dict[str, str] | None = None
+) -> subprocess.Popen[bytes]:
+    """One replica on `port` (fast password hashing, Redis broker, `settings` as environment
+    variables on top); returns once it is healthy."""
     env = {
         **os.environ,
         "DATABASE_URL": database_url,
@@ -46,6 +49,7 @@ def start_server(database_url: str, port: int, log: IO[bytes]) -> subprocess.Pop
         "AEROBASE_CONFIG_SCRYPT_LOG_N": "12",
         "AEROBASE_LOGIN_MAX_FAILURES_ADDRESS": "10000",
         "AEROBASE_LOG_FORMAT": "json",
+        **(settings or {}),
     }
     proc = subprocess.Popen(
         [sys.executable, "-m", "aerobase.cli", "server", "--port", str(port)],
@@ -82,7 +86,7 @@ def stop(procs: list[subprocess.Popen[bytes]]) -> None:
 
 @contextmanager
 def replicas(
-    database_url: str, folder: Path, count: int = 2
+    database_url: str, folder: Path, count: int = 2, settings: dict[str, str] | None = None
 ) -> Iterator[list[tuple[int, subprocess.Popen[bytes]]]]:
     """`count` replicas on one database and Redis: (port, process) each; stopped on exit."""
     need_service("Redis", "127.0.0.1", 6379)
@@ -91,7 +95,7 @@ def replicas(
         try:
             for _ in range(count):
                 port = free_port()
-                started.append((port, start_server(database_url, port, log)))
+                started.append((port, start_server(database_url, port, log, settings)))
             yield started
         finally:
             stop([p for _, p in started])

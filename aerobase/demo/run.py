@@ -132,7 +132,7 @@ def banner(
     """Where everything is, for the one who keeps the demo serving."""
     server_url = f"http://127.0.0.1:{args.port}"
     return f"""
-Aerobase is running on {server_url}  (API docs: {server_url}/api/docs)
+Aerobase is running on {server_url}  (operator console: {server_url}/, API docs: {server_url}/api/docs)
   operator login : {OPS_EMAIL} / {pw["ops"]}
   superuser      : {ROOT_EMAIL} / {pw["root"]}
   asset password : in {folder / "asset-password"}

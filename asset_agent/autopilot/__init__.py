@@ -6,7 +6,8 @@ converters (`MissionItem`, `items_from_dicts`, `items_to_dicts`) and the error t
 `InvalidMissionItem`).
 """
 
-from asset_agent.autopilot.client import Autopilot, AutopilotConfig
+from asset_agent.autopilot.client import Autopilot
+from asset_agent.autopilot.config import AutopilotConfig
 from asset_agent.autopilot.errors import (
     AutopilotError,
     AutopilotTimeout,

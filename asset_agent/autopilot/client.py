@@ -21,12 +21,13 @@ import contextlib
 import logging
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from functools import partial
 from typing import Any
 
 from asset_agent.autopilot import mission, translate
 from asset_agent.autopilot.actions import ActionsMixin
+from asset_agent.autopilot.config import AutopilotConfig
 from asset_agent.autopilot.errors import AutopilotTimeout, CommandRejected, LinkLost
 from asset_agent.autopilot.flight_state import MissionWatch, Thresholds, infer_landed_state
 from asset_agent.autopilot.items import MissionItem
@@ -34,6 +35,7 @@ from asset_agent.autopilot.link import MavlinkLink
 from asset_agent.autopilot.setpoints import SetpointsMixin
 from asset_agent.autopilot.state import Notification, UavState
 from asset_agent.autopilot.streams import StreamKeeper, keep
+from asynckit.roundtrips import RoundTrips
 from asynckit.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
@@ -41,36 +43,6 @@ log = logging.getLogger(__name__)
 CMD_SET_MESSAGE_INTERVAL, CMD_REQUEST_MESSAGE = 511, 512
 MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS = 0, 5
 REBOOT_SHIFT_S = 1.0  # the boot instant (arrival - time_boot_ms) moving later: a reboot
-
-# what the agent asks the autopilot to stream, message id -> Hz
-DEFAULT_STREAMS: dict[int, float] = {
-    1: 2.0,  # SYS_STATUS
-    2: 1.0,  # SYSTEM_TIME: time_boot_ms tells a reboot
-    24: 2.0,  # GPS_RAW_INT
-    30: 5.0,  # ATTITUDE
-    33: 5.0,  # GLOBAL_POSITION_INT
-    42: 2.0,  # MISSION_CURRENT
-    147: 1.0,  # BATTERY_STATUS
-    242: 0.2,  # HOME_POSITION
-    245: 2.0,  # EXTENDED_SYS_STATE
-}
-
-
-@dataclass(frozen=True)
-class AutopilotConfig:
-    """How to reach the autopilot and how patient to be with it."""
-
-    url: str = "udpout:127.0.0.1:14550"
-    target_system: int = 1
-    target_component: int = 1
-    source_system: int = 1
-    source_component: int = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
-    link_timeout_s: float = 3.0  # no HEARTBEAT this long -> link lost
-    command_timeout_s: float = 1.5
-    command_retries: int = 3
-    mission_timeout_s: float = 1.5  # per item, as MAVSDK and QGC use
-    mission_retries: int = 4
-    streams: dict[int, float] = field(default_factory=lambda: dict(DEFAULT_STREAMS))
 
 
 class Autopilot(ActionsMixin, SetpointsMixin):
@@ -105,6 +77,7 @@ class Autopilot(ActionsMixin, SetpointsMixin):
         self.extended_state_seen = False  # EXTENDED_SYS_STATE arrived: no landed-state inference
         self._booted_at: float | None = None  # monotonic time the autopilot booted
         self.reboots = 0
+        self.round_trips = RoundTrips()  # COMMAND_LONG sent -> its final COMMAND_ACK
 
     # --- life cycle ------------------------------------------------------------------------
     async def start(self) -> None:
@@ -316,7 +289,7 @@ class Autopilot(ActionsMixin, SetpointsMixin):
             with self.tap(lambda m: self._ack_for_us(m, command)) as acks:
                 for confirmation in range(retries + 1):
                     self._link.send(partial(self._command_long, command, confirmation, p))
-                    deadline = time.monotonic() + timeout
+                    deadline = (sent_at := time.monotonic()) + timeout
                     while (left := deadline - time.monotonic()) > 0:
                         try:
                             ack = await asyncio.wait_for(acks.get(), left)
@@ -325,6 +298,7 @@ class Autopilot(ActionsMixin, SetpointsMixin):
                         if ack.result == MAV_RESULT_IN_PROGRESS:
                             deadline = time.monotonic() + timeout
                             continue
+                        self.round_trips.observe(time.monotonic() - sent_at)
                         if ack.result != MAV_RESULT_ACCEPTED:
                             raise CommandRejected(command, ack.result, self._reason_since(mark))
                         return ack.result

@@ -11,6 +11,7 @@ from sqlalchemy import JSON, Enum, ForeignKey, String
 from sqlalchemy.orm import Mapped, mapped_column
 
 from server.kit.db import Base, IdMixin
+from server.kit.etag import Versioned
 from server.kit.time import utcnow
 
 
@@ -21,7 +22,7 @@ class AssetKind(enum.StrEnum):
     landing_base = "landing_base"
 
 
-class Asset(IdMixin, Base):
+class Asset(IdMixin, Versioned, Base):
     """A UAV or a landing base, owned by one organisation; its name is globally unique."""
 
     __tablename__ = "assets"

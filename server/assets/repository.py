@@ -9,6 +9,7 @@ from sqlalchemy import select
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.assets.models import Asset
+from server.kit.paging import Page, Paged, paginate
 from server.kit.scope import ScopedRepository
 
 
@@ -23,12 +24,18 @@ class AssetRepository(ScopedRepository[Asset]):
         stmt = select(Asset.id).where(Asset.name == name)  # unscoped: global uniqueness check only
         return (await self.db.execute(stmt)).first() is not None
 
-    async def list_filtered(self, limit: int, offset: int, kind: str | None) -> list[Asset]:
-        """Assets of the caller's organisation, optionally of one kind."""
-        stmt = self.select().order_by(Asset.created_at).limit(limit).offset(offset)
+    async def list_filtered(self, page: Page, kind: str | None) -> Paged[Asset]:
+        """Assets of the caller's organisation, oldest first, optionally of one kind."""
+        stmt = self.select().order_by(Asset.created_at, Asset.id)
         if kind:
             stmt = stmt.where(Asset.kind == kind)
-        return list((await self.db.execute(stmt)).scalars())
+        return await paginate(self.db, stmt, page)
+
+    async def bound_to(self, base_id: uuid.UUID) -> list[Asset]:
+        """The UAVs bound to a landing base."""
+        return list(
+            (await self.db.execute(self.select().where(Asset.base_id == base_id))).scalars()
+        )
 
     async def visible_ids(self, ids: Collection[uuid.UUID]) -> set[uuid.UUID]:
         """Which of these ids are assets of the caller's organisation (one query)."""

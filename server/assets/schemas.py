@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import uuid
-from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from server.assets.models import AssetKind
-from server.kit.types import JsonObject, Name, Password, Text
+from server.kit.types import JsonObject, Name, Password, Text, Timestamp
 
 
 class AssetCreate(BaseModel):
@@ -54,9 +53,9 @@ class AssetOut(BaseModel):
     description: str
     base_id: uuid.UUID | None
     attributes: dict[str, Any]
-    secret_rotated_at: datetime
-    created_at: datetime
-    updated_at: datetime
+    secret_rotated_at: Timestamp
+    created_at: Timestamp
+    updated_at: Timestamp
 
 
 class AssetCreated(AssetOut):

@@ -13,10 +13,12 @@ from server.audit.service import record
 from server.auth.service import SessionService
 from server.config import Settings
 from server.kit.errors import Conflict, Unprocessable
+from server.kit.etag import NO_PRECONDITION, IfMatch
+from server.kit.paging import Page, Paged
 from server.kit.principal import Principal
 from server.kit.security import new_secret, token_hash
 from server.kit.service import Service
-from server.kit.time import utcnow
+from server.kit.time import rfc3339, utcnow
 from server.kit.uow import UnitOfWork
 
 
@@ -30,9 +32,9 @@ class AssetService(Service):
         self.server_url = settings.effective_public_url
         self.scrypt_log_n = settings.config_scrypt_log_n
 
-    async def list_assets(self, limit: int, offset: int, kind: AssetKind | None) -> list[Asset]:
+    async def list_assets(self, page: Page, kind: AssetKind | None) -> Paged[Asset]:
         """Assets of the caller's organisation, optionally of one kind."""
-        return await self.repo.list_filtered(limit, offset, kind)
+        return await self.repo.list_filtered(page, kind)
 
     async def get(self, asset_id: uuid.UUID) -> Asset:
         """One asset of the caller's organisation (NotFound otherwise)."""
@@ -94,9 +96,12 @@ class AssetService(Service):
         )
         return asset, data
 
-    async def delete(self, asset_id: uuid.UUID) -> None:
-        """Delete an asset and end its sessions."""
-        asset = await self.repo.get(asset_id)
+    async def delete(self, asset_id: uuid.UUID, expect: IfMatch = NO_PRECONDITION) -> None:
+        """Delete an asset and end its sessions; the UAVs bound to a base are unbound."""
+        asset = await self.repo.get(asset_id, lock=True)
+        expect.check(asset.version, f"asset {asset.id}")
+        for uav in await self.repo.bound_to(asset.id):
+            uav.base_id = None  # what ON DELETE SET NULL would do, through the ORM: a new version
         await record(
             self.uow, self.principal, "asset.deleted", target=str(asset.id), name=asset.name
         )
@@ -113,14 +118,17 @@ class AssetService(Service):
             name=asset.name,
             kind=asset.kind.value,
             secret=secret,
-            issued_at=utcnow().isoformat(),
+            issued_at=rfc3339(utcnow()),
         )
         # scrypt is deliberately slow: keep it off the event loop
         return await asyncio.to_thread(encrypt_config, cfg, password, self.scrypt_log_n)
 
-    async def update(self, asset_id: uuid.UUID, changes: dict[str, Any]) -> Asset:
-        """Apply a partial update."""
-        asset = await self.repo.get(asset_id)
+    async def update(
+        self, asset_id: uuid.UUID, changes: dict[str, Any], expect: IfMatch = NO_PRECONDITION
+    ) -> Asset:
+        """Apply a partial update (PreconditionFailed when `expect` names another version)."""
+        asset = await self.repo.get(asset_id, lock=True)
+        expect.check(asset.version, f"asset {asset.id}")
         if "name" in changes and changes["name"] != asset.name:
             if await self.repo.name_taken(changes["name"]):
                 raise Conflict(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from server.audit.models import AuditEvent
+from server.kit.paging import Page, Paged, paginate
 from server.kit.scope import ScopedRepository
 
 
@@ -12,9 +13,9 @@ class AuditRepository(ScopedRepository[AuditEvent]):
     model = AuditEvent
     noun = "audit event"
 
-    async def recent(self, limit: int, action: str | None = None) -> list[AuditEvent]:
+    async def recent(self, page: Page, action: str | None = None) -> Paged[AuditEvent]:
         """The newest events, optionally of one action."""
-        stmt = self.select().order_by(AuditEvent.at.desc()).limit(limit)
+        stmt = self.select().order_by(AuditEvent.at.desc(), AuditEvent.id)
         if action:
             stmt = stmt.where(AuditEvent.action == action)
-        return list((await self.db.execute(stmt)).scalars())
+        return await paginate(self.db, stmt, page)

@@ -2,11 +2,22 @@
 
 from __future__ import annotations
 
+import enum
 import uuid
-from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict
+
+from server.kit.types import Timestamp
+
+
+class ActorKind(enum.StrEnum):
+    """Who did it: a user, an asset, the server itself, or the `aerobase admin` command line."""
+
+    user = "user"
+    asset = "asset"
+    system = "system"
+    cli = "cli"
 
 
 class AuditEventOut(BaseModel):
@@ -14,8 +25,8 @@ class AuditEventOut(BaseModel):
 
     model_config = ConfigDict(from_attributes=True)
     id: uuid.UUID
-    at: datetime
-    actor_kind: str
+    at: Timestamp
+    actor_kind: ActorKind
     actor_id: str | None
     action: str
     target: str | None

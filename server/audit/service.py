@@ -7,6 +7,7 @@ from typing import Any
 
 from server.audit.models import AuditEvent
 from server.audit.repository import AuditRepository
+from server.kit.paging import Page, Paged
 from server.kit.principal import Principal
 from server.kit.service import Service
 from server.kit.uow import UnitOfWork
@@ -41,6 +42,6 @@ async def record(
 class AuditService(Service):
     """Reading the audit log of the caller's organisation."""
 
-    async def recent(self, limit: int, action: str | None) -> list[AuditEvent]:
+    async def recent(self, page: Page, action: str | None) -> Paged[AuditEvent]:
         """The newest events, optionally of one action."""
-        return await AuditRepository(self.db, self.principal).recent(limit, action)
+        return await AuditRepository(self.db, self.principal).recent(page, action)

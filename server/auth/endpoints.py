@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Request, Response
+from fastapi import APIRouter, Depends, Response
 
 from server.auth.limiter import LoginLimiter
 from server.auth.login import IdentityService, LoginService
@@ -15,7 +15,9 @@ from server.auth.schemas import (
     TokenResponse,
 )
 from server.auth.service import IssuedToken, SessionService
-from server.deps import CurrentPrincipal, ServicesDep, SettingsDep, UoW, current_session
+from server.deps import CurrentPrincipal, CurrentSession, ServicesDep, SettingsDep, UoW
+from server.kit.errors import Conflict, RateLimited, Unauthorized
+from server.kit.openapi import declares
 
 router = APIRouter(tags=["auth"])
 
@@ -28,6 +30,7 @@ def _token(issued: IssuedToken) -> TokenResponse:
     )
 
 
+@declares(Unauthorized, Conflict, RateLimited)  # wrong credentials, a live session, throttled
 def _logins(uow: UoW, services: ServicesDep) -> LoginService:
     limiter = LoginLimiter(services.sessionmaker, services.settings)
     return LoginService(uow, services.settings, services.passwords, limiter)
@@ -41,7 +44,7 @@ Logins = Annotated[LoginService, Depends(_logins)]
     response_model=TokenResponse,
     responses={
         409: {"description": "a live session exists (send force=true)"},
-        429: {"description": "too many failed logins"},
+        429: {"description": "too many failed logins (see Retry-After)"},
     },
 )
 async def login(body: LoginRequest, logins: Logins) -> TokenResponse:
@@ -63,26 +66,21 @@ async def asset_login(body: AssetLoginRequest, logins: Logins) -> TokenResponse:
     return _token(await logins.asset(body.name, body.secret, force=body.force))
 
 
-@router.post("/api/v1/auth/renew", response_model=TokenResponse)
-async def renew(request: Request, uow: UoW, settings: SettingsDep) -> TokenResponse:
+@router.post("/api/v1/auth/renew", response_model=TokenResponse, operation_id="renewSession")
+async def renew(session: CurrentSession, uow: UoW, settings: SettingsDep) -> TokenResponse:
     """Give the caller's session a new token and expiry; the old token and its sockets stop."""
-    session = await current_session(request, uow, settings)
     token = await SessionService(uow, settings).renew(session)
     return TokenResponse(access_token=token, expires_at=session.expires_at, session_id=session.id)
 
 
 @router.post("/api/v1/auth/logout", status_code=204, response_class=Response)
-async def logout(request: Request, uow: UoW, settings: SettingsDep) -> Response:
+async def logout(session: CurrentSession, uow: UoW, settings: SettingsDep) -> Response:
     """End the caller's session (its sockets close once this commits)."""
-    session = await current_session(request, uow, settings)
     await SessionService(uow, settings).end(session, "logout")
     return Response(status_code=204)
 
 
-@router.get("/api/v1/auth/me", response_model=MeResponse)
-async def me(
-    principal: CurrentPrincipal, request: Request, uow: UoW, settings: SettingsDep
-) -> MeResponse:
+@router.get("/api/v1/auth/me", response_model=MeResponse, operation_id="getMe")
+async def me(principal: CurrentPrincipal, session: CurrentSession, uow: UoW) -> MeResponse:
     """Who the caller is, in which organisation, with which role."""
-    session = await current_session(request, uow, settings)
     return await IdentityService(uow, principal).me(session)

@@ -10,7 +10,7 @@ from server.assets.models import Asset
 from server.assets.repository import AssetRepository
 from server.auth.limiter import LoginLimiter
 from server.auth.models import AuthSession
-from server.auth.schemas import MembershipOut, MeResponse
+from server.auth.schemas import MembershipOut, MeResponse, PrincipalKind
 from server.auth.service import Account, IssuedToken, SessionService
 from server.config import Settings
 from server.kit.errors import Unauthorized, Unprocessable
@@ -98,7 +98,7 @@ class IdentityService(Service):
         if p.kind == "asset":
             asset = await self.db.get(Asset, p.asset_id)
             return MeResponse(
-                kind="asset",
+                kind=PrincipalKind.asset,
                 id=p.asset_id,  # type: ignore[arg-type]
                 name=asset.name if asset else None,
                 organization_id=p.organization_id,
@@ -108,14 +108,14 @@ class IdentityService(Service):
             )
         memberships = await UserRepository(self.db).memberships(p.user_id)  # type: ignore[arg-type]
         return MeResponse(
-            kind="user",
+            kind=PrincipalKind.user,
             id=p.user_id,  # type: ignore[arg-type]
             email=p.label,
             is_superuser=p.is_superuser,
             organization_id=p.organization_id,
-            role=p.role.value if p.role else None,
+            role=p.role,
             memberships=[
-                MembershipOut(organization_id=o.id, organization_name=o.name, role=m.role.value)
+                MembershipOut(organization_id=o.id, organization_name=o.name, role=m.role)
                 for m, o in memberships
             ],
             session_id=session.id,

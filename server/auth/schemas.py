@@ -2,12 +2,20 @@
 
 from __future__ import annotations
 
+import enum
 import uuid
-from datetime import datetime
 
 from pydantic import BaseModel, ConfigDict
 
-from server.kit.types import Email, LoginPassword, Name, Text
+from server.kit.principal import Role
+from server.kit.types import Email, LoginPassword, Name, Text, Timestamp
+
+
+class PrincipalKind(enum.StrEnum):
+    """Who holds a session: a person (`user`) or a machine (`asset`: a UAV or a landing base)."""
+
+    user = "user"
+    asset = "asset"
 
 
 class LoginRequest(BaseModel):
@@ -34,7 +42,7 @@ class TokenResponse(BaseModel):
 
     access_token: str
     token_type: str = "bearer"
-    expires_at: datetime
+    expires_at: Timestamp
     session_id: uuid.UUID
 
 
@@ -43,19 +51,19 @@ class MembershipOut(BaseModel):
 
     organization_id: uuid.UUID
     organization_name: str
-    role: str
+    role: Role
 
 
 class MeResponse(BaseModel):
     """The caller."""
 
-    kind: str
+    kind: PrincipalKind
     id: uuid.UUID
     email: str | None = None
     name: str | None = None
     is_superuser: bool = False
     organization_id: uuid.UUID | None
-    role: str | None
+    role: Role | None
     memberships: list[MembershipOut] = []
     session_id: uuid.UUID
-    session_expires_at: datetime
+    session_expires_at: Timestamp

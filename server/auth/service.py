@@ -15,7 +15,7 @@ from server.config import Settings
 from server.kit.errors import Conflict, Unauthorized
 from server.kit.principal import Principal
 from server.kit.security import new_token, token_hash
-from server.kit.time import utcnow
+from server.kit.time import rfc3339, utcnow
 from server.kit.uow import UnitOfWork
 
 # why a session ended, as stored (`end_reason`) and as told to its token and its sockets
@@ -87,12 +87,14 @@ class SessionService:
         if existing and not force:
             live = existing[0]
             raise Conflict(
-                f"{account.label} already has a live session (started {live.created_at:%Y-%m-%d %H:%M:%S} UTC, "
-                f'last active {live.last_seen_at:%H:%M:%S} UTC); log in with "force": true to end it',
+                f"{account.label} already has a live session (started "
+                f"{rfc3339(live.created_at.replace(microsecond=0))}, last active "
+                f'{rfc3339(live.last_seen_at.replace(microsecond=0))}); log in with "force": true '
+                "to end it",
                 code="session_active",
                 details={
-                    "session_started_at": live.created_at.isoformat(),
-                    "last_seen_at": live.last_seen_at.isoformat(),
+                    "session_started_at": rfc3339(live.created_at),
+                    "last_seen_at": rfc3339(live.last_seen_at),
                 },
             )
         ttl, idle = self._policy(account.kind)

@@ -5,11 +5,12 @@ from __future__ import annotations
 import uuid
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query
+from fastapi import APIRouter, Depends
 
 from server.commands.schemas import CommandCreate, CommandOut, StatusChangeOut
 from server.commands.service import CommandService
 from server.deps import Operator, ServicesDep, UoW, Viewer
+from server.kit.paging import PAGED, Pager, pager
 
 router = APIRouter(tags=["commands"])
 
@@ -35,12 +36,16 @@ async def send_command(
     return CommandOut.model_validate(cmd)
 
 
-@router.get("/api/v1/assets/{asset_id}/commands", response_model=list[CommandOut])
+@router.get("/api/v1/assets/{asset_id}/commands", response_model=list[CommandOut], responses=PAGED)
 async def list_commands(
-    asset_id: uuid.UUID, commands: Commands, limit: int = Query(50, ge=1, le=500)
+    asset_id: uuid.UUID,
+    commands: Commands,
+    pages: Annotated[Pager, Depends(pager(default=50, maximum=500))],
 ) -> list[CommandOut]:
     """The newest commands of an asset."""
-    return [CommandOut.model_validate(c) for c in await commands.of_asset(asset_id, limit)]
+    found = await commands.of_asset(asset_id, pages.page)
+    pages.respond(found.total)
+    return [CommandOut.model_validate(c) for c in found.items]
 
 
 @router.get("/api/v1/commands/{command_id}", response_model=CommandOut)

@@ -7,6 +7,7 @@ import uuid
 from sqlalchemy import select
 
 from server.commands.models import AssetCommand, CommandStatusChange
+from server.kit.paging import Page, Paged, paginate
 from server.kit.scope import ScopedRepository
 
 
@@ -27,12 +28,11 @@ class CommandRepository(ScopedRepository[AssetCommand]):
         )
         return list((await self.db.execute(stmt)).scalars())
 
-    async def of_asset(self, asset_id: uuid.UUID, limit: int) -> list[AssetCommand]:
+    async def of_asset(self, asset_id: uuid.UUID, page: Page) -> Paged[AssetCommand]:
         """The newest commands of one asset."""
         stmt = (
             self.select()
             .where(AssetCommand.asset_id == asset_id)
-            .order_by(AssetCommand.created_at.desc())
-            .limit(limit)
+            .order_by(AssetCommand.created_at.desc(), AssetCommand.id)
         )
-        return list((await self.db.execute(stmt)).scalars())
+        return await paginate(self.db, stmt, page)

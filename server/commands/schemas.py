@@ -2,13 +2,27 @@
 
 from __future__ import annotations
 
+import enum
 import uuid
-from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from server.kit.types import Name
+from server.kit.types import Name, Timestamp
+
+
+class CommandStatus(enum.StrEnum):
+    """Where a command stands; `succeeded`, `rejected`, `failed`, `canceled` and `timed_out` are
+    final (the wire vocabulary's `CommandStatus`, protocol/vocabulary.py)."""
+
+    queued = "queued"
+    sent = "sent"
+    in_progress = "in_progress"
+    succeeded = "succeeded"
+    rejected = "rejected"
+    failed = "failed"
+    canceled = "canceled"
+    timed_out = "timed_out"
 
 
 class CommandCreate(BaseModel):
@@ -24,8 +38,8 @@ class StatusChangeOut(BaseModel):
     """One step of a command's history."""
 
     model_config = ConfigDict(from_attributes=True)
-    at: datetime
-    status: str
+    at: Timestamp
+    status: CommandStatus
     reason: str
     progress: dict[str, Any] | None
 
@@ -38,10 +52,10 @@ class CommandOut(BaseModel):
     asset_id: uuid.UUID
     name: str
     params: dict[str, Any]
-    status: str
+    status: CommandStatus
     reason: str
     result: dict[str, Any] | None
-    deadline: datetime
-    created_at: datetime
-    updated_at: datetime
+    deadline: Timestamp
+    created_at: Timestamp
+    updated_at: Timestamp
     history: list[StatusChangeOut] = []

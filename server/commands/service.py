@@ -18,6 +18,7 @@ from server.commands.models import AssetCommand, CommandStatusChange
 from server.commands.repository import CommandRepository
 from server.kit import metrics
 from server.kit.errors import Unprocessable
+from server.kit.paging import Page, Paged
 from server.kit.principal import Principal
 from server.kit.service import Service
 from server.kit.time import utcnow
@@ -192,10 +193,10 @@ class CommandService(Service):
         self.uow.after_commit(nudge)
         return cmd
 
-    async def of_asset(self, asset_id: uuid.UUID, limit: int) -> list[AssetCommand]:
+    async def of_asset(self, asset_id: uuid.UUID, page: Page) -> Paged[AssetCommand]:
         """The newest commands of an asset of the caller's organisation."""
         await self.assets.get(asset_id)
-        return await self.repo.of_asset(asset_id, limit)
+        return await self.repo.of_asset(asset_id, page)
 
     async def with_history(
         self, command_id: uuid.UUID

@@ -6,8 +6,14 @@ AppError                      {"error": {"code", "message", "details"}}
 ├── Forbidden         403   logged in, but the role does not allow it
 ├── NotFound          404   also for resources of another organisation
 ├── Conflict          409   name taken, live session, state clash
+│   └── EditConflict  409   an edit without If-Match lost a race with another write
+├── PreconditionFailed 412  If-Match names none of the resource's current versions
+├── TooLarge          413   a request body over the route's limit (server/kit/bodylimit.py)
+├── UnsupportedMediaType 415 a body of a content type the route does not read
 ├── Unprocessable     422   well-formed but invalid
 └── RateLimited       429   with Retry-After
+
+Each operation's OpenAPI entry declares the statuses it can answer (server/kit/openapi.py).
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from sqlalchemy.orm.exc import StaleDataError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 log = logging.getLogger(__name__)
@@ -72,6 +79,30 @@ class Conflict(AppError):
     status, code = 409, "conflict"
 
 
+class EditConflict(Conflict):
+    """Another write of the same resource won the race: read it again and retry."""
+
+    code = "edit_conflict"
+
+
+class PreconditionFailed(AppError):
+    """`If-Match` names none of the resource's current versions: it changed since it was read."""
+
+    status, code = 412, "precondition_failed"
+
+
+class TooLarge(AppError):
+    """The request body is over this route's limit."""
+
+    status, code = 413, "too_large"
+
+
+class UnsupportedMediaType(AppError):
+    """The request body's content type is not one this route reads."""
+
+    status, code = 415, "unsupported_media_type"
+
+
 class Unprocessable(AppError):
     """Well-formed but semantically invalid."""
 
@@ -79,7 +110,7 @@ class Unprocessable(AppError):
 
 
 class RateLimited(AppError):
-    """Too many attempts; retry after the given number of seconds."""
+    """Too many attempts; retry after the number of seconds in `Retry-After`."""
 
     status, code = 429, "rate_limited"
 
@@ -141,6 +172,7 @@ _STATUS_CODES = {
     404: "not_found",
     405: "method_not_allowed",
     409: "conflict",
+    412: "precondition_failed",
     413: "too_large",
     415: "unsupported_media_type",
     422: "validation_error",
@@ -193,6 +225,13 @@ def install_error_handlers(app: FastAPI) -> None:
             status_code=exc.status_code,
             headers=getattr(exc, "headers", None),
         )
+
+    @app.exception_handler(StaleDataError)
+    async def _lost_race(request: Request, _: StaleDataError) -> JSONResponse:
+        # the row's version changed between our read and our write (server/kit/etag.py)
+        message = "changed by another request at the same time: read it again and reapply the edit"
+        lost = PreconditionFailed if "if-match" in request.headers else EditConflict
+        return ErrorResponse(error_body(lost.code, message), status_code=lost.status)
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:

@@ -94,6 +94,12 @@ BASE_RTK_RATE = Gauge(
     ["asset_id"],
     registry=REGISTRY,
 )
+BASE_RTK_AGE = Gauge(
+    "aerobase_base_rtk_correction_age_seconds",
+    "Age of the last good RTCM3 frame a landing base last reported (absent before its first)",
+    ["asset_id"],
+    registry=REGISTRY,
+)
 
 
 class HubView(Protocol):

@@ -14,6 +14,7 @@ from sqlalchemy import Select, false, select
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.kit.errors import NotFound
+from server.kit.paging import Page, Paged, paginate
 from server.kit.principal import Principal
 
 M = TypeVar("M")
@@ -41,15 +42,19 @@ class ScopedRepository(Generic[M]):
         """The scoped SELECT every query of this repository starts from."""
         return scoped(self.model, self.principal)
 
-    async def get(self, id_: uuid.UUID) -> M:
-        """The row with this id in the caller's organisation, else NotFound."""
+    async def get(self, id_: uuid.UUID, *, lock: bool = False) -> M:
+        """The row with this id in the caller's organisation, else NotFound; `lock`: for the rest
+        of the transaction, to edit it: FOR NO KEY UPDATE on PostgreSQL (rows referring to it may still
+        be written: their foreign-key checks take KEY SHARE), none on SQLite."""
         stmt = self.select().where(self.model.id == id_)  # type: ignore[attr-defined]
+        if lock:
+            stmt = stmt.with_for_update(key_share=True).execution_options(populate_existing=True)
         row = (await self.db.execute(stmt)).scalar_one_or_none()
         if row is None:
             raise NotFound(f"{self.noun} {id_} not found")
         return row
 
-    async def list(self, limit: int = 100, offset: int = 0) -> list[M]:
-        """Rows of the caller's organisation, oldest first."""
-        stmt = self.select().order_by(self.model.created_at).limit(limit).offset(offset)  # type: ignore[attr-defined]
-        return list((await self.db.execute(stmt)).scalars())
+    async def list(self, page: Page) -> Paged[M]:
+        """Rows of the caller's organisation, oldest first, with their total."""
+        model: Any = self.model
+        return await paginate(self.db, self.select().order_by(model.created_at, model.id), page)

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import math
 import re
+from datetime import UTC, datetime
 from typing import Annotated, Any
 
-from pydantic import AfterValidator, StringConstraints
+from pydantic import AfterValidator, PlainSerializer, StringConstraints, WithJsonSchema
+
+from server.kit.time import rfc3339
 
 
 def _no_control(value: str) -> str:
@@ -27,6 +30,28 @@ def _name(value: str) -> str:
         raise ValueError("must not contain control characters")
     return value
 
+
+def _utc(value: datetime) -> datetime:
+    if value.tzinfo is None:
+        raise ValueError("needs a time zone offset (RFC 3339), e.g. 2026-11-22T10:00:00Z")
+    return value.astimezone(UTC)
+
+
+# every time of every REST body and query: in, any RFC 3339 offset (normalised to UTC; no offset
+# is refused); out, always UTC with `Z`
+Timestamp = Annotated[
+    datetime,
+    AfterValidator(_utc),
+    PlainSerializer(rfc3339, when_used="json"),
+    WithJsonSchema(
+        {
+            "type": "string",
+            "format": "date-time",
+            "description": "RFC 3339; answers are always UTC with Z",
+            "examples": ["2026-11-22T05:00:00Z"],
+        }
+    ),
+]
 
 Text = Annotated[str, StringConstraints(max_length=2000), AfterValidator(_no_control)]
 Name = Annotated[

@@ -11,7 +11,10 @@ from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import JSONResponse
 
 from server.deps import Operator, SettingsDep, UoW, Viewer
-from server.kit.errors import AppError
+from server.kit.errors import Conflict, UnsupportedMediaType
+from server.kit.etag import CREATED_TAGGED, TAGGED, IfMatchDep, tag
+from server.kit.openapi import errors
+from server.kit.paging import PAGED, Paging
 from server.missions import qgc, wpl
 from server.missions.models import Mission, MissionKind
 from server.missions.schemas import (
@@ -27,12 +30,6 @@ from server.missions.validate import Problem
 router = APIRouter(tags=["missions"])
 JSON_TYPES = {"application/json"}
 WPL_TYPES = {"text/plain", wpl.MEDIA_TYPE}
-
-
-class UnsupportedMediaType(AppError):
-    """The request body's content type is not one we read."""
-
-    status, code = 415, "unsupported_media_type"
 
 
 def _service(uow: UoW, principal: Viewer, settings: SettingsDep) -> MissionService:
@@ -69,21 +66,23 @@ def _out(mission: Mission) -> MissionOut:
     )
 
 
-@router.get("/api/v1/missions", response_model=list[MissionOut])
+@router.get("/api/v1/missions", response_model=list[MissionOut], responses=PAGED)
 async def list_missions(
-    missions: Missions,
-    kind: MissionKind | None = None,
-    limit: int = Query(100, ge=1, le=1000),
-    offset: int = Query(0, ge=0, le=10**9),
+    missions: Missions, pages: Paging, kind: MissionKind | None = None
 ) -> list[MissionOut]:
     """Missions of the caller's organisation, oldest first."""
-    rows = await missions.list_missions(limit, offset, kind)
+    found = await missions.list_missions(pages.page, kind)
+    pages.respond(found.total)
     # validating and estimating many missions is CPU work: off the event loop
-    return await asyncio.to_thread(lambda: [_out(m) for m in rows])
+    return await asyncio.to_thread(lambda: [_out(m) for m in found.items])
 
 
-@router.post("/api/v1/missions", status_code=201, response_model=MissionOut)
-async def create_mission(body: MissionCreate, missions: MissionsOperator) -> MissionOut:
+@router.post(
+    "/api/v1/missions", status_code=201, response_model=MissionOut, responses=CREATED_TAGGED
+)
+async def create_mission(
+    body: MissionCreate, missions: MissionsOperator, response: Response
+) -> MissionOut:
     """Create a waypoints or survey mission (operators); 422 lists every problem."""
     mission = await missions.create(
         name=body.name,
@@ -94,19 +93,20 @@ async def create_mission(body: MissionCreate, missions: MissionsOperator) -> Mis
         home=body.home,
         speed_mps=body.speed_mps,
     )
+    tag(response, mission.version)
     return _out(mission)
 
 
+WPL_FILE = {"type": "string", "format": "binary", "description": "a QGC WPL 110 waypoint file"}
 IMPORT_BODY = {
     "required": True,
     "content": {
         "application/json": {
             "schema": {"type": "object", "description": "a QGroundControl .plan file"}
         },
-        "text/plain": {"schema": {"type": "string", "description": "a QGC WPL 110 waypoint file"}},
-        wpl.MEDIA_TYPE: {
-            "schema": {"type": "string", "description": "a QGC WPL 110 waypoint file"}
-        },
+        # the file's bytes as uploaded (UTF-8 text); `binary` so generated clients send them as is
+        "text/plain": {"schema": WPL_FILE},
+        wpl.MEDIA_TYPE: {"schema": WPL_FILE},
     },
 }
 
@@ -140,11 +140,13 @@ def _read_import(body: bytes, content_type: str) -> tuple[qgc.Imported, str]:
     "/api/v1/missions/import",
     status_code=201,
     response_model=MissionOut,
+    responses={**CREATED_TAGGED, **errors(UnsupportedMediaType)},
     openapi_extra={"requestBody": IMPORT_BODY},
 )
 async def import_mission(
     missions: MissionsOperator,
     request: Request,
+    response: Response,
     name: str | None = Query(None, min_length=1, max_length=100),
     description: str = Query("", max_length=2000),
 ) -> MissionOut:
@@ -159,30 +161,49 @@ async def import_mission(
     mission = await missions.import_file(
         imported, name=title, description=description, source=source
     )
+    tag(response, mission.version)
     return _out(mission)
 
 
-@router.get("/api/v1/missions/{mission_id}", response_model=MissionOut)
-async def get_mission(mission_id: uuid.UUID, missions: Missions) -> MissionOut:
-    """One mission of the caller's organisation."""
-    return _out(await missions.get(mission_id))
+@router.get("/api/v1/missions/{mission_id}", response_model=MissionOut, responses=TAGGED)
+async def get_mission(mission_id: uuid.UUID, missions: Missions, response: Response) -> MissionOut:
+    """One mission of the caller's organisation, its ETag in the header."""
+    mission = await missions.get(mission_id)
+    tag(response, mission.version)
+    return _out(mission)
 
 
-@router.patch("/api/v1/missions/{mission_id}", response_model=MissionOut)
+@router.patch(
+    "/api/v1/missions/{mission_id}",
+    response_model=MissionOut,
+    responses=TAGGED,
+)
 async def update_mission(
     mission_id: uuid.UUID,
     body: MissionUpdate,
     missions: MissionsOperator,
+    expect: IfMatchDep,
+    response: Response,
 ) -> MissionOut:
-    """Change a mission (operators); items and survey are validated and compiled again."""
+    """Change a mission (operators); items and survey are validated and compiled again.
+    With `If-Match`, only the version it names is changed (else 412)."""
     changes = body.model_dump(exclude_unset=True)
-    return _out(await missions.update(mission_id, changes, body))
+    mission = await missions.update(mission_id, changes, body, expect)
+    tag(response, mission.version)
+    return _out(mission)
 
 
-@router.delete("/api/v1/missions/{mission_id}", status_code=204, response_class=Response)
-async def delete_mission(mission_id: uuid.UUID, missions: MissionsOperator) -> Response:
-    """Delete a mission (operators)."""
-    await missions.delete(mission_id)
+@router.delete(
+    "/api/v1/missions/{mission_id}",
+    status_code=204,
+    response_class=Response,
+    responses=errors(Conflict),  # 409: runs still refer to it
+)
+async def delete_mission(
+    mission_id: uuid.UUID, missions: MissionsOperator, expect: IfMatchDep
+) -> Response:
+    """Delete a mission (operators); with `If-Match`, only the version it names (else 412)."""
+    await missions.delete(mission_id, expect)
     return Response(status_code=204)
 
 

@@ -11,6 +11,7 @@ from sqlalchemy import JSON, Enum, Float, ForeignKey, String
 from sqlalchemy.orm import Mapped, mapped_column
 
 from server.kit.db import Base, IdMixin
+from server.kit.etag import Versioned
 from server.kit.time import utcnow
 
 
@@ -21,7 +22,7 @@ class MissionKind(enum.StrEnum):
     survey = "survey"
 
 
-class Mission(IdMixin, Base):
+class Mission(IdMixin, Versioned, Base):
     """A mission of one organisation: its items (MISSION_ITEM_INT shape) and, for a survey, its area."""
 
     __tablename__ = "missions"

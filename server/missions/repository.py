@@ -5,6 +5,7 @@ from __future__ import annotations
 from sqlalchemy.exc import IntegrityError
 
 from server.kit.errors import Conflict
+from server.kit.paging import Page, Paged, paginate
 from server.kit.scope import ScopedRepository
 from server.missions.models import Mission, MissionKind
 
@@ -15,14 +16,12 @@ class MissionRepository(ScopedRepository[Mission]):
     model = Mission
     noun = "mission"
 
-    async def list_filtered(
-        self, limit: int, offset: int, kind: MissionKind | None
-    ) -> list[Mission]:
+    async def list_filtered(self, page: Page, kind: MissionKind | None) -> Paged[Mission]:
         """Missions of the caller's organisation, oldest first, optionally of one kind."""
-        stmt = self.select().order_by(Mission.created_at, Mission.id).limit(limit).offset(offset)
+        stmt = self.select().order_by(Mission.created_at, Mission.id)
         if kind:
             stmt = stmt.where(Mission.kind == kind)
-        return list((await self.db.execute(stmt)).scalars())
+        return await paginate(self.db, stmt, page)
 
     async def add(self, mission: Mission) -> Mission:
         """Insert a mission into the current unit of work."""

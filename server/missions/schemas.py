@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import uuid
-from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from server.kit.types import Name, Text
+from server.kit.types import Name, Text, Timestamp
 from server.missions.items import MissionItem
 from server.missions.models import MissionKind
 
@@ -145,8 +144,8 @@ class MissionOut(BaseModel):
         description="QGroundControl geoFence / rallyPoints, carried through"
     )
     estimate: EstimateOut
-    created_at: datetime
-    updated_at: datetime
+    created_at: Timestamp
+    updated_at: Timestamp
 
 
 class ValidateRequest(BaseModel):

@@ -12,6 +12,8 @@ from server.assets.models import Asset, AssetKind
 from server.assets.repository import AssetRepository
 from server.audit.service import record
 from server.kit.errors import Unprocessable
+from server.kit.etag import NO_PRECONDITION, IfMatch
+from server.kit.paging import Page, Paged
 from server.kit.principal import Principal
 from server.kit.service import Service
 from server.kit.uow import UnitOfWork
@@ -91,15 +93,14 @@ class MissionService(Service):
     async def _audit(self, action: str, mission: Mission, **details: Any) -> None:
         await record(self.uow, self.principal, action, target=str(mission.id), **details)
 
-    async def list_missions(
-        self, limit: int, offset: int, kind: MissionKind | None
-    ) -> list[Mission]:
+    async def list_missions(self, page: Page, kind: MissionKind | None) -> Paged[Mission]:
         """Missions of the caller's organisation, oldest first."""
-        return await self.repo.list_filtered(limit, offset, kind)
+        return await self.repo.list_filtered(page, kind)
 
-    async def delete(self, mission_id: uuid.UUID) -> None:
-        """Delete a mission."""
-        mission = await self.repo.get(mission_id)
+    async def delete(self, mission_id: uuid.UUID, expect: IfMatch = NO_PRECONDITION) -> None:
+        """Delete a mission (PreconditionFailed when `expect` names another version)."""
+        mission = await self.repo.get(mission_id, lock=True)
+        expect.check(mission.version, f"mission {mission.id}")
         await self._audit("mission.deleted", mission, name=mission.name)
         await self.repo.delete(mission)
 
@@ -163,9 +164,17 @@ class MissionService(Service):
             )
         return mission
 
-    async def update(self, mission_id: uuid.UUID, changes: dict[str, Any], body: Any) -> Mission:
-        """Apply a partial update; items and survey are validated (and compiled) again."""
-        mission = await self.repo.get(mission_id)
+    async def update(
+        self,
+        mission_id: uuid.UUID,
+        changes: dict[str, Any],
+        body: Any,
+        expect: IfMatch = NO_PRECONDITION,
+    ) -> Mission:
+        """Apply a partial update; items and survey are validated (and compiled) again.
+        PreconditionFailed when `expect` names another version than the stored one."""
+        mission = await self.repo.get(mission_id, lock=True)
+        expect.check(mission.version, f"mission {mission.id}")
         home = (
             body.home if "home" in changes else (HomeIn(**mission.home) if mission.home else None)
         )

@@ -5,7 +5,7 @@ from __future__ import annotations
 import uuid
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query, Response
+from fastapi import APIRouter, Depends, Response
 
 from server.deps import (
     Admin,
@@ -17,6 +17,10 @@ from server.deps import (
     Viewer,
     require,
 )
+from server.kit.errors import Conflict, Forbidden
+from server.kit.etag import CREATED_TAGGED, TAGGED, IfMatchDep, tag
+from server.kit.openapi import declares, errors
+from server.kit.paging import PAGED, Paging
 from server.kit.principal import Principal, Role
 from server.organizations.models import Membership, User
 from server.organizations.schemas import (
@@ -32,6 +36,7 @@ router = APIRouter(tags=["organizations"])
 _viewer = require(Role.viewer)
 
 
+@declares(Forbidden)
 async def _viewer_or_superuser(principal: CurrentPrincipal) -> Principal:
     """A viewer of an organisation, or a superuser logged in without one (sees every organisation)."""
     if principal.kind == "user" and principal.is_superuser:
@@ -74,22 +79,25 @@ Orgs = Annotated[OrganizationService, Depends(_service)]
 OrgsReader = Annotated[OrganizationService, Depends(_org_reader_service)]
 OrgsAdmin = Annotated[OrganizationService, Depends(_admin_service)]
 OrgsSuper = Annotated[OrganizationService, Depends(_super_service)]
-Limit = Annotated[int, Query(ge=1, le=1000)]
-Offset = Annotated[int, Query(ge=0, le=10**9)]
 
 
-@router.post("/api/v1/organizations", status_code=201, response_model=OrganizationOut)
+@router.post(
+    "/api/v1/organizations",
+    status_code=201,
+    response_model=OrganizationOut,
+    responses=errors(Conflict),
+)
 async def create_organization(body: OrganizationCreate, orgs: OrgsSuper) -> OrganizationOut:
     """Create an organisation (platform superusers only)."""
     return OrganizationOut.model_validate(await orgs.create_organization(body.name))
 
 
-@router.get("/api/v1/organizations", response_model=list[OrganizationOut])
-async def list_organizations(
-    orgs: OrgsReader, limit: Limit = 100, offset: Offset = 0
-) -> list[OrganizationOut]:
+@router.get("/api/v1/organizations", response_model=list[OrganizationOut], responses=PAGED)
+async def list_organizations(orgs: OrgsReader, pages: Paging) -> list[OrganizationOut]:
     """Organisations visible to the caller: all for a superuser, one's own otherwise."""
-    return [OrganizationOut.model_validate(o) for o in await orgs.organizations(limit, offset)]
+    found = await orgs.organizations(pages.page)
+    pages.respond(found.total)
+    return [OrganizationOut.model_validate(o) for o in found.items]
 
 
 @router.get("/api/v1/organizations/{organization_id}", response_model=OrganizationOut)
@@ -98,35 +106,68 @@ async def get_organization(organization_id: uuid.UUID, orgs: OrgsReader) -> Orga
     return OrganizationOut.model_validate(await orgs.organization(organization_id))
 
 
-@router.get("/api/v1/users", response_model=list[UserOut])
-async def list_users(orgs: Orgs, limit: Limit = 100, offset: Offset = 0) -> list[UserOut]:
-    """Members of the caller's organisation."""
-    return [_user_out(m, u) for m, u in await orgs.users(limit, offset)]
+@router.get("/api/v1/users", response_model=list[UserOut], responses=PAGED)
+async def list_users(orgs: Orgs, pages: Paging) -> list[UserOut]:
+    """Members of the caller's organisation, oldest first."""
+    found = await orgs.users(pages.page)
+    pages.respond(found.total)
+    return [_user_out(m, u) for m, u in found.items]
 
 
-@router.post("/api/v1/users", status_code=201, response_model=UserOut)
-async def create_user(body: UserCreate, orgs: OrgsAdmin, passwords: PasswordsDep) -> UserOut:
+@router.post(
+    "/api/v1/users",
+    status_code=201,
+    response_model=UserOut,
+    responses={**CREATED_TAGGED, **errors(Conflict)},
+)
+async def create_user(
+    body: UserCreate, orgs: OrgsAdmin, passwords: PasswordsDep, response: Response
+) -> UserOut:
     """Create a user in the caller's organisation (admins only)."""
     m, user = await orgs.create_user(
         passwords, email=body.email, password=body.password, role=body.role
     )
+    tag(response, m.version)
     return _user_out(m, user)
 
 
-@router.get("/api/v1/users/{user_id}", response_model=UserOut)
-async def get_user(user_id: uuid.UUID, orgs: Orgs) -> UserOut:
-    """One member of the caller's organisation."""
-    return _user_out(*await orgs.user(user_id))
+@router.get("/api/v1/users/{user_id}", response_model=UserOut, responses=TAGGED)
+async def get_user(user_id: uuid.UUID, orgs: Orgs, response: Response) -> UserOut:
+    """One member of the caller's organisation, the ETag of the membership in the header."""
+    m, user = await orgs.user(user_id)
+    tag(response, m.version)
+    return _user_out(m, user)
 
 
-@router.patch("/api/v1/users/{user_id}", response_model=UserOut)
-async def update_user(user_id: uuid.UUID, body: UserUpdate, orgs: OrgsAdmin) -> UserOut:
-    """Change a member's role or disable them in this organisation (admins only)."""
-    return _user_out(*await orgs.update_user(user_id, role=body.role, is_active=body.is_active))
+@router.patch(
+    "/api/v1/users/{user_id}",
+    response_model=UserOut,
+    responses={**TAGGED, **errors(Conflict)},
+)
+async def update_user(
+    user_id: uuid.UUID,
+    body: UserUpdate,
+    orgs: OrgsAdmin,
+    expect: IfMatchDep,
+    response: Response,
+) -> UserOut:
+    """Change a member's role or disable them in this organisation (admins only); with
+    `If-Match`, only the version it names (else 412)."""
+    m, user = await orgs.update_user(
+        user_id, role=body.role, is_active=body.is_active, expect=expect
+    )
+    tag(response, m.version)
+    return _user_out(m, user)
 
 
-@router.delete("/api/v1/users/{user_id}", status_code=204, response_class=Response)
-async def remove_user(user_id: uuid.UUID, orgs: OrgsAdmin) -> Response:
-    """Remove a member from the caller's organisation and end their sessions there (admins only)."""
-    await orgs.remove_user(user_id)
+@router.delete(
+    "/api/v1/users/{user_id}",
+    status_code=204,
+    response_class=Response,
+    responses=errors(Conflict),
+)
+async def remove_user(user_id: uuid.UUID, orgs: OrgsAdmin, expect: IfMatchDep) -> Response:
+    """Remove a member from the caller's organisation and end their sessions there (admins only);
+    with `If-Match`, only the version it names (else 412)."""
+    await orgs.remove_user(user_id, expect)
     return Response(status_code=204)

@@ -9,6 +9,7 @@ from sqlalchemy import Enum, ForeignKey, String, UniqueConstraint, true
 from sqlalchemy.orm import Mapped, mapped_column
 
 from server.kit.db import Base, IdMixin
+from server.kit.etag import Versioned
 from server.kit.principal import Role
 from server.kit.time import utcnow
 
@@ -34,7 +35,7 @@ class User(IdMixin, Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
 
 
-class Membership(IdMixin, Base):
+class Membership(IdMixin, Versioned, Base):
     """A user's role in one organisation."""
 
     __tablename__ = "memberships"

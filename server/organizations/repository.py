@@ -7,6 +7,7 @@ import uuid
 from sqlalchemy import select
 from sqlalchemy.ext.asyncio import AsyncSession
 
+from server.kit.paging import Page, Paged, paginate, paginate_rows
 from server.kit.scope import ScopedRepository
 from server.organizations.models import Membership, Organization, User
 
@@ -26,12 +27,12 @@ class OrganizationRepository:
         """The organisation with this id."""
         return await self.db.get(Organization, org_id)
 
-    async def all(self, limit: int, offset: int) -> list[Organization]:
+    async def all(self, page: Page) -> Paged[Organization]:
         """Every organisation (superusers only)."""
-        stmt = (
-            select(Organization).order_by(Organization.created_at).limit(limit).offset(offset)
+        stmt = select(Organization).order_by(
+            Organization.created_at, Organization.id
         )  # unscoped: superuser
-        return list((await self.db.execute(stmt)).scalars())
+        return await paginate(self.db, stmt, page)
 
 
 class UserRepository:
@@ -64,25 +65,31 @@ class MembershipRepository(ScopedRepository[Membership]):
     model = Membership
     noun = "user"
 
-    async def with_users(self, limit: int, offset: int) -> list[tuple[Membership, User]]:
+    async def with_users(self, page: Page) -> Paged[tuple[Membership, User]]:
         """Members and their users, oldest first."""
         stmt = (
             self.select()
             .add_columns(User)
             .join(User, User.id == Membership.user_id)
-            .order_by(Membership.created_at)
-            .limit(limit)
-            .offset(offset)
+            .order_by(Membership.created_at, Membership.id)
         )
-        return [(m, u) for m, u in (await self.db.execute(stmt)).all()]
+        found = await paginate_rows(self.db, stmt, page)
+        return Paged([(m, u) for m, u in found.items], found.total)
 
-    async def of_user(self, user_id: uuid.UUID) -> tuple[Membership, User] | None:
-        """The membership of one user in the caller's organisation."""
+    async def of_user(
+        self, user_id: uuid.UUID, *, lock: bool = False
+    ) -> tuple[Membership, User] | None:
+        """The membership of one user in the caller's organisation (`lock`: the membership's row,
+        for the rest of the transaction, on PostgreSQL)."""
         stmt = (
             self.select()
             .add_columns(User)
             .join(User, User.id == Membership.user_id)
             .where(Membership.user_id == user_id)
         )
+        if lock:
+            stmt = stmt.with_for_update(of=Membership, key_share=True).execution_options(
+                populate_existing=True
+            )
         row = (await self.db.execute(stmt)).first()
         return (row[0], row[1]) if row else None

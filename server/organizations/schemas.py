@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import uuid
-from datetime import datetime
 
 from pydantic import BaseModel, ConfigDict
 
 from server.kit.principal import Role
-from server.kit.types import Email, Name, Password
+from server.kit.types import Email, Name, Password, Timestamp
 
 
 class OrganizationCreate(BaseModel):
@@ -24,7 +23,7 @@ class OrganizationOut(BaseModel):
     model_config = ConfigDict(from_attributes=True)
     id: uuid.UUID
     name: str
-    created_at: datetime
+    created_at: Timestamp
 
 
 class UserCreate(BaseModel):
@@ -51,4 +50,4 @@ class UserOut(BaseModel):
     email: str
     role: Role
     is_active: bool
-    created_at: datetime
+    created_at: Timestamp

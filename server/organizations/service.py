@@ -11,6 +11,8 @@ from server.audit.service import record
 from server.auth.service import SessionService
 from server.config import Settings
 from server.kit.errors import Conflict, NotFound
+from server.kit.etag import NO_PRECONDITION, IfMatch
+from server.kit.paging import Page, Paged, page_of
 from server.kit.principal import Principal, Role
 from server.kit.security import Passwords
 from server.kit.service import Service
@@ -88,12 +90,12 @@ class OrganizationService(Service):
         )
         return org
 
-    async def organizations(self, limit: int, offset: int) -> list[Organization]:
+    async def organizations(self, page: Page) -> Paged[Organization]:
         """Every organisation for a superuser, one's own otherwise."""
         if self.principal.is_superuser:
-            return await self.orgs.all(limit, offset)
+            return await self.orgs.all(page)
         org = await self.orgs.by_id(self.principal.organization_id)  # type: ignore[arg-type]
-        return [org] if org and offset == 0 else []
+        return page_of([org] if org else [], page)
 
     async def organization(self, organization_id: uuid.UUID) -> Organization:
         """One's own organisation, or any for a superuser; NotFound otherwise."""
@@ -104,13 +106,14 @@ class OrganizationService(Service):
             raise NotFound(f"organisation {organization_id} not found")
         return org
 
-    async def users(self, limit: int, offset: int) -> list[tuple[Membership, User]]:
-        """Members of the caller's organisation."""
-        return await self.members.with_users(limit, offset)
+    async def users(self, page: Page) -> Paged[tuple[Membership, User]]:
+        """Members of the caller's organisation, oldest first."""
+        return await self.members.with_users(page)
 
-    async def user(self, user_id: uuid.UUID) -> tuple[Membership, User]:
-        """One member of the caller's organisation; NotFound otherwise."""
-        found = await self.members.of_user(user_id)
+    async def user(self, user_id: uuid.UUID, *, lock: bool = False) -> tuple[Membership, User]:
+        """One member of the caller's organisation (`lock`: its membership, to edit it);
+        NotFound otherwise."""
+        found = await self.members.of_user(user_id, lock=lock)
         if found is None:
             raise NotFound(f"user {user_id} not found")
         return found
@@ -126,11 +129,18 @@ class OrganizationService(Service):
         return m, user
 
     async def update_user(
-        self, user_id: uuid.UUID, *, role: Role | None, is_active: bool | None
+        self,
+        user_id: uuid.UUID,
+        *,
+        role: Role | None,
+        is_active: bool | None,
+        expect: IfMatch = NO_PRECONDITION,
     ) -> tuple[Membership, User]:
         """Change a member's role, or disable them in this organisation (their sessions here end;
-        their other organisations are not this admin's to close)."""
-        m, u = await self.user(user_id)
+        their other organisations are not this admin's to close). PreconditionFailed when
+        `expect` names another version of the membership."""
+        m, u = await self.user(user_id, lock=True)
+        expect.check(m.version, f"user {u.id}")
         if u.id == self.principal.user_id and role not in (None, Role.admin):
             raise Conflict("you cannot lower your own role", code="self_demotion")
         if u.id == self.principal.user_id and is_active is False:
@@ -148,9 +158,10 @@ class OrganizationService(Service):
         await self.db.flush()
         return m, u
 
-    async def remove_user(self, user_id: uuid.UUID) -> None:
+    async def remove_user(self, user_id: uuid.UUID, expect: IfMatch = NO_PRECONDITION) -> None:
         """Remove a member from the caller's organisation and end their sessions there."""
-        m, u = await self.user(user_id)
+        m, u = await self.user(user_id, lock=True)
+        expect.check(m.version, f"user {u.id}")
         if u.id == self.principal.user_id:
             raise Conflict("you cannot remove yourself", code="self_removal")
         await SessionService(self.uow, self.settings).end_all_for_user(

@@ -304,9 +304,16 @@ class AssetSession:
                 if not alive:
                     self.sender.close(4001, "session ended")
                     return
-            if not await self.services.broker.refresh(self.presence, self.owner, PRESENCE_TTL_S):
-                self.sender.close(4409, "another connection of this asset took over")
-                return
+            broker = self.services.broker
+            if not await broker.refresh(self.presence, self.owner, PRESENCE_TTL_S):
+                # our key is gone: taken by a newer connection of this asset (then it is live
+                # elsewhere and this one must go), or lapsed because this process stalled past
+                # the TTL under load (then nobody holds it and this connection is still the one)
+                holder = await broker.claim(self.presence, self.owner, PRESENCE_TTL_S)
+                if holder is not None:
+                    self.sender.close(4409, "another connection of this asset took over")
+                    return
+                log.warning("the presence of asset %s had lapsed; claimed again", self.asset_id)
 
     async def deliver_commands(self) -> None:
         """Send queued commands (from the database) now and whenever nudged through the broker; a

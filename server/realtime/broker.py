@@ -137,6 +137,10 @@ _REFRESH = (
 )
 
 
+POOL_SIZE = 64  # connections to Redis per process (one is the subscription's)
+POOL_WAIT_S = 10.0  # a caller waits this long for a free connection, then the call fails
+
+
 class RedisBroker:
     """A broker shared by every server process through Redis pub/sub and keys."""
 
@@ -152,7 +156,16 @@ class RedisBroker:
         """Connect and start the reader task."""
         import redis.asyncio as redis
 
-        self._redis = redis.from_url(self.url, decode_responses=True)
+        # a bounded pool that makes a caller wait for a free connection: the default pool raises
+        # "Too many connections" past 100 at once, which 200 UAVs at 10 Hz reach (every asset
+        # session publishes each message), and each refused publish failed its socket
+        pool = redis.BlockingConnectionPool.from_url(
+            self.url,
+            decode_responses=True,
+            max_connections=POOL_SIZE,
+            timeout=POOL_WAIT_S,
+        )
+        self._redis = redis.Redis.from_pool(pool)
         await self._redis.ping()
         self._pubsub = self._redis.pubsub(ignore_subscribe_messages=True)
         await self._pubsub.subscribe(f"{self.prefix}__keepalive")

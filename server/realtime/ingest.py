@@ -217,3 +217,5 @@ def observe_stored(batch: list[Item]) -> None:
             metrics.BASE_PLC_LINK.labels(asset).set(item.payload["plc_link"] == "up")
             rtk = item.payload.get("rtk") or {}
             metrics.BASE_RTK_RATE.labels(asset).set(float(rtk.get("corrections_rate", 0.0)))
+            if rtk.get("correction_age_s") is not None:
+                metrics.BASE_RTK_AGE.labels(asset).set(float(rtk["correction_age_s"]))

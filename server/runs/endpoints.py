@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import uuid
-from datetime import datetime
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query
+from fastapi import APIRouter, Depends
 
 from server.deps import Operator, ServicesDep, UoW, Viewer
+from server.kit.errors import Conflict, NotFound
+from server.kit.openapi import errors
+from server.kit.paging import PAGED, Paging
+from server.kit.types import Timestamp
 from server.runs.machine import State
 from server.runs.schemas import AbortRequest, FleetReport, RunCreate, RunOut, RunReport
 from server.runs.service import RunService, run_out
@@ -28,22 +31,25 @@ Runs = Annotated[RunService, Depends(_service)]
 RunsOperator = Annotated[RunService, Depends(_operator_service)]
 
 
-@router.post("/api/v1/runs", status_code=201, response_model=RunOut)
+@router.post(
+    "/api/v1/runs",
+    status_code=201,
+    response_model=RunOut,
+    responses=errors(NotFound, Conflict),  # an id of nothing here; the UAV or base is busy
+)
 async def create_run(body: RunCreate, runs: RunsOperator) -> RunOut:
     """Start an autonomous run now (it checks availability first)."""
     return run_out(await runs.create(body.mission_id, body.uav_id, body.base_id))
 
 
-@router.get("/api/v1/runs", response_model=list[RunOut])
+@router.get("/api/v1/runs", response_model=list[RunOut], responses=PAGED)
 async def list_runs(
-    runs: Runs,
-    state: State | None = None,
-    uav_id: uuid.UUID | None = None,
-    limit: int = Query(100, ge=1, le=1000),
-    offset: int = Query(0, ge=0, le=10**9),
+    runs: Runs, pages: Paging, state: State | None = None, uav_id: uuid.UUID | None = None
 ) -> list[RunOut]:
     """Runs of the caller's organisation, newest first."""
-    return [run_out(r) for r in await runs.list_runs(limit, offset, state, uav_id)]
+    found = await runs.list_runs(pages.page, state, uav_id)
+    pages.respond(found.total)
+    return [run_out(r) for r in found.items]
 
 
 @router.get("/api/v1/runs/{run_id}", response_model=RunOut)
@@ -52,21 +58,26 @@ async def get_run(run_id: uuid.UUID, runs: Runs) -> RunOut:
     return await runs.with_timeline(run_id)
 
 
-@router.post("/api/v1/runs/{run_id}/abort", status_code=202, response_model=RunOut)
+@router.post(
+    "/api/v1/runs/{run_id}/abort",
+    status_code=202,
+    response_model=RunOut,
+    responses=errors(Conflict),
+)
 async def abort_run(run_id: uuid.UUID, body: AbortRequest, runs: RunsOperator) -> RunOut:
     """Ask the run to stop safely: before take-off the base closes; in flight the UAV returns and lands."""
     return run_out(await runs.abort(run_id, body.reason))
 
 
-@router.get("/api/v1/runs/{run_id}/report", response_model=RunReport)
+@router.get("/api/v1/runs/{run_id}/report", response_model=RunReport, operation_id="getRunReport")
 async def run_report(run_id: uuid.UUID, runs: Runs, services: ServicesDep) -> RunReport:
     """The flight history of a run: timeline, track, battery used, landing error, outcome and cause."""
     return await runs.report(run_id, services.telemetry)
 
 
-@router.get("/api/v1/reports/fleet", response_model=FleetReport)
+@router.get("/api/v1/reports/fleet", response_model=FleetReport, operation_id="getFleetReport")
 async def fleet_report(
-    runs: Runs, start: datetime | None = None, end: datetime | None = None
+    runs: Runs, start: Timestamp | None = None, end: Timestamp | None = None
 ) -> FleetReport:
     """Runs in [start, end): success rate, failures by cause, mean flight time, per asset."""
     return await runs.fleet(start, end)

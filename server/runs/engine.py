@@ -47,7 +47,7 @@ from server.runs.settle import settle
 from server.services import Services
 
 log = logging.getLogger(__name__)
-LEASE_S = 15.0
+LEASE_S = 8.0  # a dead holder's runs are taken over within 8 s (+ one tick)
 
 
 def progress_payload(run: Run, label_override: str | None = None) -> RunProgressPayload:

@@ -45,8 +45,9 @@ from protocol.vocabulary import (
 )
 
 
-class State(enum.StrEnum):
-    """Where a run stands."""
+class RunState(enum.StrEnum):
+    """Where a run stands: `pending`, then the eight steps `checking` … `charging`, then one of
+    the final states `completed`, `aborted`, `failed`."""
 
     pending = "pending"
     checking = "checking"
@@ -61,6 +62,8 @@ class State(enum.StrEnum):
     aborted = "aborted"
     failed = "failed"
 
+
+State = RunState  # the engine's short name
 
 FINAL = frozenset({State.completed, State.aborted, State.failed})
 AIRBORNE = frozenset({State.flying, State.landing})

@@ -13,6 +13,7 @@ from sqlalchemy.ext.asyncio import AsyncSession
 from server.commands.models import AssetCommand
 from server.kit import metrics
 from server.kit.errors import NotFound
+from server.kit.paging import Page, Paged, paginate
 from server.kit.scope import ScopedRepository, scoped
 from server.runs.machine import FINAL, Action
 from server.runs.models import Run, RunStepCommand, RunTransition
@@ -27,16 +28,14 @@ class RunRepository(ScopedRepository[Run]):
     model = Run
     noun = "run"
 
-    async def filtered(
-        self, limit: int, offset: int, state: str | None, uav_id: uuid.UUID | None
-    ) -> list[Run]:
+    async def filtered(self, page: Page, state: str | None, uav_id: uuid.UUID | None) -> Paged[Run]:
         """Newest first, optionally by state or UAV."""
-        stmt = self.select().order_by(Run.created_at.desc()).limit(limit).offset(offset)
+        stmt = self.select().order_by(Run.created_at.desc(), Run.id)
         if state:
             stmt = stmt.where(Run.state == state)
         if uav_id:
             stmt = stmt.where(Run.uav_id == uav_id)
-        return list((await self.db.execute(stmt)).scalars())
+        return await paginate(self.db, stmt, page)
 
     async def in_window(self, start: datetime, end: datetime) -> list[Run]:
         """Runs created in [start, end)."""

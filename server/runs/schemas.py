@@ -2,13 +2,22 @@
 
 from __future__ import annotations
 
+import enum
 import uuid
-from datetime import datetime
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from server.kit.types import Text
+from server.kit.types import Text, Timestamp
+from server.runs.machine import RunState
+
+
+class RunOutcome(enum.StrEnum):
+    """How a finished run ended (its final state)."""
+
+    completed = "completed"
+    aborted = "aborted"
+    failed = "failed"
 
 
 class RunCreate(BaseModel):
@@ -31,9 +40,9 @@ class TransitionOut(BaseModel):
     """One step of a run's timeline."""
 
     model_config = ConfigDict(from_attributes=True)
-    at: datetime
-    from_state: str
-    to_state: str
+    at: Timestamp
+    from_state: RunState
+    to_state: RunState
     reason: str
     cause: str
 
@@ -47,19 +56,19 @@ class RunOut(BaseModel):
     uav_id: uuid.UUID
     base_id: uuid.UUID
     schedule_id: uuid.UUID | None
-    scheduled_for: datetime | None
-    state: str
+    scheduled_for: Timestamp | None
+    state: RunState
     step: int = 0
     total_steps: int = 0
     label: str = ""
-    outcome: str | None
+    outcome: RunOutcome | None
     cause: str | None
     reason: str
     alert: bool
     abort_requested: bool
-    created_at: datetime
-    updated_at: datetime
-    finished_at: datetime | None
+    created_at: Timestamp
+    updated_at: Timestamp
+    finished_at: Timestamp | None
     timeline: list[TransitionOut] = []
 
 
@@ -75,9 +84,9 @@ class LandingReport(BaseModel):
     agent_fix_height_m: float | None = Field(description="the fix's height above the pad")
     agent_fix_age_s: float | None = Field(description="how old that fix was at touchdown")
     agent_fix_sources: str | None = Field(description='e.g. "pattern+aruco+ir"')
-    landed_at: datetime | None = Field(description="when the agent reported the touchdown")
+    landed_at: Timestamp | None = Field(description="when the agent reported the touchdown")
     base_confirmed: bool = Field(description="the base weighed the UAV, stable, in its window")
-    base_confirmed_at: datetime | None
+    base_confirmed_at: Timestamp | None
     base_mass_g: float | None
 
 
@@ -108,8 +117,8 @@ class AssetSummary(BaseModel):
 class FleetReport(BaseModel):
     """Runs in a window: counts, success rate, failures by cause, mean flight time, per asset."""
 
-    start: datetime
-    end: datetime
+    start: Timestamp
+    end: Timestamp
     runs: int
     completed: int
     aborted: int

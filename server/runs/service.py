@@ -11,6 +11,7 @@ from typing import Any
 from server.assets.models import AssetKind
 from server.assets.repository import AssetRepository
 from server.kit.errors import Conflict, Unprocessable
+from server.kit.paging import Page, Paged
 from server.kit.principal import Principal
 from server.kit.service import Service
 from server.kit.time import utcnow
@@ -220,10 +221,10 @@ class RunService(Service):
         )
 
     async def list_runs(
-        self, limit: int, offset: int, state: State | None, uav_id: uuid.UUID | None
-    ) -> list[Run]:
+        self, page: Page, state: State | None, uav_id: uuid.UUID | None
+    ) -> Paged[Run]:
         """Runs of the caller's organisation, newest first."""
-        return await self.repo.filtered(limit, offset, state.value if state else None, uav_id)
+        return await self.repo.filtered(page, state.value if state else None, uav_id)
 
     async def with_timeline(self, run_id: uuid.UUID) -> RunOut:
         """A run with its timeline."""

@@ -9,10 +9,11 @@ from sqlalchemy import ForeignKey, Index, String
 from sqlalchemy.orm import Mapped, mapped_column
 
 from server.kit.db import Base, IdMixin
+from server.kit.etag import Versioned
 from server.kit.time import utcnow
 
 
-class Schedule(IdMixin, Base):
+class Schedule(IdMixin, Versioned, Base):
     """When to fly a mission with a UAV from a base."""
 
     __tablename__ = "schedules"

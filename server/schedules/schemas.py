@@ -2,13 +2,28 @@
 
 from __future__ import annotations
 
+import enum
 import uuid
-from datetime import datetime
-from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from server.kit.types import Name
+from server.kit.types import Name, Timestamp
+
+
+class ScheduleKind(enum.StrEnum):
+    """`once` at a time; `interval` every `interval_s` seconds; `cron` by a cron expression."""
+
+    once = "once"
+    interval = "interval"
+    cron = "cron"
+
+
+class MissedPolicy(enum.StrEnum):
+    """What a schedule does about due times missed while the server was down: `skip` them, or
+    `run_once` for all of them."""
+
+    skip = "skip"
+    run_once = "run_once"
 
 
 class ScheduleCreate(BaseModel):
@@ -19,12 +34,17 @@ class ScheduleCreate(BaseModel):
     mission_id: uuid.UUID
     uav_id: uuid.UUID
     base_id: uuid.UUID
-    kind: Literal["once", "interval", "cron"]
-    at: datetime | None = None
-    interval_s: int | None = Field(default=None, ge=60, le=366 * 86400)
+    kind: ScheduleKind
+    at: Timestamp | None = None
+    interval_s: int | None = Field(
+        default=None,
+        ge=1,
+        le=366 * 86400,
+        description="seconds; at least the server's AEROBASE_SCHEDULE_MIN_INTERVAL_S (60 by default)",
+    )
     cron: str | None = Field(default=None, max_length=120)
     timezone: str = Field(default="UTC", max_length=64)
-    missed_policy: Literal["skip", "run_once"] = "skip"
+    missed_policy: MissedPolicy = MissedPolicy.skip
     enabled: bool = True
 
 
@@ -34,7 +54,7 @@ class ScheduleUpdate(BaseModel):
     model_config = ConfigDict(extra="forbid")
     name: Name | None = None
     enabled: bool | None = None
-    missed_policy: Literal["skip", "run_once"] | None = None
+    missed_policy: MissedPolicy | None = None
 
 
 class ScheduleOut(BaseModel):
@@ -46,15 +66,15 @@ class ScheduleOut(BaseModel):
     mission_id: uuid.UUID
     uav_id: uuid.UUID
     base_id: uuid.UUID
-    kind: str
-    at: datetime | None
+    kind: ScheduleKind
+    at: Timestamp | None
     interval_s: int | None
     cron: str | None
     timezone: str
-    missed_policy: str
+    missed_policy: MissedPolicy
     enabled: bool
-    next_due_at: datetime | None
-    last_fired_at: datetime | None
+    next_due_at: Timestamp | None
+    last_fired_at: Timestamp | None
     last_run_id: uuid.UUID | None
     last_result: str
-    created_at: datetime
+    created_at: Timestamp

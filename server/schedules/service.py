@@ -13,10 +13,13 @@ from sqlalchemy.exc import IntegrityError
 from server.assets.models import AssetKind
 from server.assets.repository import AssetRepository
 from server.kit.errors import AppError, Unprocessable
+from server.kit.etag import NO_PRECONDITION, IfMatch
+from server.kit.paging import Page, Paged
 from server.kit.periodic import Periodic
 from server.kit.principal import Principal, Role
 from server.kit.service import Service
-from server.kit.time import utcnow
+from server.kit.time import rfc3339, utcnow
+from server.kit.uow import UnitOfWork
 from server.missions.repository import MissionRepository
 from server.runs.repository import RunRepository
 from server.runs.service import create_run
@@ -47,6 +50,11 @@ def advance_schedule(s: Schedule, after: Any) -> None:
 class ScheduleService(Service):
     """Schedules of the caller's organisation."""
 
+    def __init__(self, uow: UnitOfWork, principal: Principal, min_interval_s: int = 60) -> None:
+        """`min_interval_s`: the shortest interval a schedule may have (a setting)."""
+        super().__init__(uow, principal)
+        self.min_interval_s = min_interval_s
+
     async def create(self, body: ScheduleCreate) -> Schedule:
         """A schedule bound to a mission, a UAV and a base, with its first due time."""
         await MissionRepository(self.db, self.principal).get(body.mission_id)
@@ -58,8 +66,6 @@ class ScheduleService(Service):
         now = utcnow()
         try:
             zone(body.timezone)
-            if body.at is not None and body.at.tzinfo is None:
-                raise TimingError("`at` needs a time zone offset (e.g. 2026-11-22T10:00:00Z)")
             if body.kind == "once":
                 if body.at is None:
                     raise TimingError("a one-shot schedule needs `at`")
@@ -67,6 +73,10 @@ class ScheduleService(Service):
             elif body.kind == "interval":
                 if body.interval_s is None:
                     raise TimingError("an interval schedule needs `interval_s`")
+                if body.interval_s < self.min_interval_s:
+                    raise TimingError(
+                        f"interval_s must be at least {self.min_interval_s} s on this server"
+                    )
                 first = body.at or now + timedelta(seconds=body.interval_s)
             else:
                 check_cron(body.cron or "")
@@ -98,17 +108,21 @@ class ScheduleService(Service):
         await self.db.flush()
         return s
 
-    async def list_schedules(self, limit: int, offset: int) -> list[Schedule]:
-        """Schedules of the caller's organisation."""
-        return await ScheduleRepository(self.db, self.principal).list(limit, offset)
+    async def list_schedules(self, page: Page) -> Paged[Schedule]:
+        """Schedules of the caller's organisation, oldest first."""
+        return await ScheduleRepository(self.db, self.principal).list(page)
 
     async def get(self, schedule_id: uuid.UUID) -> Schedule:
         """One schedule (NotFound for another organisation's)."""
         return await ScheduleRepository(self.db, self.principal).get(schedule_id)
 
-    async def update(self, schedule_id: uuid.UUID, changes: dict[str, Any]) -> Schedule:
-        """Enable, disable, rename or change the missed-run policy."""
-        s = await self.get(schedule_id)
+    async def update(
+        self, schedule_id: uuid.UUID, changes: dict[str, Any], expect: IfMatch = NO_PRECONDITION
+    ) -> Schedule:
+        """Enable, disable, rename or change the missed-run policy (PreconditionFailed when
+        `expect` names another version)."""
+        s = await ScheduleRepository(self.db, self.principal).get(schedule_id, lock=True)
+        expect.check(s.version, f"schedule {s.id}")
         for key, value in changes.items():
             if value is not None:
                 setattr(s, key, value)
@@ -116,9 +130,11 @@ class ScheduleService(Service):
         await self.db.flush()
         return s
 
-    async def delete(self, schedule_id: uuid.UUID) -> None:
+    async def delete(self, schedule_id: uuid.UUID, expect: IfMatch = NO_PRECONDITION) -> None:
         """Delete a schedule (its past runs stay)."""
-        await self.db.delete(await self.get(schedule_id))
+        s = await ScheduleRepository(self.db, self.principal).get(schedule_id, lock=True)
+        expect.check(s.version, f"schedule {s.id}")
+        await self.db.delete(s)
 
 
 class Scheduler:
@@ -176,9 +192,9 @@ class Scheduler:
             log.info("schedule %s started run %s for %s", s.id, run.id, due)
         except IntegrityError:
             s.last_result = (
-                f"the run for {due.isoformat()} was already started by another server process"
+                f"the run for {rfc3339(due)} was already started by another server process"
             )
         except AppError as err:
             s.last_fired_at = utcnow()
-            s.last_result = f"could not start the run due {due.isoformat()}: {err.message}"
+            s.last_result = f"could not start the run due {rfc3339(due)}: {err.message}"
             log.warning("schedule %s: %s", s.id, s.last_result)

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from typing import Any
 
+from server.kit import time as kit_time
 from server.telemetry.influx_lines import MEASUREMENT, clamp_ns, rfc3339, window_us
 from server.telemetry.store import Query
 
@@ -82,7 +83,7 @@ def rows_of_flux(tables: Any) -> list[dict[str, Any]]:
     for table in tables:
         for record in table.records:
             ts = record.values["_time"].astimezone(UTC)
-            row: dict[str, Any] = {"ts": ts.isoformat()}
+            row: dict[str, Any] = {"ts": kit_time.rfc3339(ts)}
             for key, value in record.values.items():
                 if value is not None and not key.startswith("_") and key not in FLUX_META:
                     row[key] = value

@@ -12,6 +12,7 @@ from datetime import UTC, datetime, timedelta
 
 from influxdb_client import Point, WritePrecision
 
+from server.kit import time as kit_time
 from server.telemetry.store import Query, Sample
 
 log = logging.getLogger(__name__)
@@ -42,8 +43,8 @@ def clamp_ns(ts: datetime) -> int:
 
 
 def iso_of_ns(ns: int) -> str:
-    """Integer nanoseconds -> ISO 8601 UTC (microsecond resolution, like our datetimes)."""
-    return (EPOCH + timedelta(microseconds=ns // 1000)).isoformat()
+    """Integer nanoseconds -> RFC 3339 UTC with `Z` (microsecond resolution, like our datetimes)."""
+    return kit_time.rfc3339(EPOCH + timedelta(microseconds=ns // 1000))
 
 
 def rfc3339(ns: int) -> str:

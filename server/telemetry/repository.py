@@ -9,6 +9,7 @@ from datetime import datetime
 from sqlalchemy import select
 from sqlalchemy.ext.asyncio import AsyncSession
 
+from server.kit.paging import Page, Paged, paginate
 from server.kit.scope import ScopedRepository
 from server.telemetry.models import AssetEvent, AssetStream
 
@@ -20,16 +21,15 @@ class EventRepository(ScopedRepository[AssetEvent]):
     noun = "event"
 
     async def of_asset(
-        self, asset_id: uuid.UUID, start: datetime, end: datetime, limit: int
-    ) -> list[AssetEvent]:
+        self, asset_id: uuid.UUID, start: datetime, end: datetime, page: Page
+    ) -> Paged[AssetEvent]:
         """Events of one asset in a time range, oldest first."""
         stmt = (
             self.select()
             .where(AssetEvent.asset_id == asset_id, AssetEvent.ts >= start, AssetEvent.ts < end)
-            .order_by(AssetEvent.ts)
-            .limit(limit)
+            .order_by(AssetEvent.ts, AssetEvent.id)
         )
-        return list((await self.db.execute(stmt)).scalars())
+        return await paginate(self.db, stmt, page)
 
 
 async def streams(db: AsyncSession, stream_ids: Iterable[uuid.UUID]) -> list[AssetStream]:

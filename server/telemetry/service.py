@@ -16,6 +16,7 @@ from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.assets.repository import AssetRepository
 from server.kit.errors import NotFound, Unprocessable
+from server.kit.paging import Page, Paged
 from server.kit.principal import Principal
 from server.kit.service import Service
 from server.kit.time import utcnow
@@ -124,9 +125,9 @@ class TelemetryService(Service):
         return row
 
     async def events(
-        self, asset_id: uuid.UUID, start: datetime | None, end: datetime | None, limit: int
-    ) -> list[AssetEvent]:
+        self, asset_id: uuid.UUID, start: datetime | None, end: datetime | None, page: Page
+    ) -> Paged[AssetEvent]:
         """Events of an asset in [start, end)."""
         await self.assets.get(asset_id)
         start, end = time_range(start, end)
-        return await EventRepository(self.db, self.principal).of_asset(asset_id, start, end, limit)
+        return await EventRepository(self.db, self.principal).of_asset(asset_id, start, end, page)

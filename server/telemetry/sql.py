@@ -5,13 +5,14 @@ from __future__ import annotations
 import math
 import uuid
 from collections.abc import Sequence
-from datetime import datetime
+from datetime import UTC, datetime
 from typing import Any
 
 from sqlalchemy import delete, select
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
+from server.kit.time import rfc3339
 from server.telemetry.models import TelemetrySample
 from server.telemetry.store import Query, Sample
 
@@ -71,7 +72,7 @@ class SqlTelemetryStore:
         """Raw rows, or one row per bucket (mean of numbers, last of the rest)."""
         rows = await self._rows(q)
         if q.every_s is None:
-            return [{"ts": r.ts.isoformat(), **self._pick(r.fields, q.fields)} for r in rows]
+            return [{"ts": rfc3339(r.ts), **self._pick(r.fields, q.fields)} for r in rows]
         return downsample(
             [(r.ts, self._pick(r.fields, q.fields)) for r in rows], q.start, q.every_s, q.agg
         )[: q.limit]
@@ -86,7 +87,7 @@ class SqlTelemetryStore:
         )
         async with self.sessionmaker() as db:
             row = (await db.execute(stmt)).scalar_one_or_none()
-        return None if row is None else {"ts": row.ts.isoformat(), **row.fields}
+        return None if row is None else {"ts": rfc3339(row.ts), **row.fields}
 
     async def prune(self, before: datetime) -> int:
         """Delete samples older than `before`."""
@@ -115,5 +116,5 @@ def downsample(
             else:
                 merged[name] = values[-1]
         bucket_start = start.timestamp() + index * every_s
-        out.append({"ts": datetime.fromtimestamp(bucket_start, start.tzinfo).isoformat(), **merged})
+        out.append({"ts": rfc3339(datetime.fromtimestamp(bucket_start, UTC)), **merged})
     return out

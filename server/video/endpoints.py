@@ -9,9 +9,11 @@ from fastapi import APIRouter, Depends, Request, Response
 from fastapi.responses import FileResponse
 
 from server.deps import CurrentPrincipal, ServicesDep, UoW, Viewer
-from server.kit.errors import NotFound
+from server.kit.errors import Conflict, Forbidden, NotFound
+from server.kit.openapi import errors
+from server.kit.paging import PAGED, Paging, page_of
 from server.kit.principal import Principal
-from server.video.errors import UnsupportedMediaType
+from server.video.errors import GatewayUnavailable, UnsupportedMediaType, ViewerLimit
 from server.video.gateway import MediaGateway
 from server.video.schemas import RecordingOut, RtpTargetOut, VideoOut
 from server.video.service import VideoService, check_sdp, whep_path, whip_path
@@ -69,11 +71,12 @@ def _sdp_body(description: str) -> dict[str, Any]:
 
 
 _ANSWER: dict[int | str, dict[str, Any]] = {
+    **errors(UnsupportedMediaType),
     201: {
         "description": "the SDP answer; `Location` names the session",
         "content": {SDP: {"schema": {"type": "string"}}},
         "headers": {"Location": {"schema": {"type": "string"}}},
-    }
+    },
 }
 
 
@@ -87,7 +90,7 @@ async def describe_video(asset_id: uuid.UUID, video: Video) -> VideoOut:
     "/api/v1/assets/{asset_id}/video/whep",
     status_code=201,
     response_class=Response,
-    responses={**_ANSWER, 503: {"description": "the viewer limit is reached (Retry-After)"}},
+    responses={**_ANSWER, **errors(Conflict, ViewerLimit, GatewayUnavailable)},
     openapi_extra=_sdp_body("the viewer's SDP offer (receive-only video)"),
 )
 async def whep_offer(asset_id: uuid.UUID, request: Request, video: Video) -> Response:
@@ -108,6 +111,7 @@ async def whep_offer(asset_id: uuid.UUID, request: Request, video: Video) -> Res
     "/api/v1/assets/{asset_id}/video/whep/{session_id}",
     status_code=204,
     response_class=Response,
+    responses=errors(UnsupportedMediaType, Conflict, GatewayUnavailable),
     openapi_extra={
         "requestBody": {
             "required": True,
@@ -145,7 +149,7 @@ async def whep_stop(asset_id: uuid.UUID, session_id: uuid.UUID, video: Video) ->
     "/api/v1/assets/{asset_id}/video/whip",
     status_code=201,
     response_class=Response,
-    responses=_ANSWER,
+    responses={**_ANSWER, **errors(Forbidden, Conflict)},
     openapi_extra=_sdp_body("the asset's SDP offer (send-only VP8 video)"),
 )
 async def whip_offer(asset_id: uuid.UUID, request: Request, video: Publisher) -> Response:
@@ -161,7 +165,11 @@ async def whip_offer(asset_id: uuid.UUID, request: Request, video: Publisher) ->
     )
 
 
-@router.post("/api/v1/assets/{asset_id}/video/rtp", response_model=RtpTargetOut)
+@router.post(
+    "/api/v1/assets/{asset_id}/video/rtp",
+    response_model=RtpTargetOut,
+    responses=errors(Forbidden, Conflict, GatewayUnavailable),
+)
 async def rtp_target(asset_id: uuid.UUID, video: Publisher) -> RtpTargetOut:
     """Janus path: where the asset sends its RTP (a mountpoint made from its camera description,
     on the port Janus chose) — asset sessions only, its own asset only."""
@@ -169,7 +177,10 @@ async def rtp_target(asset_id: uuid.UUID, video: Publisher) -> RtpTargetOut:
 
 
 @router.delete(
-    "/api/v1/assets/{asset_id}/video/whip/{session_id}", status_code=204, response_class=Response
+    "/api/v1/assets/{asset_id}/video/whip/{session_id}",
+    status_code=204,
+    response_class=Response,
+    responses=errors(Forbidden),
 )
 async def whip_stop(asset_id: uuid.UUID, session_id: uuid.UUID, video: Publisher) -> Response:
     """WHIP: the asset ends its publication."""
@@ -177,10 +188,16 @@ async def whip_stop(asset_id: uuid.UUID, session_id: uuid.UUID, video: Publisher
     return Response(status_code=204)
 
 
-@router.get("/api/v1/assets/{asset_id}/video/recordings", response_model=list[RecordingOut])
-async def list_recordings(asset_id: uuid.UUID, video: Video) -> list[RecordingOut]:
+@router.get(
+    "/api/v1/assets/{asset_id}/video/recordings",
+    response_model=list[RecordingOut],
+    responses=PAGED,
+)
+async def list_recordings(asset_id: uuid.UUID, video: Video, pages: Paging) -> list[RecordingOut]:
     """The asset's recorded segments, newest first (empty when recording is off)."""
-    return await video.recordings(asset_id)
+    found = page_of(await video.recordings(asset_id), pages.page)
+    pages.respond(found.total)
+    return found.items
 
 
 @router.get(

@@ -15,6 +15,9 @@ from typing import Any
 import pytest
 import yaml
 
+from asset_agent.config import AgentConfig
+from assetlink.configfile_cli import PASSWORD_ENV
+from base_station.config import load_config as load_station_config
 from server.config import Settings
 from tests.conftest import IN_CI
 
@@ -48,9 +51,18 @@ def docker_compose() -> str:
     return found
 
 
-def run_config(env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+def run_config(env: dict[str, str], *options: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [docker_compose(), "--project-directory", str(ROOT), "-f", str(COMPOSE), "config", "-q"],
+        [
+            docker_compose(),
+            "--project-directory",
+            str(ROOT),
+            "-f",
+            str(COMPOSE),
+            *options,
+            "config",
+            "-q",
+        ],
         env={"PATH": "/usr/bin:/bin", **env},
         capture_output=True,
         text=True,
@@ -65,6 +77,11 @@ def filled(env: dict[str, str]) -> dict[str, str]:
 
 def test_docker_compose_accepts_the_file_with_the_example_env_filled_in():
     r = run_config(filled(example_env()))
+    assert r.returncode == 0, r.stderr
+
+
+def test_docker_compose_accepts_the_demo_profile():
+    r = run_config(filled(example_env()), "--profile", "demo")
     assert r.returncode == 0, r.stderr
 
 
@@ -92,8 +109,12 @@ def _settings_names() -> set[str]:
 
 def test_every_setting_passed_to_a_server_exists_in_the_settings_class():
     services = compose()["services"]
-    ours = {n: s for n, s in services.items() if s.get("image", "").startswith("aerobase")}
-    assert {"server-1", "server-2", "migrate"} <= set(ours)
+    ours = {
+        n: s
+        for n, s in services.items()
+        if s.get("image", "").startswith("aerobase:") and s["command"][0] in ("server", "admin")
+    }
+    assert {"server-1", "server-2", "migrate"} == set(ours)
     known = _settings_names()
     for name, service in ours.items():
         unknown = set(service.get("environment", {})) - known - NOT_OURS
@@ -116,3 +137,43 @@ def test_the_replicas_wait_for_the_migration_and_do_not_migrate_themselves():
         assert s["depends_on"]["migrate"]["condition"] == "service_completed_successfully"
         assert s["environment"]["AEROBASE_MIGRATE_ON_START"] == "false"
     assert services["migrate"]["command"] == ["admin", "migrate"]
+
+
+def _mounts(service: dict[str, Any]) -> dict[str, str]:
+    return {m.split(":")[1]: m.split(":")[0] for m in service.get("volumes", [])}
+
+
+def test_the_demo_profile_runs_the_world_and_both_daemons_on_configurations_they_accept():
+    services = compose()["services"]
+    demo = {n for n, s in services.items() if "demo" in s.get("profiles", [])}
+    assert demo == {"sim-world", "base-station", "agent"}
+    assert services["sim-world"]["command"][:2] == ["sim", "world"]
+    for name, load in (
+        ("base-station", load_station_config),
+        ("agent", AgentConfig.load),
+    ):
+        service = services[name]
+        # the daemons read TOML, not the server's settings: the one variable is the asset password
+        assert set(service["environment"]) == {PASSWORD_ENV}
+        config_path = service["command"][service["command"].index("--config") + 1]
+        config = load(ROOT / _mounts(service)[config_path])
+        # every address is the stack's: the simulated world, the server through the proxy
+        assert config.server.url == "http://proxy:8080"
+        assert _mounts(service)["/run/aerobase"] == "./deploy/demo/assets"
+        assert str(config.server.config_file).startswith("/run/aerobase/")
+        # its own /metrics on the stack's network, never published on the host
+        assert config.metrics.port and "ports" not in service
+    base = load_station_config(ROOT / "deploy" / "demo" / "base.toml")
+    assert base.plc.host == base.rtk.tcp_host == "sim-world"
+    assert AgentConfig.load(ROOT / "deploy" / "demo" / "agent.toml").autopilot.url.startswith(
+        "tcp:sim-world:"
+    )
+
+
+def test_janus_and_coturn_mount_the_configurations_the_media_tests_run():
+    services = compose()["services"]
+    assert _mounts(services["janus"])["/etc/aerobase/janus"] == "./deploy/janus"
+    turn = services["coturn"]
+    assert _mounts(turn)["/etc/aerobase/turnserver.conf"] == "./deploy/coturn/turnserver.conf"
+    # the shared secret comes from .env on the command line, never from a committed file
+    assert "--static-auth-secret=${TURN_SECRET:?set TURN_SECRET in .env}" in turn["command"]

@@ -136,6 +136,7 @@ async def platform(
     pad: tuple[float, float, float] | None = None,
     plan: dict[str, Any] | None = None,
     base_process: bool = False,
+    metrics_ports: dict[str, int] | None = None,
 ) -> AsyncIterator[Platform]:
     """World + daemons connected to the server at `server_url`, assets registered in `tenant`.
 
@@ -144,7 +145,7 @@ async def platform(
     autopilot's (sim/vehicle/habits.py); `pad`: where the base stands (lat, lon, alt); `plan`: a
     QGroundControl plan imported as the run's mission instead of the pad square. `base_process`:
     the base daemon runs as its own `aerobase base-station` process (`Platform.base_daemon`), to
-    be killed."""
+    be killed. `metrics_ports`: {"base": port, "agent": port} turns on the daemons' own /metrics."""
     extra = {"base": BaseParams(pad_geodetic=pad)} if pad else {}
     world = full_world(WorldConfig.for_tests(speed=speed, seed=seed, **extra))
     if habits is not None:
@@ -176,6 +177,11 @@ async def platform(
             sconf = sconf.model_copy(
                 update={"rtk": sconf.rtk.model_copy(update={"tcp_port": world.ports["gnss"]})}
             )
+            ports = metrics_ports or {}
+            if "base" in ports:
+                sconf = sconf.model_copy(
+                    update={"metrics": sconf.metrics.model_copy(update={"port": ports["base"]})}
+                )
             base_app = setup_base(sconf)
             aconf = AgentConfig.model_validate(
                 {
@@ -188,6 +194,7 @@ async def platform(
                         "link_timeout_s": 2.0,
                     },
                     "telemetry": {"rate_hz": 5},
+                    **({"metrics": {"port": ports["agent"]}} if "agent" in ports else {}),
                     **(
                         {
                             "precland": {

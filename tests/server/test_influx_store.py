@@ -10,6 +10,7 @@ from statistics import fmean
 import httpx
 import pytest
 
+from server.kit.time import rfc3339 as utc_z
 from server.telemetry.influx import InfluxTelemetryStore
 from server.telemetry.influx_flux import flux_downsampled
 from server.telemetry.influx_lines import major_version, rfc3339, to_line, to_ns
@@ -61,7 +62,7 @@ async def test_write_then_query_raw_rows_in_time_order(store: InfluxTelemetrySto
     assert len(rows) == 10
     for i, row in enumerate(rows):
         assert row == {
-            "ts": (T0 + timedelta(seconds=i)).isoformat(),
+            "ts": utc_z(T0 + timedelta(seconds=i)),
             "battery.voltage": pytest.approx(12.0 + i / 10),
             "battery.pct": 100 - i,
             "mode": f"M{i}",
@@ -97,9 +98,7 @@ async def test_query_downsampled_mean_of_numbers_last_of_the_rest(
 
     rows = await store.query(Query(asset_id=asset, start=T0, end=END, every_s=5, agg="mean"))
 
-    assert [r["ts"] for r in rows] == [
-        (T0 + timedelta(seconds=5 * b)).isoformat() for b in range(4)
-    ]
+    assert [r["ts"] for r in rows] == [utc_z(T0 + timedelta(seconds=5 * b)) for b in range(4)]
     for b, row in enumerate(rows):
         members = range(5 * b, 5 * b + 5)
         assert row["battery.voltage"] == pytest.approx(fmean(12.0 + i / 10 for i in members))
@@ -126,8 +125,8 @@ async def test_query_downsampled_last_and_field_selection(store: InfluxTelemetry
 
     # buckets start at the range start (as in the SQL store), not at multiples of every_s
     assert rows == [
-        {"ts": (T0 + timedelta(seconds=3)).isoformat(), "battery.pct": 88, "mode": "M12"},
-        {"ts": (T0 + timedelta(seconds=13)).isoformat(), "battery.pct": 81, "mode": "M19"},
+        {"ts": utc_z(T0 + timedelta(seconds=3)), "battery.pct": 88, "mode": "M12"},
+        {"ts": utc_z(T0 + timedelta(seconds=13)), "battery.pct": 81, "mode": "M19"},
     ]
 
 
@@ -158,7 +157,7 @@ async def test_latest(store: InfluxTelemetryStore) -> None:
     latest = await store.latest(asset)
 
     assert latest is not None
-    assert latest["ts"] == (T0 + timedelta(seconds=7)).isoformat()
+    assert latest["ts"] == utc_z(T0 + timedelta(seconds=7))
     assert latest["mode"] == "M7" and latest["battery.pct"] == 93
     assert "asset_id" not in latest
 
@@ -211,7 +210,7 @@ async def test_retention_policy_is_created_and_used(influxdb_url: str) -> None: 
         now = datetime.now(UTC).replace(microsecond=0)
         asset = uuid.uuid4()
         await store.write([Sample(asset, now, 1, {"x": 1.0})])
-        assert await store.latest(asset) == {"ts": now.isoformat(), "x": 1}
+        assert await store.latest(asset) == {"ts": utc_z(now), "x": 1}
     finally:
         await store.close()
     async with httpx.AsyncClient(base_url=influxdb_url) as http:

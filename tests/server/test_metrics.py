@@ -25,6 +25,7 @@ FAMILIES = {
     "aerobase_ingest_lag_seconds",
     "aerobase_base_plc_link_up",
     "aerobase_base_rtk_corrections_per_second",
+    "aerobase_base_rtk_correction_age_seconds",
     "aerobase_connected_assets",
     "aerobase_connected_operators",
     "aerobase_telemetry_messages_received",

@@ -140,3 +140,13 @@ def test_schedules_validate_and_fire_per_policy(api, tenant: Tenant):
         api.get(f"/api/v1/schedules/{once['id']}", headers=tenant.h("viewer")).json()["enabled"]
         is False
     )
+
+
+def test_an_interval_below_the_servers_floor_is_refused_naming_it(api, tenant: Tenant):
+    ids = _setup(api, tenant)
+    body = {**ids, "name": "too often", "kind": "interval"}
+    r = api.post("/api/v1/schedules", headers=tenant.h("operator"), json={**body, "interval_s": 59})
+    assert r.status_code == 422 and r.json()["error"]["code"] == "invalid_schedule"
+    assert "at least 60 s" in r.json()["error"]["message"]
+    r = api.post("/api/v1/schedules", headers=tenant.h("operator"), json={**body, "interval_s": 60})
+    assert r.status_code == 201, r.text

@@ -6,18 +6,22 @@ import asyncio
 import base64
 import json
 import time
+import uuid
 from collections.abc import Iterator
 
 import httpx
 import pytest
+import redis.asyncio as aioredis
 import websockets
 
 from assetlink.configfile import decrypt_config
 from assetlink.dispatch import result
 from assetlink.link import Link
 from protocol.telemetry_payloads import Position, UavTelemetry
+from server.realtime.channels import presence_key
 from tests.conftest import Tenant
-from tests.replicas import replicas
+from tests.polling import eventually
+from tests.replicas import REDIS_URL, replicas
 
 
 @pytest.fixture
@@ -158,3 +162,60 @@ def test_two_processes_sharing_a_schedule_start_its_run_exactly_once(
             if r["schedule_id"] == s["id"]
         ]
     assert len(runs_a) == 1 and [r["id"] for r in runs_a] == [r["id"] for r in runs_b]
+
+
+@pytest.mark.slow
+async def test_a_presence_key_that_lapsed_is_claimed_again_by_the_live_connection(
+    two_servers, api, superuser_email, tmp_path
+):
+    """A replica whose loop stalls past the presence TTL (a loaded machine) finds its key gone:
+    nobody else holds it, so its connection is still the asset's one and keeps it (before, it
+    closed its own asset with 4409 "another connection took over", seen under bench load)."""
+    url_a, _ = two_servers
+    tenant = Tenant(api, superuser_email, "lapse")
+    asset = tenant.create_asset("uav")
+    cfg = decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
+    link = Link(url_a, cfg.name, cfg.secret, tmp_path / "link.db", seed=11)
+    r = aioredis.from_url(REDIS_URL)
+    key = "aerobase:" + presence_key(uuid.UUID(asset["id"]))
+    await link.start()
+    try:
+        await link.wait_connected(20)
+        owner = await eventually(lambda: r.get(key), 10, "the asset's presence key")
+        await r.delete(key)  # what the TTL does when the refresh comes too late
+        assert await eventually(lambda: r.get(key), 10, "the presence key claimed again") == owner
+        assert link.connected and link.stats.reconnects == 0
+    finally:
+        await link.stop()
+        await r.aclose()
+
+
+async def test_the_redis_broker_takes_more_concurrent_publishes_than_its_pool_has_connections():
+    """Every asset session publishes each message: 200 UAVs at 10 Hz put well over 100 publishes
+    in flight at once, which redis-py's default pool refused ("Too many connections"), failing
+    the sockets (bench/scale.py through nginx). Callers now wait for a connection."""
+    from server.realtime.broker import POOL_SIZE, RedisBroker
+    from tests.conftest import need_service
+
+    need_service("Redis", "127.0.0.1", 6379)
+    broker = RedisBroker(REDIS_URL, prefix=f"pool-{uuid.uuid4().hex[:8]}:")
+    await broker.start()
+    received: list[dict] = []  # type: ignore[type-arg]
+    broker.subscribe("flood", received.append)
+    try:
+
+        async def echoed() -> bool:  # the subscription is made by a task of its own
+            await broker.publish("flood", {"probe": True})
+            return bool(received)
+
+        await eventually(echoed, 5, "the subscription in place", interval=0.05)
+        count = 4 * POOL_SIZE
+        await asyncio.gather(*(broker.publish("flood", {"n": n}) for n in range(count)))
+
+        def numbered() -> list[int]:
+            return sorted(m["n"] for m in received if "n" in m)
+
+        await eventually(lambda: len(numbered()) >= count, 10, "every message back")
+        assert numbered() == list(range(count))
+    finally:
+        await broker.close()

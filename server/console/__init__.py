@@ -1,0 +1,1 @@
+"""The operator console: plain ES modules and CSS shipped in the package, served at `/`."""

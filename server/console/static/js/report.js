@@ -1,0 +1,49 @@
+// A run's report: figures, the eight steps, plots of altitude, battery, ground speed and the
+// distance from the pad during the landing, and the flight track around the base.
+
+import { loadFlight, entered } from "./flight.js";
+import { missionPoints } from "./geo.js";
+import { lineChart, trackMap } from "./plot.js";
+import { stateBadge, stepList, timelineTable } from "./runs.js";
+import { clear, h, num, when } from "./ui.js";
+
+function figure(caption, svg) {
+  return h("figure", {}, h("figcaption", {}, caption), svg);
+}
+
+export function render(main, ctx, args) {
+  const box = h("div", {}, h("p", {}, "Loading the report…"));
+  clear(main, h("h1", {}, "Run report"), box);
+  (async () => {
+    const f = await loadFlight(ctx, args[0]);
+    const { report, run, track, t0, t1 } = f;
+    const name = (id) => (ctx.byId.get(id) || { name: "?" }).name;
+    const marks = ["flying", "landing", "confirming"].map((s) => ({ t: entered(run, s), label: s })).filter((m) => m.t);
+    const series = (key) => track.map((p) => ({ t: p.t, v: p[key] }));
+    const landFrom = entered(run, "landing") ?? t0;
+    const landTo = entered(run, "confirming") ?? t1;
+    const nearPad = track.filter((p) => p.t >= landFrom && p.t <= landTo && Number.isFinite(p.north))
+      .map((p) => ({ t: p.t, v: Math.hypot(p.north, p.east) }));
+    const landing = report.landing;
+    clear(box,
+      h("p", {}, `${name(run.uav_id)} from ${name(run.base_id)}, started ${when(run.created_at)}. `, stateBadge(run),
+        run.cause ? ` ${run.cause}: ` : " ", run.reason),
+      h("div", { class: "figures" },
+        h("div", {}, h("b", {}, report.flight_time_s === null ? "–" : num(report.flight_time_s, 0, "s")), "Flight time"),
+        h("div", {}, h("b", {}, num(report.battery_used_pct, 1, "%")), "Battery used"),
+        h("div", {}, h("b", {}, report.landing_error_m === null ? "not measured" : num(report.landing_error_m * 100, 1, "cm")), "Landing error"),
+        h("div", {}, h("b", {}, landing ? (landing.base_confirmed ? "yes" : "no") : "–"), "Base confirmed the landing"),
+        h("div", {}, h("b", {}, track.length), "Track samples")),
+      stepList(run),
+      h("p", {}, h("a", { href: `#/replay/${run.id}` }, "Replay this run")),
+      h("div", { class: "plots" },
+        figure("Altitude above home (m)", lineChart({ title: "Altitude", unit: "m", points: series("position.alt_rel_m"), t0, t1, marks })),
+        figure("Battery (%)", lineChart({ title: "Battery", unit: "%", points: series("battery.percent"), t0, t1, marks })),
+        figure("Ground speed (m/s)", lineChart({ title: "Ground speed", unit: "m/s", points: f.speed, t0, t1, marks })),
+        figure(`Horizontal distance from the pad while landing (m)${report.landing_error_m !== null ? `; measured at touchdown ${num(report.landing_error_m, 3, "m")}` : ""}`,
+          lineChart({ title: "Landing error", unit: "m", points: nearPad })),
+        f.origin ? figure("Flight track, metres around the base (mission dashed)",
+          trackMap({ title: "Flight track", track, mission: f.mission ? missionPoints(f.mission, f.origin) : [], geo: f.origin })) : null),
+      timelineTable(run));
+  })().catch((err) => clear(box, h("p", { role: "alert", class: "error" }, `The report could not be loaded: ${err.message}`)));
+}
