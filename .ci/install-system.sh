@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # System packages the tests run as real programs: nginx (the reverse proxy of the deployment
 # topology), docker-compose (validates docker-compose.yml; no image is pulled), chromium (the
-# console's browser tests drive Debian's headless Chromium; no browser is downloaded), janus and
-# coturn (the media services, started with the very configuration files compose mounts). Idempotent.
+# console's and the video viewer's browser tests drive Debian's headless Chromium; no browser is
+# downloaded), janus and coturn (the media services, started with the very configuration files
+# compose mounts, and by the video tests). Idempotent.
 set -euo pipefail
 need=()
 command -v nginx >/dev/null 2>&1 || [ -x /usr/sbin/nginx ] || need+=(nginx)
@@ -10,6 +11,9 @@ command -v docker-compose >/dev/null 2>&1 || need+=(docker-compose)
 [ -x /usr/bin/chromium ] || need+=(chromium)
 command -v janus >/dev/null 2>&1 || need+=(janus)
 command -v turnserver >/dev/null 2>&1 || need+=(coturn)
+# the Janus tests build a private network namespace (unshare, ip link ... type veth)
+command -v ip >/dev/null 2>&1 || need+=(iproute2)
+command -v unshare >/dev/null 2>&1 || need+=(util-linux)
 if [ ${#need[@]} -eq 0 ]; then
     echo "system packages already installed"
     exit 0
@@ -19,11 +23,10 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 $SUDO apt-get update
 $SUDO apt-get install -y "${need[@]}"
-# the package's own nginx service would hold port 80 for nothing: the tests start their own
+# the packages' own services would hold ports for nothing: the tests start their own
 if command -v systemctl >/dev/null 2>&1 && [ -d /run/systemd/system ]; then
-    $SUDO systemctl disable --now nginx coturn >/dev/null 2>&1 || true
+    $SUDO systemctl disable --now nginx janus coturn >/dev/null 2>&1 || true
 elif command -v service >/dev/null 2>&1; then
-    $SUDO service nginx stop >/dev/null 2>&1 || true
-    $SUDO service coturn stop >/dev/null 2>&1 || true
+    for svc in nginx janus coturn; do $SUDO service "$svc" stop >/dev/null 2>&1 || true; done
 fi
 echo "installed: ${need[*]}"

@@ -83,6 +83,25 @@ class PreclandSection(PrecisionLandingConfig):
         )
 
 
+class VideoSection(BaseModel):
+    """`[video]`: live video, encoded once on board (VP8) and published to the server with WHIP.
+
+    The source is a video file (`file`, looped) or the downward camera's frame stream (by default
+    the one precision landing reads). Size and rate should match the asset's camera description.
+    `allow_loopback_ice` is for a server on the same loopback-only host (tests, the demo).
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    enabled: bool = False
+    camera_host: str | None = None  # default: [precland] camera_host
+    camera_port: int | None = Field(default=None, ge=1, le=65535)  # default: [precland]'s
+    file: Path | None = None
+    width: int = Field(default=640, ge=16, le=7680)
+    height: int = Field(default=480, ge=16, le=4320)
+    fps: float = Field(default=30.0, gt=0, le=120)
+    allow_loopback_ice: bool = False
+
+
 class MetricsSection(BaseModel):
     """The agent's own Prometheus /metrics (assetlink/metrics.py): off unless a port is set;
     on this machine only unless `host` says otherwise."""
@@ -101,6 +120,7 @@ class AgentConfig(BaseModel):
     telemetry: TelemetrySection = TelemetrySection()
     availability: AvailabilitySection = AvailabilitySection()
     precland: PreclandSection = PreclandSection()
+    video: VideoSection = VideoSection()
     metrics: MetricsSection = MetricsSection()
 
     @classmethod

@@ -31,6 +31,7 @@ from asset_agent.handlers import Handlers
 from asset_agent.metrics import families
 from asset_agent.precland.supervisor import PrecisionLander, stream_rates
 from asset_agent.uav_telemetry import to_event, to_telemetry
+from asset_agent.video.publish import video_publisher
 from assetlink.configfile import AssetConfig, ConfigFileError
 from assetlink.configfile_cli import PasswordSourceError, load_config
 from assetlink.link import Link
@@ -133,6 +134,10 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
     lander = None
     if agent.lander is not None:
         lander = asyncio.create_task(agent.lander.run(stop), name="precland")
+    video = video_publisher(
+        agent.config, agent.link.server_url, agent.asset.asset_id, lambda: agent.link.token
+    )
+    publishing = asyncio.create_task(video.run(), name="video") if video is not None else None
     metrics = None
     if agent.config.metrics.port:
         collector = DaemonMetrics(agent.link, lambda: families(agent.autopilot))
@@ -142,7 +147,10 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
     finally:
         if metrics:
             metrics.close()
-        await cancel_and_wait([lander])
+        await cancel_and_wait([lander, publishing])
+        if video is not None:
+            await video.stop()
+            await video.track.aclose()
         await agent.link.stop()
         await agent.autopilot.close()
 

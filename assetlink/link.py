@@ -128,6 +128,12 @@ class Link:
             self._core.rtcm_callback = callback
 
     @property
+    def token(self) -> str | None:
+        """The session's bearer token, for the asset's other calls to the server (video's WHIP);
+        None before the first login."""
+        return self._token.access_token if self._token is not None else None
+
+    @property
     def connected(self) -> bool:
         """True between the server's welcome and the end of that connection."""
         return self._core is not None and self._core.connected.is_set()

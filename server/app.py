@@ -44,6 +44,9 @@ from server.stations.service import BaseCorrections, caster_authenticator
 from server.telemetry.endpoints import router as telemetry_router
 from server.telemetry.sql import SqlTelemetryStore
 from server.telemetry.store import TelemetryStore, retention_loop
+from server.video.endpoints import router as video_router
+from server.video.lifecycle import make_gateway
+from server.video.page import router as video_page_router
 
 log = logging.getLogger(__name__)
 VERSION = "0.1.0"
@@ -91,6 +94,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         hub = Hub(broker, sessionmaker)
         await hub.start()
         metrics.watch_hub(hub)
+        video = make_gateway(settings)
         services = Services(
             settings=settings,
             passwords=passwords,
@@ -101,6 +105,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             ingest=ingest,
             hub=hub,
             session_end_listeners=(hub.sessions_ended,),
+            video=video,
         )
         set_services(app, services)
         runs = RunEngine(services, hub.node)
@@ -118,6 +123,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             retention.cancel()
+            await video.close()
             await scheduler.stop()
             await runs.stop()
             await hub.stop()
@@ -181,6 +187,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         airspace_router,
         runs_router,
         schedules_router,
+        video_router,
+        video_page_router,
     ):
         app.include_router(router)
     app.include_router(console_router(tile_url=settings.map_tile_url))

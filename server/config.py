@@ -106,6 +106,40 @@ class Settings(BaseSettings):
     # scrypt for asset config files (log2 of N)
     config_scrypt_log_n: int = Field(default=15, ge=10, le=20)
 
+    # live video (server/video, frontend_api.md "Live video"): the media path is the embedded
+    # aiortc relay unless JANUS_URL is set; viewers per asset beyond video_max_viewers get 503
+    video_path: Literal["embedded", "janus"] | None = None  # None: janus when JANUS_URL is set
+    janus_url: str | None = Field(
+        default=None, validation_alias=AliasChoices("JANUS_URL", "AEROBASE_JANUS_URL")
+    )
+    # the address assets send RTP to on the Janus path (default: JANUS_URL's host)
+    janus_rtp_host: str | None = None
+    video_max_viewers: int = Field(default=10, ge=1)
+    video_retry_after_s: int = Field(default=5, ge=1)
+    # ICE servers handed to viewers (and used by the relay), e.g. "stun:stun.example.com:3478";
+    # TURN URLs get coturn `use-auth-secret` credentials valid for video_turn_ttl_s
+    video_stun_urls: Annotated[list[str], NoDecode] = Field(default_factory=list)
+    video_turn_urls: Annotated[list[str], NoDecode] = Field(default_factory=list)
+    video_turn_secret: str | None = None
+    video_turn_ttl_s: int = Field(default=3600, ge=60)
+    # test and development only: ICE host candidates on 127.0.0.1 and nowhere else (aioice never
+    # offers loopback), for everything on one machine (tests, the demo). Refused in production.
+    video_ice_loopback: bool = False
+    # recording (embedded path): each publication's frames as WebM segments, never re-encoded,
+    # under <dir>/<asset id>/; off when unset; oldest deleted beyond the age or the total size
+    video_record_dir: Path | None = None
+    video_record_segment_s: float = Field(default=60.0, ge=1)
+    video_record_max_age_days: float = Field(default=7.0, gt=0)
+    video_record_max_bytes: int = Field(default=10 * 1024**3, ge=1024**2)
+
+    @field_validator("video_stun_urls", "video_turn_urls", mode="before")
+    @classmethod
+    def _split_urls(cls, value: Any) -> Any:
+        """A comma-separated list (the environment) or a list."""
+        if isinstance(value, str):
+            return [v for v in (part.strip() for part in value.split(",")) if v]
+        return value
+
     @field_validator("cors_origins", mode="before")
     @classmethod
     def _split_origins(cls, value: Any) -> Any:
@@ -136,7 +170,22 @@ class Settings(BaseSettings):
         if self.environment == "production" and self.database_url.startswith("sqlite"):
             # Allowed, but a production deployment should say it on purpose.
             pass
+        if self.video_turn_urls and (self.video_turn_secret or "") in PLACEHOLDER_SECRETS:
+            raise ValueError(
+                "AEROBASE_VIDEO_TURN_URLS needs AEROBASE_VIDEO_TURN_SECRET (not a placeholder)"
+            )
+        if self.video_ice_loopback and self.environment == "production":
+            raise ValueError("AEROBASE_VIDEO_ICE_LOOPBACK is for tests and development only")
+        if self.video_path == "janus" and not self.janus_url:
+            raise ValueError("AEROBASE_VIDEO_PATH=janus needs JANUS_URL")
         return self
+
+    @property
+    def effective_video_path(self) -> Literal["embedded", "janus"]:
+        """The media path: as set, else janus when JANUS_URL is set, else embedded."""
+        if self.video_path is not None:
+            return self.video_path
+        return "janus" if self.janus_url else "embedded"
 
     @cached_property
     def effective_public_url(self) -> str:

@@ -18,6 +18,7 @@ from server.realtime.broker import Broker
 from server.realtime.hub import Hub
 from server.realtime.ingest import Ingest
 from server.telemetry.store import TelemetryStore
+from server.video.gateway import MediaGateway
 
 
 @dataclass(frozen=True)
@@ -33,3 +34,4 @@ class Services:
     ingest: Ingest
     hub: Hub
     session_end_listeners: tuple[SessionEndListener, ...] = ()
+    video: MediaGateway | None = None  # the live-video media path (server/video)

@@ -6,6 +6,10 @@ import base64
 from pathlib import Path
 from typing import Any
 
+# the UAV's camera description (asset attributes) and the agent's [video]: the simulated downward
+# camera's 640x480 render at 15 fps, a rate the demo's 2-core budget affords beside everything else
+DEMO_CAMERA = {"width": 640, "height": 480, "fps": 15}
+
 
 def write_secret(path: Path, data: bytes | str) -> None:
     """Write a file only its owner may read."""
@@ -86,6 +90,13 @@ rate_hz = 5
 camera_port = {ports["camera"]}
 ir_port = {ports["ir"]}
 steering = "{steering}"
+
+[video]
+enabled = true
+width = {DEMO_CAMERA["width"]}
+height = {DEMO_CAMERA["height"]}
+fps = {DEMO_CAMERA["fps"]}
+allow_loopback_ice = true
 """
         if "camera" in ports and "ir" in ports
         else ""

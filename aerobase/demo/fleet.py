@@ -13,6 +13,7 @@ from typing import Any
 import httpx
 import websockets
 
+from aerobase.demo.daemons import DEMO_CAMERA
 from aerobase.demo.processes import Processes, say
 
 ROOT_EMAIL, OPS_EMAIL = "root@demo.aerobase", "ops@demo.aerobase"
@@ -78,13 +79,36 @@ async def register(c: httpx.AsyncClient, passwords: dict[str, str]) -> Fleet:
             "kind": "uav",
             "password": passwords["asset"],
             "base_id": base["id"],
-            "attributes": {"mass_g": 1450, "endurance_s": 1500, "cruise_speed_mps": 8},
+            "attributes": {
+                "mass_g": 1450,
+                "endurance_s": 1500,
+                "cruise_speed_mps": 8,
+                "camera": DEMO_CAMERA,
+            },
         },
     )
     say(
         "registered organisation 'Demo Fleet', user ops@demo.aerobase, base-porto-1 and uav-porto-1"
     )
     return Fleet(ops, base, uav)
+
+
+async def announce_video(c: httpx.AsyncClient, fleet: Fleet, server_url: str) -> bool:
+    """Wait (up to 30 s) for the UAV's camera to be live and say where to watch it."""
+    path = f"/api/v1/assets/{fleet.uav['id']}/video"
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        video = await api(c, "GET", path, fleet.ops_token)
+        if video["state"] == "live":
+            say(
+                f"live video of uav-porto-1 ({video['width']}x{video['height']} VP8, "
+                f"{video['measured_fps'] or video['fps']} fps): {server_url}/video/viewer"
+                f"#asset={fleet.uav['id']}&token={fleet.ops_token}"
+            )
+            return True
+        await asyncio.sleep(0.5)
+    say("the UAV's video is not live after 30 s (see agent.log); the mission goes on")
+    return False
 
 
 async def wait_ready(c: httpx.AsyncClient, fleet: Fleet, procs: Processes) -> tuple[float, float]:

@@ -31,6 +31,7 @@ from aerobase.demo.daemons import write_daemon_files
 from aerobase.demo.fleet import (
     OPS_EMAIL,
     ROOT_EMAIL,
+    announce_video,
     register,
     report_run,
     schedule_survey,
@@ -53,6 +54,8 @@ def prepare(args: argparse.Namespace) -> tuple[Path, dict[str, str], dict[str, s
         "DATABASE_URL": f"sqlite+aiosqlite:///{folder / 'aerobase.db'}",
         "AEROBASE_PUBLIC_URL": f"http://127.0.0.1:{args.port}",
         "AEROBASE_LOG_FORMAT": "json",
+        # everything runs on this machine: WebRTC peers may use loopback (server/video)
+        "AEROBASE_VIDEO_ICE_LOOPBACK": "true",
     }
     say(f"files, logs and the database go to {folder}")
     admin = ["admin", "create-superuser", "--email", ROOT_EMAIL, "--password", secrets_["root"]]
@@ -123,6 +126,7 @@ async def run_mission(
         procs.start("base-station", ["base-station", "--config", str(folder / "base.toml")], env)
         procs.start("agent", ["agent", "--config", str(folder / "agent.toml")], env)
         lat, lon = await wait_ready(c, fleet, procs)
+        await announce_video(c, fleet, server_url)
         await schedule_survey(c, fleet, lat, lon)
         outcome = await watch(server_url, fleet, procs)
         await report_run(c, fleet, outcome)

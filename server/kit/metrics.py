@@ -73,6 +73,21 @@ BASE_PLC_LINK = Gauge(
     ["asset_id"],
     registry=REGISTRY,
 )
+VIDEO_FRAMES = Counter(
+    "aerobase_video_frames_forwarded_total",
+    "Encoded video frames the embedded relay handed to a viewer or a recorder (never re-encoded)",
+    registry=REGISTRY,
+)
+VIDEO_VIEWERS = Gauge(
+    "aerobase_video_viewers",
+    "Video viewer sessions held by this process's embedded relay",
+    registry=REGISTRY,
+)
+VIDEO_PUBLISHERS = Gauge(
+    "aerobase_video_publishers",
+    "Assets publishing video to this process's embedded relay",
+    registry=REGISTRY,
+)
 BASE_RTK_RATE = Gauge(
     "aerobase_base_rtk_corrections_per_second",
     "RTCM3 correction frames per second a landing base last reported",

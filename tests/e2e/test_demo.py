@@ -47,4 +47,6 @@ def test_demo_runs_a_scheduled_survey_to_completion(tmp_path):
     for step in (*DEMO_STEPS, "Completed"):
         assert step in out, (step, out)
     assert out.count("[2/8] Opening") == 1  # each step once
+    # the agent streams the simulated downward camera through the server (issue 15)
+    assert "live video of uav-porto-1 (640x480 VP8" in out, out
     assert "stopping every process" in out
