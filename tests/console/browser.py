@@ -21,14 +21,19 @@ def chromium() -> str:
     return CHROMIUM
 
 
+ARGS = [
+    "--no-sandbox",  # CI runs as root
+    "--allow-loopback-in-peer-connection",  # the test server's video candidates are on loopback
+    "--disable-features=WebRtcHideLocalIpsWithMdns",  # real candidates, not .local names
+]  # (as tests/video/test_viewer_browser.py; the page's muted <video> autoplays by itself)
+
+
 async def launch() -> AsyncIterator[Any]:
-    """A headless Chromium (no sandbox: CI runs as root)."""
+    """A headless Chromium that may watch the test server's video over loopback WebRTC."""
     from playwright.async_api import async_playwright
 
     async with async_playwright() as pw:
-        browser = await pw.chromium.launch(
-            executable_path=chromium(), headless=True, args=["--no-sandbox"]
-        )
+        browser = await pw.chromium.launch(executable_path=chromium(), headless=True, args=ARGS)
         try:
             yield browser
         finally:

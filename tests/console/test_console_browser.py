@@ -20,6 +20,7 @@ from tests.polling import eventually
 pytestmark = pytest.mark.slow  # a browser and the whole platform: not in the fast lane
 
 PAGE_WEIGHT_LIMIT = 300_000  # bytes transferred, compressed, for the first load (issue 18)
+CAMERA = {"width": 320, "height": 240, "fps": 15}  # the UAV's camera: the world's render, scaled
 
 
 @pytest.fixture(scope="module")
@@ -48,6 +49,10 @@ def _bad_plan(lat: float, lon: float) -> bytes:
     return json.dumps(plan).encode()
 
 
+async def _frames_over(video, n: int) -> bool:  # type: ignore[no-untyped-def]
+    return int(await video.get_attribute("data-frames") or 0) > n
+
+
 async def _numbers(locator) -> float | None:  # type: ignore[no-untyped-def]
     text = await locator.inner_text()
     m = re.search(r"-?\d+(?:\.\d+)?", text)
@@ -55,11 +60,26 @@ async def _numbers(locator) -> float | None:  # type: ignore[no-untyped-def]
 
 
 async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_reads_its_report(
-    live_server, tenant: Tenant, tmp_path, browser
+    database_url, superuser_email, tmp_path, browser
 ):
+    import httpx
+
+    from tests.conftest import LiveServer, test_settings
+
+    # a server whose video relay offers loopback candidates, as the agent's [video] does here
+    server = LiveServer(test_settings(database_url, video_ice_loopback=True)).start()
+    try:
+        with httpx.Client(base_url=server.url) as sync_api:
+            tenant = await asyncio.to_thread(Tenant, sync_api, superuser_email, "console")
+            await _operator_story(server, tenant, tmp_path, browser)
+    finally:
+        await asyncio.to_thread(server.stop)
+
+
+async def _operator_story(live_server, tenant: Tenant, tmp_path, browser) -> None:  # type: ignore[no-untyped-def]
     from playwright.async_api import expect
 
-    async with platform(live_server.url, tenant, tmp_path) as p:
+    async with platform(live_server.url, tenant, tmp_path, video=CAMERA) as p:
         uav = (await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}", headers=tenant.h())).json()
         base = (await p.api.get(f"/api/v1/assets/{p.ids['base_id']}", headers=tenant.h())).json()
         page, traffic = await open_page(browser, live_server.url + "/")
@@ -84,6 +104,13 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
         await dialog.get_by_role("button", name="Check availability").click()
         await expect(base_card.get_by_role("status")).to_contain_text("succeeded", timeout=30_000)
         await expect(base_card).to_contain_text(re.compile(r"Go / no-go\s*GO all conditions met"))
+        # the UAV's live camera: WHEP through the shared client, decoded frames counted by the page
+        video_state = uav_card.get_by_role("status", name=f"Video state of {uav['name']}")
+        await expect(video_state).to_have_text("live", timeout=60_000)
+        video = uav_card.get_by_label(f"Live video of {uav['name']}")
+        await eventually(lambda: _frames_over(video, 30), 60, "30 decoded video frames")
+        size = await video.evaluate("v => [v.videoWidth, v.videoHeight]")
+        assert size == [CAMERA["width"], CAMERA["height"]], size
         weight = traffic.total()
         await shot(page, "fleet")
 
