@@ -49,8 +49,9 @@ class Traffic:
     transferred: dict[str, int] = field(default_factory=dict)
 
     def off_origin(self, origin: str) -> list[str]:
+        """Requests to another host; a blob: URL has its creator's origin (blob:http://host/uuid)."""
         host = urlsplit(origin).netloc
-        return [u for u in self.urls if urlsplit(u).netloc != host]
+        return [u for u in self.urls if urlsplit(u.removeprefix("blob:")).netloc != host]
 
     def total(self) -> int:
         return sum(self.transferred.values())

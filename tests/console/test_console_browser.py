@@ -66,8 +66,15 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
 
     from tests.conftest import LiveServer, test_settings
 
-    # a server whose video relay offers loopback candidates, as the agent's [video] does here
-    server = LiveServer(test_settings(database_url, video_ice_loopback=True)).start()
+    # a server whose video relay offers loopback candidates, as the agent's [video] does here, and
+    # records what it relays (the replay plays it back)
+    settings = test_settings(
+        database_url,
+        video_ice_loopback=True,
+        video_record_dir=tmp_path / "recordings",
+        video_record_segment_s=10.0,  # the run spans several segments, most of them closed
+    )
+    server = LiveServer(settings).start()
     try:
         with httpx.Client(base_url=server.url) as sync_api:
             tenant = await asyncio.to_thread(Tenant, sync_api, superuser_email, "console")
@@ -221,6 +228,24 @@ async def _operator_story(live_server, tenant: Tenant, tmp_path, browser) -> Non
         for _ in range(40):
             await slider.press("ArrowRight")
         await expect(page.get_by_role("definition").first).not_to_have_text("pending")
+        # back to the middle of the flight (0.5 s a key): its recorded video, a segment fetched
+        # with the token and played from a blob: URL at that moment's frame
+        middle = int(float(await slider.get_attribute("max") or 0))
+        await slider.press("Home")
+        for _ in range(middle):
+            await slider.press("ArrowRight")
+        await expect(page.get_by_role("definition").first).to_contain_text("flying")
+        recorded = page.get_by_role("status", name="Recorded video state")
+        await expect(recorded).to_contain_text(re.compile(r"^recorded · \d{8}T"), timeout=30_000)
+        playback = page.get_by_label("Recorded video of the run")
+        await page.wait_for_function(
+            "() => { const v = document.querySelector('video[aria-label=\"Recorded video of the run\"]');"
+            " return v && v.readyState >= 2 && !v.seeking && v.currentTime > 0; }",
+            timeout=30_000,
+        )
+        shown = await playback.evaluate("v => [v.videoWidth, v.videoHeight, v.currentTime]")
+        assert shown[:2] == [CAMERA["width"], CAMERA["height"]] and shown[2] > 0, shown
+        await playback.evaluate("v => v.closest('figure').scrollIntoView({block: 'end'})")
         await shot(page, "replay")
         await page.get_by_role("link", name="History").click()
         await expect(page.get_by_role("table", name=re.compile("Past runs"))).to_contain_text(
