@@ -159,9 +159,7 @@ async def platform(
         lat, lon, _ = world.base.pad_geodetic
         base = tenant.create_asset("landing_base", attributes={"latitude": lat, "longitude": lon})
         camera = {"camera": video} if video is not None else {}
-        uav = tenant.create_asset(
-            "uav", base_id=base["id"], attributes={"mass_g": 1450, **camera}
-        )
+        uav = tenant.create_asset("uav", base_id=base["id"], attributes={"mass_g": 1450, **camera})
         async with httpx.AsyncClient(base_url=server_url, timeout=30) as api:
             if plan is not None:
                 r = await api.post(
