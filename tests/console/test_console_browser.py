@@ -384,6 +384,9 @@ async def test_the_console_reconnects_by_itself_after_a_server_restart_and_marks
                 await expect(page.locator("#link")).to_have_text("Live", timeout=30_000)
                 await expect(card).to_contain_text("connected", timeout=30_000)
                 assert await link.count() == 1
+                # the video panel came back by itself too: the UAV sends no video in this world
+                video = card.get_by_role("status", name=f"Video state of {uav['name']}")
+                await expect(video).to_have_text(re.compile("^no signal"), timeout=30_000)
                 # on the restarted server, commands still go out and come back with their outcome
                 base = page.get_by_role("region", name=re.compile("^Landing base "))
                 for command, panels in (

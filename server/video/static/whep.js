@@ -39,6 +39,7 @@ export function watch({ asset, video, token, onState = () => {} }) {
   let lastFrameAt = 0;
   let checking = false;
   let nextCheckAt = 0;
+  let backoff = 500; // ms before the next attempt when the server cannot be reached
 
   const show = (state, info) => {
     if (info !== undefined) stats.info = info;
@@ -50,7 +51,11 @@ export function watch({ asset, video, token, onState = () => {} }) {
     fetch(path, { ...init, headers: { ...(init.headers || {}), Authorization: `Bearer ${token()}` } });
   const describe = async () => {
     const described = await api(`/api/v1/assets/${encodeURIComponent(asset)}/video`);
-    if (!described.ok) throw new Error(await errorOf(described));
+    if (!described.ok) {
+      const err = new Error(await errorOf(described));
+      err.status = described.status;
+      throw err;
+    }
     return described.json();
   };
 
@@ -63,6 +68,7 @@ export function watch({ asset, video, token, onState = () => {} }) {
       const retry = Number(answered.headers.get("Retry-After") || 0);
       const err = new Error(await errorOf(answered));
       err.retryAfterS = answered.status === 503 || answered.status === 409 ? Math.max(1, retry || 2) : 0;
+      err.status = answered.status;
       throw err;
     }
     return answered;
@@ -123,10 +129,24 @@ export function watch({ asset, video, token, onState = () => {} }) {
       await connect();
     } catch (err) {
       if (stopped) return;
+      end();
       stats.error = String(err.message || err);
-      show("error", stats.error);
-      if (err.retryAfterS) start(err.retryAfterS * 1000);
+      if (err.retryAfterS) {
+        show("error", stats.error);
+        start(err.retryAfterS * 1000);
+      } else if (err.status === undefined || err.status >= 500 || err.status === 401) {
+        // the server is away (restart, a replica's death) or the token was being renewed: again,
+        // backing off to 8 s; a refusal (404 no video, 403) stays an error
+        show("reconnecting");
+        backoff = Math.min(8000, backoff * 2);
+        start(backoff);
+      } else {
+        show("error", stats.error);
+      }
+      return;
     }
+    backoff = 500;
+    stats.error = null;
   }
 
   function onFrame(_now, meta) {
