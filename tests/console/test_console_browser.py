@@ -238,11 +238,16 @@ async def _operator_story(live_server, tenant: Tenant, tmp_path, browser) -> Non
         recorded = page.get_by_role("status", name="Recorded video state")
         await expect(recorded).to_contain_text(re.compile(r"^recorded · \d{8}T"), timeout=30_000)
         playback = page.get_by_label("Recorded video of the run")
-        await page.wait_for_function(
-            "() => { const v = document.querySelector('video[aria-label=\"Recorded video of the run\"]');"
-            " return v && v.readyState >= 2 && !v.seeking && v.currentTime > 0; }",
-            timeout=30_000,
-        )
+        media = "v => [v.readyState, v.seeking, v.currentTime, v.duration, v.error && v.error.code]"
+
+        async def playable() -> bool:
+            ready, seeking, at, _, _ = await playback.evaluate(media)
+            return ready >= 2 and not seeking and at > 0
+
+        try:
+            await eventually(playable, 30, "the recorded frame of that moment")
+        except AssertionError as err:
+            raise AssertionError(f"{err}: {await playback.evaluate(media)}") from None
         shown = await playback.evaluate("v => [v.videoWidth, v.videoHeight, v.currentTime]")
         assert shown[:2] == [CAMERA["width"], CAMERA["height"]] and shown[2] > 0, shown
         await playback.evaluate("v => v.closest('figure').scrollIntoView({block: 'end'})")
