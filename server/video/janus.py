@@ -80,6 +80,15 @@ class JanusClient:
             return [] if data.get("janus") == "keepalive" else [data]
         return list(data)
 
+    async def info(self) -> dict[str, Any]:
+        """Janus's `GET /info` (its version and plugins): raises when Janus does not answer."""
+        r = await self.http.get(f"{self.url}/info", timeout=5.0)
+        r.raise_for_status()
+        data: dict[str, Any] = r.json()
+        if data.get("janus") != "server_info":
+            raise GatewayUnavailable(f"Janus at {self.url} answered {data.get('janus')!r} to /info")
+        return data
+
     async def close(self) -> None:
         """Close the HTTP client."""
         await self.http.aclose()
@@ -102,6 +111,10 @@ class JanusGateway:
         # asset → (mountpoint id, RTP port, camera, when it was made: loop time)
         self._mounts: dict[uuid.UUID, tuple[int, int, CameraDescription, float]] = {}
         self._viewers: dict[uuid.UUID, tuple[uuid.UUID, int]] = {}
+
+    async def ping(self) -> None:
+        """Readiness (`/api/ready`): Janus answers its HTTP API."""
+        await self.client.info()
 
     # ---- session and restart detection
     async def _ensure(self) -> tuple[int, int]:

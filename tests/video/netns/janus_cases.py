@@ -155,6 +155,21 @@ async def test_a_viewer_gets_frames_through_janus(server: LiveServer, tenant: Te
         await pub.track.aclose()
 
 
+def test_readiness_names_janus_when_it_does_not_answer(server: LiveServer, janus: Janus):
+    """/api/ready checks Janus on the Janus path: 503 naming it while it is down, 200 again after."""
+    with httpx.Client(base_url=server.url, timeout=10) as api:
+        up = api.get("/api/ready")
+        assert up.status_code == 200 and up.json()["checks"]["janus"] == "ok", up.text
+        janus.stop()
+        try:
+            down = api.get("/api/ready")
+            assert down.status_code == 503, down.text
+            assert down.json()["checks"]["janus"].startswith("unreachable"), down.text
+        finally:
+            janus.start()
+        assert api.get("/api/ready").json()["checks"]["janus"] == "ok"
+
+
 @pytest.mark.slow
 async def test_janus_restarting_is_noticed_and_the_mountpoint_made_again(
     server: LiveServer, tenant: Tenant, janus: Janus
