@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import re
 import uuid
+from collections.abc import Awaitable
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -14,6 +16,7 @@ from server.kit.errors import Forbidden, NotFound, Unprocessable
 from server.kit.principal import Principal
 from server.kit.service import Service
 from server.kit.uow import UnitOfWork
+from server.realtime.hub import Hub
 from server.video.camera import camera_of
 from server.video.errors import ViewerLimit
 from server.video.gateway import MediaGateway, Negotiated
@@ -55,11 +58,17 @@ class VideoService(Service):
     """Describes, publishes and views the streams of the caller's organisation's UAVs."""
 
     def __init__(
-        self, uow: UnitOfWork, principal: Principal, settings: Settings, gateway: MediaGateway
+        self,
+        uow: UnitOfWork,
+        principal: Principal,
+        settings: Settings,
+        gateway: MediaGateway,
+        hub: Hub | None = None,
     ) -> None:
         super().__init__(uow, principal)
         self.settings = settings
         self.gateway = gateway
+        self.hub = hub  # viewers and publications end with the caller's session through it
         self.assets = AssetService(uow, principal, settings)
 
     async def _uav(self, asset_id: uuid.UUID) -> Asset:
@@ -106,10 +115,24 @@ class VideoService(Service):
     async def view(self, asset_id: uuid.UUID, offer: str) -> Negotiated:
         """Open a viewer session (WHEP)."""
         await self._uav(asset_id)
+        hold = self.hub.hold(self.principal.session_id, "video_viewer") if self.hub else None
         try:
-            return await self.gateway.view(asset_id, offer, self.settings.video_max_viewers)
+            opened = await self.gateway.view(
+                asset_id,
+                offer,
+                self.settings.video_max_viewers,
+                on_end=hold.release if hold else None,
+            )
         except ViewerLimit as err:  # the path knows the limit is reached; the settings say when
             raise ViewerLimit(err.message, self.settings.video_retry_after_s) from None
+        if hold is not None:  # the session's end stops the viewer, as it closes its sockets
+            hold.start(lambda: self._quietly(self.gateway.stop(asset_id, opened.session_id)))
+        return opened
+
+    @staticmethod
+    async def _quietly(step: Awaitable[None]) -> None:
+        with contextlib.suppress(NotFound):  # it ended meanwhile
+            await step
 
     async def answer(self, asset_id: uuid.UUID, session_id: uuid.UUID, sdp: str) -> None:
         """A viewer's SDP answer to the gateway's offer (Janus path)."""
@@ -136,7 +159,13 @@ class VideoService(Service):
         """The asset's own WHIP publish (a user, or another asset, may not)."""
         self._check_publisher(asset_id)
         asset = await self._uav(asset_id)
-        return await self.gateway.publish(asset_id, offer, camera_of(asset.attributes))
+        hold = self.hub.hold(self.principal.session_id, "video_publisher") if self.hub else None
+        opened = await self.gateway.publish(
+            asset_id, offer, camera_of(asset.attributes), on_end=hold.release if hold else None
+        )
+        if hold is not None:  # the asset's session ending (a new config, removal) ends it
+            hold.start(lambda: self._quietly(self.gateway.unpublish(asset_id, opened.session_id)))
+        return opened
 
     async def rtp_target(self, asset_id: uuid.UUID) -> RtpTargetOut:
         """The asset asks where to send its RTP (Janus path): the mountpoint's port."""
