@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import json
 import re
 import uuid
 from collections.abc import Awaitable
@@ -196,27 +197,7 @@ class VideoService(Service):
     async def recordings(self, asset_id: uuid.UUID) -> list[RecordingOut]:
         """The asset's recorded segments, newest first (empty when recording is off)."""
         await self._uav(asset_id)
-        folder = self._recording_folder(asset_id)
-        if folder is None or not folder.is_dir():
-            return []
-        out = []
-        base = f"/api/v1/assets/{asset_id}/video/recordings"
-        for path in sorted(folder.glob("*.webm"), reverse=True):
-            found = SEGMENT_NAME.match(path.name)
-            if found is None:
-                continue
-            started = datetime.strptime(found[1], "%Y%m%dT%H%M%S.%fZ").replace(tzinfo=UTC)
-            times = path.with_suffix(".times.jsonl").name
-            out.append(
-                RecordingOut(
-                    name=path.name,
-                    started_at=started,
-                    bytes=path.stat().st_size,
-                    url=f"{base}/{path.name}",
-                    times_url=f"{base}/{times}",
-                )
-            )
-        return out
+        return recorded_segments(self.settings.video_record_dir, asset_id)
 
     async def recording_file(self, asset_id: uuid.UUID, name: str) -> Path:
         """A segment or its times file (NotFound for any other name)."""
@@ -225,3 +206,65 @@ class VideoService(Service):
         if folder is None or SEGMENT_NAME.match(name) is None or not (folder / name).is_file():
             raise NotFound(f"no recording {name!r} of this asset")
         return folder / name
+
+
+def _last_frame_time(times: Path) -> datetime | None:
+    """The receive time of a segment's last frame (its times file's last line), None when none."""
+    try:
+        with times.open("rb") as f:
+            f.seek(0, 2)
+            f.seek(max(0, f.tell() - 512))
+            tail = f.read().decode("utf-8", errors="replace")
+    except OSError:
+        return None
+    for line in reversed(tail.splitlines()):
+        try:
+            t = json.loads(line)["t"]
+        except (ValueError, KeyError, TypeError):
+            continue  # a line being written, or cut by the seek
+        if isinstance(t, int) and not isinstance(t, bool):
+            return datetime.fromtimestamp(t / 1000, UTC)
+    return None
+
+
+def recorded_segments(
+    root: Path | None,
+    asset_id: uuid.UUID,
+    start: datetime | None = None,
+    end: datetime | None = None,
+) -> list[RecordingOut]:
+    """The asset's recorded segments under `root`, newest first; with `start` and `end`, only
+    those whose frames (first to last, server receive times) overlap [start, end]."""
+    folder = None if root is None else root / str(asset_id)
+    if folder is None or not folder.is_dir():
+        return []
+    out = []
+    base = f"/api/v1/assets/{asset_id}/video/recordings"
+    for path in sorted(folder.glob("*.webm"), reverse=True):
+        found = SEGMENT_NAME.match(path.name)
+        if found is None:
+            continue
+        started = datetime.strptime(found[1], "%Y%m%dT%H%M%S.%fZ").replace(tzinfo=UTC)
+        times = path.with_suffix(".times.jsonl")
+        ended = _last_frame_time(times)
+        if ended is not None:  # its times are whole milliseconds; the name has microseconds
+            ended = max(ended, started)
+        if end is not None and started > end:
+            continue
+        if start is not None and (ended or started) < start:
+            continue
+        try:
+            size = path.stat().st_size
+        except OSError:  # deleted by the retention meanwhile
+            continue
+        out.append(
+            RecordingOut(
+                name=path.name,
+                started_at=started,
+                ended_at=ended,
+                bytes=size,
+                url=f"{base}/{path.name}",
+                times_url=f"{base}/{times.name}",
+            )
+        )
+    return out
