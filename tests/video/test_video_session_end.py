@@ -1,15 +1,16 @@
 """A session's end stops what it holds in the media path, as it closes its sockets: the viewers a
 user's session opened (logout, a disabled account) and the publication an asset's session opened
-(a configuration reissued). Over real HTTP with in-process aiortc peers (tests/video/peers.py)."""
+(a configuration reissued) or that expired. Over real HTTP with in-process aiortc peers (tests/video/peers.py)."""
 
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 
 import httpx
 import pytest
 
-from tests.conftest import LiveServer, Tenant
+from tests.conftest import LiveServer, Tenant, test_settings
 from tests.polling import eventually
 from tests.video.peers import Viewer, publisher
 from tests.video.test_video_api import uav_with_camera
@@ -116,3 +117,46 @@ async def test_a_config_reissue_ends_the_assets_publication(
 
 async def _not(value) -> bool:  # type: ignore[no-untyped-def]
     return not await value
+
+
+@pytest.fixture
+def short_ttl_server(database_url: str) -> Iterator[LiveServer]:
+    """A video server whose sessions reach their TTL after TTL_S (assigned after validation,
+    below what the settings accept from the environment, for this test only)."""
+    settings = test_settings(database_url, video_ice_loopback=True)
+    settings.session_ttl_s = TTL_S
+    server = LiveServer(settings).start()
+    yield server
+    server.stop()
+
+
+TTL_S = 6
+
+
+@pytest.mark.slow
+async def test_a_viewer_ends_when_its_session_expires(
+    short_ttl_server: LiveServer, superuser_email: str
+):
+    server = short_ttl_server
+    with httpx.Client(base_url=server.url, timeout=30) as api:
+        tenant = Tenant(api, superuser_email, label="video-ttl")
+        asset_id, asset_token = uav_with_camera(tenant, api)
+    body = {"email": tenant.emails["viewer"], "password": Tenant.PASSWORD, "force": True}
+    async with httpx.AsyncClient(base_url=server.url, timeout=30) as c:
+        logged_in = time.monotonic()
+        r = await c.post("/api/v1/auth/login", json=body)
+    assert r.status_code == 200, r.text
+    viewer = Viewer(server.url, asset_id, r.json()["access_token"])
+    pub = publisher(server.url, asset_id, asset_token, 320, 240, 20)
+    try:
+        await pub.publish_once()
+        assert (await viewer.offer()).status_code == 201
+        await eventually(lambda: viewer.frames >= 5, within=TTL_S, what="frames before expiry")
+        # no request after the offer: the session dies at login + TTL_S, the viewer with it
+        await eventually(lambda: _ended(viewer), within=TTL_S + 5, what="the expired viewer's end")
+        ended = time.monotonic() - logged_in
+        assert TTL_S - 0.1 <= ended <= TTL_S + ENDS_WITHIN_S + 0.5, ended
+    finally:
+        await viewer.close()
+        await pub.stop()
+        await pub.track.aclose()  # type: ignore[attr-defined]
