@@ -27,6 +27,7 @@ import statistics
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
@@ -263,12 +264,14 @@ CAMERA_HZ = 100 / 3  # a frame every third 10 ms step, with each control step
 
 @dataclass(frozen=True)
 class Trial:
-    """One landing: horizontal error (m), heading error (deg), duration (s), whether it landed."""
+    """One landing: horizontal error (m), heading error (deg), duration (s), whether it landed,
+    and where it touched down (north, east of the pad centre, m)."""
 
     error_m: float
     heading_deg: float
     time_s: float
     landed: bool
+    touchdown: tuple[float, float] = (0.0, 0.0)
 
 
 def _config(
@@ -367,6 +370,7 @@ def run_trial(
         abs(math.degrees(wrap_angle(vehicle.yaw))),
         t,
         vehicle.landed,
+        (float(vehicle.n), float(vehicle.e)),
     )
 
 
@@ -439,8 +443,13 @@ def run_autopilot_trial(
             )  # fmt: skip
             c.handle(msg, None, t)
         k += 1
+    st = c.dyn.state
     return Trial(
-        c.pad_distance(), abs(math.degrees(wrap_angle(c.dyn.state.yaw))), t, c.dyn.state.landed
+        c.pad_distance(),
+        abs(math.degrees(wrap_angle(st.yaw))),
+        t,
+        st.landed,
+        (float(st.position[0]), float(st.position[1])),
     )
 
 
@@ -504,6 +513,55 @@ def _row(trials: list[Trial], name: str) -> dict:
     }
 
 
+def write_report(folder: Path, results: dict, touchdowns: dict[str, list[Trial]]) -> None:
+    """`--report`: report.md (the table, the run's settings) and touchdown.png (a touchdown
+    scatter per scenario and landing path, the pad's 5 cm contact circle drawn) in `folder`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    n = len(touchdowns)
+    cols = min(n, 4)
+    rows = max(1, math.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 3.2 * rows), squeeze=False)
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    for ax, (label, trials) in zip(axes.flat, touchdowns.items(), strict=False):
+        cm = np.array([[100 * tr.touchdown[1], 100 * tr.touchdown[0]] for tr in trials])
+        lim = max(10.0, float(np.abs(cm).max()) * 1.2)
+        ax.add_patch(plt.Circle((0, 0), 5.0, fill=False, color="green", label="contacts 5 cm"))
+        ax.scatter(cm[:, 0], cm[:, 1], s=14, color="tab:red")
+        ax.plot(0, 0, "k+")
+        ax.set(xlim=(-lim, lim), ylim=(-lim, lim), aspect="equal", title=label)
+        ax.set_xlabel("east, cm", fontsize=8)
+        ax.set_ylabel("north, cm", fontsize=8)
+        ax.title.set_fontsize(8)
+    fig.tight_layout()
+    fig.savefig(folder / "touchdown.png", dpi=90)
+    plt.close(fig)
+    lines = [
+        "# precland-eval report",
+        "",
+        f"{results['trials']} trials per row, seeds {results['seed']}000…, camera "
+        f"{results['camera_hz']} Hz, vehicle model {results['vehicle_model']}, filter "
+        f"predicted by {results['motion']}. Landing error in cm.",
+        "",
+        "| scenario | path | landed | mean | max | heading ° | time s | thesis |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for key, path in (("scenarios", "agent steers"), ("autopilot", "autopilot PLND")):
+        for name, row in results[key].items():
+            lines.append(
+                f"| {name} | {path} | {row['landed']}/{results['trials']} | {row['mean_cm']} "
+                f"| {row['max_cm']} | {row['heading_deg']} | {row['time_s']} "
+                f"| {row['published'] or ''} |"
+            )
+    lines += ["", "![touchdown per scenario](touchdown.png)", ""]
+    (folder / "report.md").write_text("\n".join(lines))
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the chosen scenarios and print the table (and one JSON object last with --json)."""
     ap = argparse.ArgumentParser(
@@ -537,6 +595,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="who steers the descent: the agent (its filter and velocity commands), the "
         "autopilot (ArduPilot PLND fed our detections; rows marked [autopilot PLND]), or both",
     )
+    ap.add_argument(
+        "--report",
+        type=Path,
+        help="write report.md and touchdown.png (matplotlib) into this folder",
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(list(sys.argv[1:] if argv is None else argv))
     motion = args.motion or PrecisionLandingConfig().kalman.motion
@@ -548,7 +611,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         "vehicle_model": args.vehicle,
         "motion": motion,
         "camera_hz": round(args.camera_hz, 2),
+        "seed": args.seed,
     }
+    touchdowns: dict[str, list[Trial]] = {}
     print(
         f"{'scenario':<32}{'landed':>8}{'mean cm':>9}{'max cm':>8}{'hdg °':>7}{'time s':>8}   published (cm, mean / max)"
     )
@@ -559,33 +624,39 @@ def main(argv: Sequence[str] | None = None) -> int:
         for path in paths:
             if path == "autopilot" and SCENARIOS[name].cautious:
                 continue  # the autopilot's own retry: the same flight as the plain scenario
-            if path == "agent":
-                trials = [
-                    run_trial(
+            label = name if path == "agent" else f"{name} [autopilot PLND]"
+            trials = []
+            for i in range(args.trials):
+                seed = args.seed * 1000 + i
+                if path == "agent":
+                    tr = run_trial(
                         SCENARIOS[name],
-                        args.seed * 1000 + i,
+                        seed,
                         vehicle_model=args.vehicle,
                         motion=motion,
                         camera_hz=args.camera_hz,
                     )
-                    for i in range(args.trials)
-                ]
-            else:
-                trials = [
-                    run_autopilot_trial(
-                        SCENARIOS[name], args.seed * 1000 + i, camera_hz=args.camera_hz
-                    )
-                    for i in range(args.trials)
-                ]
+                else:
+                    tr = run_autopilot_trial(SCENARIOS[name], seed, camera_hz=args.camera_hz)
+                trials.append(tr)
+                print(  # live progress, on stderr: the table on stdout stays parseable
+                    f"  {label}: trial {i + 1}/{args.trials} (seed {seed}) "
+                    f"{100 * tr.error_m:.1f} cm in {tr.time_s:.0f} s"
+                    + ("" if tr.landed else ", not landed"),
+                    file=sys.stderr,
+                    flush=True,
+                )
             row = _row(trials, name)
+            touchdowns[label] = trials
             results["scenarios" if path == "agent" else "autopilot"][name] = row
-            label = name if path == "agent" else f"{name} [autopilot PLND]"
             print(
                 f"{label:<32}{row['landed']:>5}/{len(trials):<2}{row['mean_cm']:>9.1f}"
                 f"{row['max_cm']:>8.1f}{row['heading_deg']:>7.1f}{row['time_s']:>8.1f}   "
                 f"{row['published'] or ''}",
                 flush=True,
             )
+            if args.report is not None:  # rewritten as each row comes: a run cut short keeps it
+                write_report(args.report, results, touchdowns)
     if PER_SOURCE in chosen:
         rows = per_source_errors(
             (0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0), max(args.trials, 5) * 2, args.seed

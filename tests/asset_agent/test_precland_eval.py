@@ -85,3 +85,14 @@ def test_the_landing_error_does_not_depend_on_the_cameras_frame_rate():
     assert max(max(e) for e in errors.values()) < 0.05, errors
     # the trial-to-trial spread at one rate is ~1 cm (README): the means agree within it
     assert abs(np.mean(errors[5.0]) - np.mean(errors[30.0])) < 0.015, errors
+
+
+def test_the_cli_shows_progress_and_writes_a_report_with_a_touchdown_plot(capsys, tmp_path):
+    argv = ["--trials", "2", "--scenario", "none", "--path", "agent", "--report", str(tmp_path)]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "none: trial 1/2 (seed 1000)" in err and "none: trial 2/2 (seed 1001)" in err
+    report = (tmp_path / "report.md").read_text()
+    assert "| none | agent steers | 2/2 |" in report and "touchdown.png" in report
+    png = (tmp_path / "touchdown.png").read_bytes()
+    assert png.startswith(b"\x89PNG") and len(png) > 5000
