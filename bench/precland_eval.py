@@ -10,8 +10,12 @@ and a seat at camera height 0.25 m.
 Start 10 m (or 6 m) high and 2 m off; the surveyed pad position carries a setup error of up to
 1 m; GNSS without RTK adds a Gauss-Markov error (0.5 m, 120 s) to the positions the agent sees,
 and the velocities it sees (the autopilot EKF's, GNSS Doppler + IMU) carry `EkfVelocityError`.
-Prints a table (scenario, mean / max landing error in cm, heading error, mean landing time) and,
-with --json, one JSON object last.
+Two landing paths (`--path`, default both): the agent steers the descent (the above), or the
+simulated autopilot (sim.vehicle.copter, ArduPilot 4 habits) flies LAND with ArduPilot's precision
+landing (sim/vehicle/plnd.py) fed our detections by LANDING_TARGET (`run_autopilot_trial`), rows
+marked "[autopilot PLND]". `--camera-hz` sets the camera's frame rate (the control loop stays at
+33 Hz). Prints a table (scenario, mean / max landing error in cm, heading error, mean landing
+time), one row as each scenario finishes, and, with --json, one JSON object last.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ import statistics
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
@@ -254,14 +259,36 @@ PUBLISHED = {  # thesis field results (cm, mean / max) where a scenario matches 
 }
 
 
+CAMERA_HZ = 100 / 3  # a frame every third 10 ms step, with each control step
+
+
 @dataclass(frozen=True)
 class Trial:
-    """One landing: horizontal error (m), heading error (deg), duration (s), whether it landed."""
+    """One landing: horizontal error (m), heading error (deg), duration (s), whether it landed,
+    and where it touched down (north, east of the pad centre, m)."""
 
     error_m: float
     heading_deg: float
     time_s: float
     landed: bool
+    touchdown: tuple[float, float] = (0.0, 0.0)
+
+
+def _config(
+    sc: Scenario, sources: set[str], motion: str | None, **update: Any
+) -> PrecisionLandingConfig:
+    base = PrecisionLandingConfig()
+    return base.model_copy(
+        update={
+            "faults": sc.faults,
+            "retry": RetryConfig(cautious=sc.cautious),
+            "fusion": base.fusion.model_copy(
+                update={"sources": {k: v for k, v in base.fusion.sources.items() if k in sources}}
+            ),
+            "kalman": base.kalman.model_copy(update={"motion": motion or base.kalman.motion}),
+            **update,
+        }
+    )
 
 
 def run_trial(
@@ -270,9 +297,11 @@ def run_trial(
     max_time: float = 150.0,
     vehicle_model: str = "shared",
     motion: Literal["position", "velocity"] | None = None,
+    camera_hz: float = CAMERA_HZ,
 ) -> Trial:
     """Fly one closed-loop landing of scenario `sc` with the chosen vehicle model (and what
-    predicts the agent's filter, when not its configured default)."""
+    predicts the agent's filter, when not its configured default), the camera at `camera_hz`
+    (the control loop stays at 33 Hz)."""
     rng = np.random.default_rng(seed)
     a0, yaw0 = rng.uniform(0, 2 * math.pi), rng.uniform(-math.pi, math.pi)
     vehicle = VEHICLES[vehicle_model](2.0 * math.cos(a0), 2.0 * math.sin(a0), sc.start_height, yaw0)
@@ -280,17 +309,7 @@ def run_trial(
     sources = {"ir"} if "ir" in sc.sensors else set()
     if camera:
         sources |= {"pattern", "aruco"}
-    base = PrecisionLandingConfig()
-    cfg = base.model_copy(
-        update={
-            "faults": sc.faults,
-            "retry": RetryConfig(cautious=sc.cautious),
-            "fusion": base.fusion.model_copy(
-                update={"sources": {k: v for k, v in base.fusion.sources.items() if k in sources}}
-            ),
-            "kalman": base.kalman.model_copy(update={"motion": motion or base.kalman.motion}),
-        }
-    )
+    cfg = _config(sc, sources, motion)
     pipeline = LandingPipeline(cfg, seed=seed)
     renderer = PadRenderer(effects=CameraEffects(noise_sigma=2.0), seed=seed) if camera else None
     detector = PadDetector(cfg.pad, cfg.camera, DetectorConfig(use_frame=True)) if camera else None
@@ -317,7 +336,7 @@ def run_trial(
     pipeline.set_pad_prior(
         survey - np.array(gnss_position()) + np.array([0, 0, -SEAT_HEIGHT * 0]), 1.0
     )
-    k = 0
+    k, next_frame = 0, dt  # the first frame with the first control step
     while t < max_time and not vehicle.landed:
         speed = sc.wind + sc.gust * math.sin(0.7 * t + gust_phase) + rng.normal(0, 0.3)
         before = true_position()
@@ -338,9 +357,10 @@ def run_trial(
         if "ir" in sc.sensors and k % 2 == 0:
             ok, ax, ay = ir_reading(pose, ir_cfg, rng)
             pipeline.ir(t, ok, ax, ay)
+        if renderer is not None and detector is not None and t >= next_frame - 1e-9:
+            next_frame += 1.0 / camera_hz
+            pipeline.detections(t, detector.detect(renderer.render(pose), pose[3], pose[4]))
         if k % 3 == 0:
-            if renderer is not None and detector is not None:
-                pipeline.detections(t, detector.detect(renderer.render(pose), pose[3], pose[4]))
             tick = pipeline.tick(t)
             if tick.command is not None:
                 sp = tick.command.setpoint
@@ -350,6 +370,86 @@ def run_trial(
         abs(math.degrees(wrap_angle(vehicle.yaw))),
         t,
         vehicle.landed,
+        (float(vehicle.n), float(vehicle.e)),
+    )
+
+
+def run_autopilot_trial(
+    sc: Scenario, seed: int, max_time: float = 150.0, camera_hz: float = CAMERA_HZ
+) -> Trial:
+    """The other landing path: the simulated autopilot (profile ardupilot-4, its own GNSS at a 3D
+    fix) flies LAND with ArduPilot's precision landing (sim/vehicle/plnd.py) and the agent only
+    feeds it LANDING_TARGET — each new detection once, unfiltered, in the body frame of its
+    capture (`steering="autopilot"`). Same start, wind and sensors as `run_trial`; the heading is
+    not the autopilot's to align (PLND steers position only), so it is reported as it lands."""
+    from dataclasses import replace
+
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    from sim.vehicle.constants import GUIDED, LAND
+    from sim.vehicle.copter import Copter, CopterConfig
+    from sim.vehicle.habits import profile
+    from sim.vehicle.standalone import OpenPad
+
+    rng = np.random.default_rng(seed)
+    a0, yaw0 = rng.uniform(0, 2 * math.pi), rng.uniform(-math.pi, math.pi)
+    c = Copter(OpenPad(), CopterConfig(seed=seed, habits=profile("ardupilot-4")))
+    start = (2.0 * math.cos(a0), 2.0 * math.sin(a0), -(sc.start_height - SEAT_HEIGHT))
+    c.dyn.state = replace(c.dyn.state, position=start, landed=False, yaw=yaw0)
+    c.armed = c.dyn.motors_on = True
+    c._was_landed = False
+    c.mode = GUIDED
+    if not c.set_mode(LAND):
+        raise RuntimeError("the simulated autopilot refused LAND")
+    camera = "marker" in sc.sensors
+    sources = {"ir"} if "ir" in sc.sensors else set()
+    if camera:
+        sources |= {"pattern", "aruco"}
+    cfg = _config(sc, sources, None, mode="landing_target", steering="autopilot")
+    pipeline = LandingPipeline(cfg, seed=seed)
+    renderer = PadRenderer(effects=CameraEffects(noise_sigma=2.0), seed=seed) if camera else None
+    detector = PadDetector(cfg.pad, cfg.camera, DetectorConfig(use_frame=True)) if camera else None
+    ir_cfg = IrSensorConfig()
+    survey = rng.uniform(0, 1.0) * np.array([math.cos(a := rng.uniform(0, 6.3)), math.sin(a), 0.0])
+    survey[2] = rng.normal(0, 0.2)
+    gust_phase = rng.uniform(0, 2 * math.pi)
+    wind_dir = rng.uniform(0, 2 * math.pi)
+
+    def pose() -> tuple[float, float, float, float, float, float]:
+        st = c.dyn.state
+        n, e, d = st.position
+        return (n, e, SEAT_HEIGHT - d, st.roll, st.pitch, st.yaw)
+
+    pipeline.set_pad_prior(survey - np.asarray(c.estimated_position()), 1.0)
+    dt, t, k, next_frame = 0.01, 0.0, 0, 0.01
+    while t < max_time and not c.dyn.state.landed:
+        speed = sc.wind + sc.gust * math.sin(0.7 * t + gust_phase) + rng.normal(0, 0.3)
+        t += dt
+        c.tick(dt, t, (speed * math.cos(wind_dir), speed * math.sin(wind_dir)))
+        p, st = pose(), c.dyn.state
+        pipeline.vehicle(
+            VehicleState(t, c.estimated_position(), (p[3], p[4], p[5]), tuple(st.velocity))
+        )
+        if "ir" in sc.sensors and k % 2 == 0:
+            ok, ax, ay = ir_reading(p, ir_cfg, rng)
+            pipeline.ir(t, ok, ax, ay)
+        if renderer is not None and detector is not None and t >= next_frame - 1e-9:
+            next_frame += 1.0 / camera_hz
+            pipeline.detections(t, detector.detect(renderer.render(p), p[3], p[4]))
+        if k % 3 == 0 and (lt := pipeline.tick(t).landing_target) is not None:
+            msg = mavlink.MAVLink_landing_target_message(
+                lt.time_usec, lt.target_num, lt.frame, lt.angle_x, lt.angle_y, lt.distance,
+                lt.size_x, lt.size_y, lt.x, lt.y, lt.z, list(lt.q), lt.type, lt.position_valid,
+            )  # fmt: skip
+            c.handle(msg, None, t)
+        k += 1
+    st = c.dyn.state
+    return Trial(
+        c.pad_distance(),
+        abs(math.degrees(wrap_angle(st.yaw))),
+        t,
+        st.landed,
+        (float(st.position[0]), float(st.position[1])),
     )
 
 
@@ -401,6 +501,67 @@ def per_source_errors(heights: Sequence[float], n: int, seed: int = 0) -> list[d
     return rows
 
 
+def _row(trials: list[Trial], name: str) -> dict:
+    errs = [100 * tr.error_m for tr in trials]
+    return {
+        "landed": sum(tr.landed for tr in trials),
+        "mean_cm": round(statistics.fmean(errs), 2),
+        "max_cm": round(max(errs), 2),
+        "heading_deg": round(statistics.fmean(tr.heading_deg for tr in trials), 2),
+        "time_s": round(statistics.fmean(tr.time_s for tr in trials), 1),
+        "published": PUBLISHED.get(name),
+    }
+
+
+def write_report(folder: Path, results: dict, touchdowns: dict[str, list[Trial]]) -> None:
+    """`--report`: report.md (the table, the run's settings) and touchdown.png (a touchdown
+    scatter per scenario and landing path, the pad's 5 cm contact circle drawn) in `folder`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    n = len(touchdowns)
+    cols = min(n, 4)
+    rows = max(1, math.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 3.2 * rows), squeeze=False)
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    for ax, (label, trials) in zip(axes.flat, touchdowns.items(), strict=False):
+        cm = np.array([[100 * tr.touchdown[1], 100 * tr.touchdown[0]] for tr in trials])
+        lim = max(10.0, float(np.abs(cm).max()) * 1.2)
+        ax.add_patch(plt.Circle((0, 0), 5.0, fill=False, color="green", label="contacts 5 cm"))
+        ax.scatter(cm[:, 0], cm[:, 1], s=14, color="tab:red")
+        ax.plot(0, 0, "k+")
+        ax.set(xlim=(-lim, lim), ylim=(-lim, lim), aspect="equal", title=label)
+        ax.set_xlabel("east, cm", fontsize=8)
+        ax.set_ylabel("north, cm", fontsize=8)
+        ax.title.set_fontsize(8)
+    fig.tight_layout()
+    fig.savefig(folder / "touchdown.png", dpi=90)
+    plt.close(fig)
+    lines = [
+        "# precland-eval report",
+        "",
+        f"{results['trials']} trials per row, seeds {results['seed']}000…, camera "
+        f"{results['camera_hz']} Hz, vehicle model {results['vehicle_model']}, filter "
+        f"predicted by {results['motion']}. Landing error in cm.",
+        "",
+        "| scenario | path | landed | mean | max | heading ° | time s | thesis |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for key, path in (("scenarios", "agent steers"), ("autopilot", "autopilot PLND")):
+        for name, row in results[key].items():
+            lines.append(
+                f"| {name} | {path} | {row['landed']}/{results['trials']} | {row['mean_cm']} "
+                f"| {row['max_cm']} | {row['heading_deg']} | {row['time_s']} "
+                f"| {row['published'] or ''} |"
+            )
+    lines += ["", "![touchdown per scenario](touchdown.png)", ""]
+    (folder / "report.md").write_text("\n".join(lines))
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the chosen scenarios and print the table (and one JSON object last with --json)."""
     ap = argparse.ArgumentParser(
@@ -421,43 +582,81 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="what predicts the agent's filter: the autopilot's velocity or its position "
         "deltas (default: the agent's configuration)",
     )
+    ap.add_argument(
+        "--camera-hz",
+        type=float,
+        default=CAMERA_HZ,
+        help="the camera's frame rate (default 33.3; the control loop stays at 33.3 Hz)",
+    )
+    ap.add_argument(
+        "--path",
+        choices=["agent", "autopilot", "both"],
+        default="both",
+        help="who steers the descent: the agent (its filter and velocity commands), the "
+        "autopilot (ArduPilot PLND fed our detections; rows marked [autopilot PLND]), or both",
+    )
+    ap.add_argument(
+        "--report",
+        type=Path,
+        help="write report.md and touchdown.png (matplotlib) into this folder",
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(list(sys.argv[1:] if argv is None else argv))
     motion = args.motion or PrecisionLandingConfig().kalman.motion
     chosen = args.scenario or [*SCENARIOS, PER_SOURCE]
     results: dict = {
         "trials": args.trials,
-        "scenarios": {},
+        "scenarios": {},  # the agent steers the descent
+        "autopilot": {},  # the simulated autopilot's PLND lands on our detections
         "vehicle_model": args.vehicle,
         "motion": motion,
+        "camera_hz": round(args.camera_hz, 2),
+        "seed": args.seed,
     }
+    touchdowns: dict[str, list[Trial]] = {}
     print(
         f"{'scenario':<32}{'landed':>8}{'mean cm':>9}{'max cm':>8}{'hdg °':>7}{'time s':>8}   published (cm, mean / max)"
     )
+    paths = ["agent", "autopilot"] if args.path == "both" else [args.path]
     for name in chosen:
         if name == PER_SOURCE:
             continue
-        trials = [
-            run_trial(
-                SCENARIOS[name], args.seed * 1000 + i, vehicle_model=args.vehicle, motion=motion
+        for path in paths:
+            if path == "autopilot" and SCENARIOS[name].cautious:
+                continue  # the autopilot's own retry: the same flight as the plain scenario
+            label = name if path == "agent" else f"{name} [autopilot PLND]"
+            trials = []
+            for i in range(args.trials):
+                seed = args.seed * 1000 + i
+                if path == "agent":
+                    tr = run_trial(
+                        SCENARIOS[name],
+                        seed,
+                        vehicle_model=args.vehicle,
+                        motion=motion,
+                        camera_hz=args.camera_hz,
+                    )
+                else:
+                    tr = run_autopilot_trial(SCENARIOS[name], seed, camera_hz=args.camera_hz)
+                trials.append(tr)
+                print(  # live progress, on stderr: the table on stdout stays parseable
+                    f"  {label}: trial {i + 1}/{args.trials} (seed {seed}) "
+                    f"{100 * tr.error_m:.1f} cm in {tr.time_s:.0f} s"
+                    + ("" if tr.landed else ", not landed"),
+                    file=sys.stderr,
+                    flush=True,
+                )
+            row = _row(trials, name)
+            touchdowns[label] = trials
+            results["scenarios" if path == "agent" else "autopilot"][name] = row
+            print(
+                f"{label:<32}{row['landed']:>5}/{len(trials):<2}{row['mean_cm']:>9.1f}"
+                f"{row['max_cm']:>8.1f}{row['heading_deg']:>7.1f}{row['time_s']:>8.1f}   "
+                f"{row['published'] or ''}",
+                flush=True,
             )
-            for i in range(args.trials)
-        ]
-        errs = [100 * tr.error_m for tr in trials]
-        row = {
-            "landed": sum(tr.landed for tr in trials),
-            "mean_cm": round(statistics.fmean(errs), 2),
-            "max_cm": round(max(errs), 2),
-            "heading_deg": round(statistics.fmean(tr.heading_deg for tr in trials), 2),
-            "time_s": round(statistics.fmean(tr.time_s for tr in trials), 1),
-            "published": PUBLISHED.get(name),
-        }
-        results["scenarios"][name] = row
-        print(
-            f"{name:<32}{row['landed']:>5}/{len(trials):<2}{row['mean_cm']:>9.1f}{row['max_cm']:>8.1f}"
-            f"{row['heading_deg']:>7.1f}{row['time_s']:>8.1f}   {row['published'] or ''}",
-            flush=True,
-        )
+            if args.report is not None:  # rewritten as each row comes: a run cut short keeps it
+                write_report(args.report, results, touchdowns)
     if PER_SOURCE in chosen:
         rows = per_source_errors(
             (0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0), max(args.trials, 5) * 2, args.seed

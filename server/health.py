@@ -18,6 +18,7 @@ from server.deps import ServicesDep
 from server.kit.metrics import REGISTRY
 from server.services import Services
 from server.telemetry.influx import InfluxTelemetryStore
+from server.video.janus import JanusGateway
 
 router = APIRouter(tags=["health"])
 
@@ -91,7 +92,7 @@ async def health(request: Request, services: ServicesDep) -> JSONResponse:
     responses={503: {"model": ReadyOut, "description": "a dependency does not answer"}},
 )
 async def ready(request: Request, services: ServicesDep) -> JSONResponse:
-    """200 when the database, the broker and (when configured) InfluxDB all answer; 503 naming
+    """200 when the database, the broker and (when configured) InfluxDB and Janus all answer; 503 naming
     the one that does not, so a proxy sends no traffic to a replica that cannot serve it."""
     probes: dict[str, Callable[[], Awaitable[None]]] = {
         "database": lambda: _database(services),
@@ -99,6 +100,8 @@ async def ready(request: Request, services: ServicesDep) -> JSONResponse:
     }
     if isinstance(services.telemetry, InfluxTelemetryStore):
         probes["influxdb"] = services.telemetry.ping
+    if isinstance(services.video, JanusGateway):
+        probes["janus"] = services.video.ping
     results = await asyncio.gather(*(_check(p) for p in probes.values()))
     checks = dict(zip(probes, results, strict=True))
     ok = all(v == "ok" for v in checks.values())

@@ -13,8 +13,9 @@ from types import ModuleType
 import httpx
 
 PACKAGE = "aerobase_client"
-# the generator reads JSON and multipart bodies; the waypoint-file import's text bodies are raw
-# bytes to it (its documented way for media types it does not know)
+# the generator reads JSON and multipart bodies; the waypoint-file import's text bodies, the video
+# API's SDP offers and answers, trickle-ICE fragments, recorded segments and their frame times are
+# raw bytes to it (its documented way for media types it does not know)
 CONFIG = f"""\
 project_name_override: aerobase-client
 package_name_override: {PACKAGE}
@@ -22,6 +23,10 @@ post_hooks: []
 content_type_overrides:
   text/plain: application/octet-stream
   application/vnd.mavlink.wpl: application/octet-stream
+  application/sdp: application/octet-stream
+  application/trickle-ice-sdpfrag: application/octet-stream
+  video/webm: application/octet-stream
+  application/jsonl: application/octet-stream
 """
 _generated: dict[str, ModuleType] = {}
 

@@ -122,7 +122,18 @@ class FaultConfig(_Model):
 
 
 class KalmanConfig(_Model):
-    """Noise of the relative-position filter (metres, radians)."""
+    """Noise of the relative-position filter, in physical units: whatever the rates of the
+    autopilot's states (predictions) and of the camera (updates), the filter behaves the same.
+
+    Process noise is a random walk per second (and per metre moved): over a prediction of dt
+    seconds and d metres the variance grows by `position_noise_m_per_sqrt_s`² x dt +
+    `position_noise_m_per_sqrt_m`² x d, so one prediction over 1 s adds what 100 of 10 ms add.
+    Measurement noise is per reading (the detector's reported sigma where it reports one, else
+    the vision model at the measured height), and readings closer together than
+    `vision_error_correlation_s` count as one: the detector's error comes from the pad's image,
+    which changes little between two frames 33 ms apart, so 30 frames a second do not carry six
+    times the information of 5 (the variance is inflated by correlation time / interval).
+    """
 
     initial_sigma_m: float = 1.5
     initial_heading_sigma: float = math.pi
@@ -130,17 +141,24 @@ class KalmanConfig(_Model):
     # GNSS drift) or, once it has had a measurement, its velocity (LOCAL_POSITION_NED vx, vy:
     # GNSS Doppler + IMU) integrated; position deltas when the states carry no velocity
     motion: Literal["position", "velocity"] = "position"
-    process_per_metre: float = 0.02  # GNSS delta error per metre moved
-    process_per_second: float = 0.05  # GNSS drift per second
-    velocity_process_per_second: float = 0.03  # integrated velocity error per sqrt(second)
+    # position-delta random walk: GNSS drift per sqrt(second) and error per sqrt(metre moved)
+    # (the effective values of the former per-update tuning at the evaluation's 100 Hz states)
+    position_noise_m_per_sqrt_s: float = Field(default=0.005, ge=0.0)
+    position_noise_m_per_sqrt_m: float = Field(default=0.002, ge=0.0)
+    velocity_noise_m_per_sqrt_s: float = Field(default=0.03, ge=0.0)  # integrated velocity
     # the horizontal velocity's slow bias (IMU, EKF corrections), learnt while measurements
     # come in; tau 0: not estimated
-    velocity_bias_sigma: float = 0.03
+    velocity_bias_sigma: float = 0.03  # m/s
     velocity_bias_tau_s: float = 30.0
-    heading_process_per_second: float = 0.01
-    vision_sigma_per_metre: float = 0.01  # measurement sigma grows with height (pixel error)
-    vision_sigma_floor: float = 0.003
-    heading_sigma: float = math.radians(1.0)
+    heading_noise_rad_per_sqrt_s: float = Field(default=0.001, ge=0.0)
+    # per reading, m per m of height and its floor (pixel error); with the correlation time
+    # below, the information per second the former per-reading 1 cm/m, 3 mm floor gave at the
+    # evaluation's 33 Hz camera (x sqrt(1 / (33 Hz x 0.2 s)))
+    vision_sigma_per_metre: float = Field(default=0.004, gt=0.0)
+    vision_sigma_floor: float = Field(default=0.0012, gt=0.0)
+    # readings closer together than this share their error (0: every reading independent)
+    vision_error_correlation_s: float = Field(default=0.2, ge=0.0)
+    heading_sigma: float = math.radians(1.0)  # rad, per reading
 
 
 class ControlConfig(_Model):

@@ -4,9 +4,12 @@ State: pad centre minus vehicle in NED (3) and the bias of the horizontal autopi
 may be predicted with (2, a Gauss-Markov process), plus the pad's yaw as a separate angular state.
 Predict with the vehicle's displacement — the autopilot's position *deltas*, or horizontally its
 velocity integrated (so a wrong surveyed pad position, a constant offset, never enters the motion
-model): rel ← rel − Δvehicle, with noise growing with distance moved and time. Update with
-vision (or IR), the measurement noise growing with height (pixel error). Until the first vision
-update the estimate is the GNSS one, with a large uncertainty.
+model): rel ← rel − Δvehicle, with noise growing with distance moved and time — a random walk
+whose variance per second and per metre is configured, so the filter behaves the same whatever
+the rate it is predicted at. Update with vision (or IR): the reading's own sigma where the
+detector reports one, else growing with height (pixel error), inflated when readings come faster
+than their errors decorrelate (so the camera's frame rate does not change how much the filter
+trusts it). Until the first vision update the estimate is the GNSS one, with a large uncertainty.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ class TargetKalman:
     def __init__(self, config: KalmanConfig | None = None) -> None:
         self.config = config or KalmanConfig()
         self.updates = 0
+        self._last_update_t: float | None = None
         self._start(np.zeros(3), None, None)
         self.initialised = False  # no prior yet: the first measurement will be one
 
@@ -73,9 +77,11 @@ class TargetKalman:
         dt = max(dt, 0.0)
         f = np.eye(5)
         q = np.zeros(5)
-        q[:3] = (c.process_per_metre * float(np.linalg.norm(d)) + c.process_per_second * dt) ** 2
-        if by_velocity:  # a random walk, whatever the rate of the states, plus the slow bias
-            q[:2] = c.velocity_process_per_second**2 * dt
+        # random walks: the variance adds up per second and per metre, whatever the rate
+        moved = float(np.linalg.norm(d))
+        q[:3] = c.position_noise_m_per_sqrt_s**2 * dt + c.position_noise_m_per_sqrt_m**2 * moved
+        if by_velocity:  # the integrated velocity's random walk, plus the slow bias
+            q[:2] = c.velocity_noise_m_per_sqrt_s**2 * dt
             if c.velocity_bias_tau_s > 0:
                 f[:2, 3:] = np.eye(2) * dt  # rel += bias x dt
                 phi = math.exp(-dt / c.velocity_bias_tau_s)
@@ -84,19 +90,28 @@ class TargetKalman:
         self._x = f @ self._x
         self._x[:3] -= d
         self.p = f @ self.p @ f.T + np.diag(q)
-        self.heading_var += (c.heading_process_per_second * dt) ** 2
+        self.heading_var += c.heading_noise_rad_per_sqrt_s**2 * dt
 
-    def update(self, rel_ned, sigma_m: float | None = None, heading: float | None = None) -> None:
-        """Fuse a measurement; sigma defaults to the vision model at the measured height."""
+    def update(
+        self,
+        rel_ned,
+        sigma_m: float | None = None,
+        heading: float | None = None,
+        t: float | None = None,
+    ) -> None:
+        """Fuse a measurement taken at time `t`; sigma (per reading) defaults to the vision model
+        at the measured height. Given t, readings closer together than the configured error
+        correlation time are trusted less, in proportion: n frames in that time count as one."""
         z = np.asarray(rel_ned, dtype=np.float64)
         if sigma_m is None:
             sigma_m = max(
                 self.config.vision_sigma_floor, self.config.vision_sigma_per_metre * abs(z[2])
             )
+        inflate = self._correlation_inflation(t)
         if not self.initialised:
             self.reset(z, sigma_m)
         else:
-            r = np.eye(3) * sigma_m**2
+            r = np.eye(3) * sigma_m**2 * inflate
             k = self.p[:, :3] @ np.linalg.inv(self.p[:3, :3] + r)  # H = [I 0]
             self._x = self._x + k @ (z - self._x[:3])
             p = self.p - k @ self.p[:3, :]
@@ -105,11 +120,19 @@ class TargetKalman:
             if self.heading is None:
                 self.heading, self.heading_var = heading, self.config.heading_sigma**2
             else:
-                r_h = self.config.heading_sigma**2
+                r_h = self.config.heading_sigma**2 * inflate
                 gain = self.heading_var / (self.heading_var + r_h)
                 self.heading = wrap_angle(self.heading + gain * wrap_angle(heading - self.heading))
                 self.heading_var = (1 - gain) * self.heading_var
         self.updates += 1
+
+    def _correlation_inflation(self, t: float | None) -> float:
+        """correlation time / interval since the previous reading, at least 1."""
+        tau = self.config.vision_error_correlation_s
+        last, self._last_update_t = self._last_update_t, t
+        if t is None or last is None or tau <= 0:
+            return 1.0
+        return max(1.0, tau / max(t - last, 1e-6))
 
     def estimate(self) -> Estimate:
         """The current estimate."""

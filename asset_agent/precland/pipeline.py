@@ -178,7 +178,7 @@ class LandingPipeline:
         target = self.fusion.step(now)
         if target is not None and target.kind != "held":
             rel = np.asarray(target.rel_ned) - self._moved_since(target.t)
-            self.kalman.update(rel, heading=target.heading)
+            self.kalman.update(rel, heading=target.heading, t=target.t)
         est = self.kalman.estimate()
         state = self._track[-1][0] if self._track else None
         cmd = lt = None

@@ -5,12 +5,13 @@ The channels it uses are named in `server.realtime.channels`.
 
 from __future__ import annotations
 
+import asyncio
 import collections
 import contextlib
 import logging
 import time
 import uuid
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
@@ -60,6 +61,7 @@ class Hub:
         # per session with a socket here: until when it is known to be alive (None: read it)
         self.deadlines: dict[uuid.UUID, datetime | None] = {}
         self.connected: collections.Counter[str] = collections.Counter()  # live sockets by kind
+        self._stopping: set[asyncio.Task[None]] = set()  # held things being stopped (`hold`)
         self._sweeper = Periodic("command-sweeper", self.expire_commands, 1.0)
         self._session_sweeper = Periodic("session-sweeper", self.sweep_sessions, session_sweep_s)
 
@@ -126,6 +128,23 @@ class Hub:
             self.closers.pop(session_id, None)
             self.deadlines.pop(session_id, None)
 
+    def hold(self, session_id: uuid.UUID, kind: str) -> SessionHold:
+        """Something other than a socket that a session holds here (a video viewer, a
+        publication): once it `starts`, it is stopped when the session ends, as its sockets close
+        (announced ends and expiry alike); it is `released` when it ends on its own."""
+        return SessionHold(self, session_id, kind)
+
+    def _spawn(self, step: Awaitable[None]) -> None:
+        async def run() -> None:
+            try:
+                await step
+            except Exception:
+                log.exception("stopping what an ended session held failed")
+
+        task = asyncio.create_task(run())
+        self._stopping.add(task)
+        task.add_done_callback(self._stopping.discard)
+
     async def sweep_sessions(self) -> None:
         """Close the sockets of sessions that expired (TTL or idle) or ended unannounced.
 
@@ -159,3 +178,33 @@ class Hub:
                 re=cmd.id,
             )
             await self.broker.publish(asset_channel(cmd.asset_id), message.model_dump(mode="json"))
+
+
+class SessionHold:
+    """One thing a session holds in this process, registered with the hub like a socket."""
+
+    def __init__(self, hub: Hub, session_id: uuid.UUID, kind: str) -> None:
+        self.hub = hub
+        self.session_id = session_id
+        self.kind = kind
+        self._stop: Callable[[], Awaitable[None]] | None = None
+        self._released = False
+
+    def start(self, stop: Callable[[], Awaitable[None]]) -> None:
+        """It is running: `stop()` ends it when the session ends (unless released already)."""
+        if self._released or self._stop is not None:
+            return
+        self._stop = stop
+        self.hub.register_closer(self.session_id, self._close, self.kind)
+
+    def release(self) -> None:
+        """It ended on its own (or was stopped): forget it; idempotent."""
+        if self._released:
+            return
+        self._released = True
+        if self._stop is not None:
+            self.hub.unregister_closer(self.session_id, self._close, self.kind)
+
+    def _close(self, code: int, reason: str) -> None:
+        if self._stop is not None and not self._released:
+            self.hub._spawn(self._stop())

@@ -72,7 +72,7 @@ async def abort_run(run_id: uuid.UUID, body: AbortRequest, runs: RunsOperator) -
 @router.get("/api/v1/runs/{run_id}/report", response_model=RunReport, operation_id="getRunReport")
 async def run_report(run_id: uuid.UUID, runs: Runs, services: ServicesDep) -> RunReport:
     """The flight history of a run: timeline, track, battery used, landing error, outcome and cause."""
-    return await runs.report(run_id, services.telemetry)
+    return await runs.report(run_id, services.telemetry, services.settings.video_record_dir)
 
 
 @router.get("/api/v1/reports/fleet", response_model=FleetReport, operation_id="getFleetReport")

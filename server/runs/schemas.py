@@ -10,6 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from server.kit.types import Text, Timestamp
 from server.runs.machine import RunState
+from server.video.schemas import RecordingOut
 
 
 class RunOutcome(enum.StrEnum):
@@ -121,6 +122,12 @@ class RunReport(BaseModel):
     battery_margin_at_touchdown_pct: float | None = Field(
         default=None,
         description="battery at touchdown less the UAV's reserve (null before the landing)",
+    )
+    recordings: list[RecordingOut] = Field(
+        default_factory=list,
+        description="the UAV's recorded video segments overlapping the flight (take-off to "
+        "landing, or to now while it flies), oldest first; empty before take-off or when "
+        "recording is off (GET .../video/recordings)",
     )
 
 

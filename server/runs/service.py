@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import asyncio
 import math
 import uuid
 from collections import Counter, defaultdict
 from datetime import datetime, timedelta
+from pathlib import Path
 from typing import Any
 
 from server.airspace.service import flight_problems, refused
@@ -32,6 +34,8 @@ from server.runs.schemas import (
     TransitionOut,
 )
 from server.telemetry.models import AssetEvent
+from server.video.schemas import RecordingOut
+from server.video.service import recorded_segments
 
 
 async def create_run(
@@ -109,8 +113,11 @@ def _flight_time(run: Run) -> float | None:
     return max(0.0, (end - start).total_seconds())
 
 
-async def report(runs: RunRepository, store: Any, run_id: uuid.UUID) -> RunReport:
-    """Timeline, flight track from telemetry, battery used, landing error, outcome and cause."""
+async def report(
+    runs: RunRepository, store: Any, run_id: uuid.UUID, record_dir: Path | None = None
+) -> RunReport:
+    """Timeline, flight track from telemetry, battery used, landing error, outcome and cause, and
+    the UAV's video segments recorded during the flight (under `record_dir`)."""
     from server.telemetry.store import Query
 
     run, timeline = await runs.with_timeline(run_id)
@@ -140,7 +147,19 @@ async def report(runs: RunRepository, store: Any, run_id: uuid.UUID) -> RunRepor
         track=track,
         airspace_breaches=[breach_out(e) for e in await runs.flight_events(run, "fence_breach")],
         battery_margin_at_touchdown_pct=await _touchdown_margin(runs, run, rows, landing),
+        recordings=await _recordings(run, record_dir),
     )
+
+
+async def _recordings(run: Run, record_dir: Path | None) -> list[RecordingOut]:
+    """The UAV's segments overlapping take-off to landing (to now while it flies), oldest first."""
+    if record_dir is None or run.flight_started_at is None:
+        return []
+    end = run.flight_ended_at or run.finished_at or utcnow()
+    found = await asyncio.to_thread(
+        recorded_segments, record_dir, run.uav_id, run.flight_started_at, end
+    )
+    return found[::-1]
 
 
 async def _touchdown_margin(
@@ -297,9 +316,11 @@ class RunService(Service):
         await self.db.flush()
         return run
 
-    async def report(self, run_id: uuid.UUID, store: Any) -> RunReport:
-        """The flight history of a run."""
-        return await report(self.repo, store, run_id)
+    async def report(
+        self, run_id: uuid.UUID, store: Any, record_dir: Path | None = None
+    ) -> RunReport:
+        """The flight history of a run (with its video segments recorded under `record_dir`)."""
+        return await report(self.repo, store, run_id, record_dir)
 
     async def fleet(self, start: datetime | None, end: datetime | None) -> FleetReport:
         """Runs in [start, end) (default: the last 30 days), summed up."""

@@ -115,13 +115,19 @@ class EmbeddedRelay:
         self._channels: dict[uuid.UUID, Channel] = {}
         self._publishers: dict[uuid.UUID, tuple[uuid.UUID, _Peer]] = {}
         self._viewers: dict[uuid.UUID, tuple[uuid.UUID, _Peer, ForwardTrack]] = {}
+        # per viewer or publication session: what to call once it ends (`on_end`)
+        self._on_end: dict[uuid.UUID, Callable[[], None]] = {}
         self._tasks: set[asyncio.Future[None]] = set()  # keyframe requests in flight
 
     def _channel(self, asset_id: uuid.UUID) -> Channel:
         return self._channels.setdefault(asset_id, Channel())
 
     async def publish(
-        self, asset_id: uuid.UUID, offer: str, camera: CameraDescription
+        self,
+        asset_id: uuid.UUID,
+        offer: str,
+        camera: CameraDescription,
+        on_end: Callable[[], None] | None = None,
     ) -> Negotiated:
         """The asset's WHIP offer → answer; the previous publication, if any, ends."""
         session_id = uuid.uuid4()
@@ -153,10 +159,13 @@ class EmbeddedRelay:
         channel.attach(token, request_keyframe)
         await self._record(asset_id, channel)
         peer = _Peer(pc, lambda: self._ended_publication(asset_id, session_id, token))
+        if on_end is not None:
+            self._on_end[session_id] = on_end
         if previous is None:
             VIDEO_PUBLISHERS.inc()
         self._publishers[asset_id] = (session_id, peer)
         if previous is not None:
+            self._ended(previous[0])
             await previous[1].close()
         log.info("video published", extra={"asset_id": str(asset_id), "session": str(session_id)})
         return Negotiated(session_id, answer)
@@ -190,6 +199,7 @@ class EmbeddedRelay:
         if current is not None and current[0] == session_id:
             del self._publishers[asset_id]
             VIDEO_PUBLISHERS.dec()
+            self._ended(session_id)
             await self._stop_recording(asset_id, channel)
             await current[1].close()
 
@@ -200,7 +210,19 @@ class EmbeddedRelay:
             raise NotFound("no such publication of this asset")
         await current[1].close()  # connectionstatechange → closed → _ended_publication
 
-    async def view(self, asset_id: uuid.UUID, offer: str, max_viewers: int) -> Negotiated:
+    def _ended(self, session_id: uuid.UUID) -> None:
+        """Call the session's `on_end`, once."""
+        on_end = self._on_end.pop(session_id, None)
+        if on_end is not None:
+            on_end()
+
+    async def view(
+        self,
+        asset_id: uuid.UUID,
+        offer: str,
+        max_viewers: int,
+        on_end: Callable[[], None] | None = None,
+    ) -> Negotiated:
         """A viewer's WHEP offer → answer; frames follow from the next keyframe."""
         channel = self._channel(asset_id)
         if len(channel.tracks) >= max_viewers:
@@ -228,6 +250,8 @@ class EmbeddedRelay:
         channel.tracks.add(track)
         peer = _Peer(pc, lambda: self._drop_viewer(session_id))
         self._viewers[session_id] = (asset_id, peer, track)
+        if on_end is not None:
+            self._on_end[session_id] = on_end
         VIDEO_VIEWERS.inc()
         channel.request_keyframe()
         return Negotiated(session_id, answer)
@@ -237,6 +261,7 @@ class EmbeddedRelay:
         if found is None:
             return
         VIDEO_VIEWERS.dec()
+        self._ended(session_id)
         asset_id, peer, track = found
         self._channel(asset_id).tracks.discard(track)
         track.stop()
@@ -294,7 +319,8 @@ class EmbeddedRelay:
         """End every peer (the server stops)."""
         for session_id in list(self._viewers):
             await self._drop_viewer(session_id)
-        for _, peer in list(self._publishers.values()):
+        for session_id, peer in list(self._publishers.values()):
+            self._ended(session_id)
             await peer.close()
         VIDEO_PUBLISHERS.dec(len(self._publishers))
         self._publishers.clear()

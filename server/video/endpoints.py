@@ -31,7 +31,7 @@ def _gateway(services: ServicesDep) -> MediaGateway:
 
 
 def _build(uow: UoW, principal: Principal, services: ServicesDep) -> VideoService:
-    return VideoService(uow, principal, services.settings, _gateway(services))
+    return VideoService(uow, principal, services.settings, _gateway(services), services.hub)
 
 
 def _viewer_service(uow: UoW, principal: Viewer, services: ServicesDep) -> VideoService:

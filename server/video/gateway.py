@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal, Protocol
 
@@ -45,17 +46,29 @@ class MediaGateway(Protocol):
     viewer_offers: bool  # True: WHEP as in RFC 9725 (the viewer offers); False: the gateway offers
 
     async def publish(
-        self, asset_id: uuid.UUID, offer: str, camera: CameraDescription
+        self,
+        asset_id: uuid.UUID,
+        offer: str,
+        camera: CameraDescription,
+        on_end: Callable[[], None] | None = None,
     ) -> Negotiated:
-        """The asset's WHIP offer → answer; replaces the asset's previous publication."""
+        """The asset's WHIP offer → answer; replaces the asset's previous publication.
+        `on_end` is called once when the publication ends, however it ends."""
         ...
 
     async def unpublish(self, asset_id: uuid.UUID, session_id: uuid.UUID) -> None:
         """End a publication (NotFound when it is not the asset's)."""
         ...
 
-    async def view(self, asset_id: uuid.UUID, offer: str, max_viewers: int) -> Negotiated:
-        """A viewer's WHEP offer → answer (ViewerLimit when the asset has max_viewers)."""
+    async def view(
+        self,
+        asset_id: uuid.UUID,
+        offer: str,
+        max_viewers: int,
+        on_end: Callable[[], None] | None = None,
+    ) -> Negotiated:
+        """A viewer's WHEP offer → answer (ViewerLimit when the asset has max_viewers).
+        `on_end` is called once when the viewer's session ends, however it ends."""
         ...
 
     async def answer(self, asset_id: uuid.UUID, session_id: uuid.UUID, sdp: str) -> None:

@@ -16,6 +16,7 @@ import asyncio
 import contextlib
 import logging
 import uuid
+from collections.abc import Callable
 from typing import Any
 
 import httpx
@@ -80,6 +81,15 @@ class JanusClient:
             return [] if data.get("janus") == "keepalive" else [data]
         return list(data)
 
+    async def info(self) -> dict[str, Any]:
+        """Janus's `GET /info` (its version and plugins): raises when Janus does not answer."""
+        r = await self.http.get(f"{self.url}/info", timeout=5.0)
+        r.raise_for_status()
+        data: dict[str, Any] = r.json()
+        if data.get("janus") != "server_info":
+            raise GatewayUnavailable(f"Janus at {self.url} answered {data.get('janus')!r} to /info")
+        return data
+
     async def close(self) -> None:
         """Close the HTTP client."""
         await self.http.aclose()
@@ -102,6 +112,11 @@ class JanusGateway:
         # asset → (mountpoint id, RTP port, camera, when it was made: loop time)
         self._mounts: dict[uuid.UUID, tuple[int, int, CameraDescription, float]] = {}
         self._viewers: dict[uuid.UUID, tuple[uuid.UUID, int]] = {}
+        self._on_end: dict[uuid.UUID, Callable[[], None]] = {}  # per viewer: called once it ends
+
+    async def ping(self) -> None:
+        """Readiness (`/api/ready`): Janus answers its HTTP API."""
+        await self.client.info()
 
     # ---- session and restart detection
     async def _ensure(self) -> tuple[int, int]:
@@ -137,6 +152,8 @@ class JanusGateway:
             except (JanusError, GatewayUnavailable) as err:
                 log.warning("Janus session lost (%s); making it and the mountpoints again", err)
                 self._session = self._admin = None
+                for viewer_id in list(self._viewers):
+                    self._ended(viewer_id)
                 self._viewers.clear()
                 self._inboxes.clear()
                 await asyncio.sleep(1.0)
@@ -187,7 +204,11 @@ class JanusGateway:
         return RtpTarget(self.rtp_host, port, PAYLOAD_TYPE, camera.codec)
 
     async def publish(
-        self, asset_id: uuid.UUID, offer: str, camera: CameraDescription
+        self,
+        asset_id: uuid.UUID,
+        offer: str,
+        camera: CameraDescription,
+        on_end: Callable[[], None] | None = None,
     ) -> Negotiated:
         """No WHIP on this path: the asset sends RTP to the mountpoint."""
         raise Conflict(
@@ -210,7 +231,18 @@ class JanusGateway:
             return None
         return dict(data.get("info") or {})
 
-    async def view(self, asset_id: uuid.UUID, offer: str, max_viewers: int) -> Negotiated:
+    def _ended(self, viewer_id: uuid.UUID) -> None:
+        on_end = self._on_end.pop(viewer_id, None)
+        if on_end is not None:
+            on_end()
+
+    async def view(
+        self,
+        asset_id: uuid.UUID,
+        offer: str,
+        max_viewers: int,
+        on_end: Callable[[], None] | None = None,
+    ) -> Negotiated:
         """Attach a viewer handle, `watch` the mountpoint; answers Janus's offer."""
         if offer.strip():
             raise Unprocessable(
@@ -233,6 +265,8 @@ class JanusGateway:
         event = await self._wait(inbox, lambda e: "jsep" in e)
         viewer_id = uuid.uuid4()
         self._viewers[viewer_id] = (asset_id, handle)
+        if on_end is not None:
+            self._on_end[viewer_id] = on_end
         return Negotiated(viewer_id, str(event["jsep"]["sdp"]), kind="offer")
 
     async def _wait(self, inbox: asyncio.Queue[dict[str, Any]], match: Any) -> dict[str, Any]:
@@ -253,6 +287,7 @@ class JanusGateway:
         for viewer_id, (_, h) in list(self._viewers.items()):
             if h == handle:
                 del self._viewers[viewer_id]
+                self._ended(viewer_id)
                 self._inboxes.pop(handle, None)
                 if self._session is not None:
                     with contextlib.suppress(JanusError, GatewayUnavailable):
@@ -296,6 +331,7 @@ class JanusGateway:
         """Detach the viewer's handle (Janus hangs up its peer)."""
         handle = self._viewer(asset_id, session_id)
         del self._viewers[session_id]
+        self._ended(session_id)
         self._inboxes.pop(handle, None)
         if self._session is not None:
             with contextlib.suppress(JanusError, GatewayUnavailable):

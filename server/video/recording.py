@@ -4,8 +4,9 @@ The recorder listens to the relay's channel (`forward.Channel`) and muxes the fo
 into WebM segments with PyAV on a worker thread: `<dir>/<asset id>/<UTC start>.webm`, a new
 segment at the first keyframe after `segment_s`. Beside each segment, `<same>.times.jsonl` holds
 one line per frame, `{"pts": <90 kHz>, "t": <unix ms when the server received it>}`: the
-server's clock, the one telemetry is stored against, so a frame can be placed on a run's timeline
-(its capture was earlier by the drone-to-server latency, ~50-100 ms on a good link). Retention
+server's clock. Telemetry `ts` is the agent's clock (its envelope stamp), so a frame is placed on
+a run's timeline up to the clocks' offset and the capture-to-server latency (~50-100 ms on a good
+link): frontend_api.md, "Frame times and telemetry times are two clocks". Retention
 deletes the oldest segments beyond `max_age_s` or `max_bytes`.
 """
 

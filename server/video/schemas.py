@@ -75,7 +75,12 @@ class RecordingOut(BaseModel):
     name: str = Field(
         description="the segment's file name", examples=["20261125T024012.123456Z.webm"]
     )
-    started_at: Timestamp  # described by the shared type (RFC 3339)
+    started_at: Timestamp  # the server's receive time of its first frame (frontend_api.md)
+    ended_at: Timestamp | None = Field(
+        default=None,
+        description="when the server received the segment's last frame so far (UTC, server "
+        "clock); null before its first frame is written",
+    )
     bytes: int = Field(description="the segment's size", examples=[7340032])
     url: str = Field(
         description="the segment (video/webm)",

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
+import json
 import re
 import uuid
+from collections.abc import Awaitable
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -14,6 +17,7 @@ from server.kit.errors import Forbidden, NotFound, Unprocessable
 from server.kit.principal import Principal
 from server.kit.service import Service
 from server.kit.uow import UnitOfWork
+from server.realtime.hub import Hub
 from server.video.camera import camera_of
 from server.video.errors import ViewerLimit
 from server.video.gateway import MediaGateway, Negotiated
@@ -55,11 +59,17 @@ class VideoService(Service):
     """Describes, publishes and views the streams of the caller's organisation's UAVs."""
 
     def __init__(
-        self, uow: UnitOfWork, principal: Principal, settings: Settings, gateway: MediaGateway
+        self,
+        uow: UnitOfWork,
+        principal: Principal,
+        settings: Settings,
+        gateway: MediaGateway,
+        hub: Hub | None = None,
     ) -> None:
         super().__init__(uow, principal)
         self.settings = settings
         self.gateway = gateway
+        self.hub = hub  # viewers and publications end with the caller's session through it
         self.assets = AssetService(uow, principal, settings)
 
     async def _uav(self, asset_id: uuid.UUID) -> Asset:
@@ -106,10 +116,24 @@ class VideoService(Service):
     async def view(self, asset_id: uuid.UUID, offer: str) -> Negotiated:
         """Open a viewer session (WHEP)."""
         await self._uav(asset_id)
+        hold = self.hub.hold(self.principal.session_id, "video_viewer") if self.hub else None
         try:
-            return await self.gateway.view(asset_id, offer, self.settings.video_max_viewers)
+            opened = await self.gateway.view(
+                asset_id,
+                offer,
+                self.settings.video_max_viewers,
+                on_end=hold.release if hold else None,
+            )
         except ViewerLimit as err:  # the path knows the limit is reached; the settings say when
             raise ViewerLimit(err.message, self.settings.video_retry_after_s) from None
+        if hold is not None:  # the session's end stops the viewer, as it closes its sockets
+            hold.start(lambda: self._quietly(self.gateway.stop(asset_id, opened.session_id)))
+        return opened
+
+    @staticmethod
+    async def _quietly(step: Awaitable[None]) -> None:
+        with contextlib.suppress(NotFound):  # it ended meanwhile
+            await step
 
     async def answer(self, asset_id: uuid.UUID, session_id: uuid.UUID, sdp: str) -> None:
         """A viewer's SDP answer to the gateway's offer (Janus path)."""
@@ -136,7 +160,13 @@ class VideoService(Service):
         """The asset's own WHIP publish (a user, or another asset, may not)."""
         self._check_publisher(asset_id)
         asset = await self._uav(asset_id)
-        return await self.gateway.publish(asset_id, offer, camera_of(asset.attributes))
+        hold = self.hub.hold(self.principal.session_id, "video_publisher") if self.hub else None
+        opened = await self.gateway.publish(
+            asset_id, offer, camera_of(asset.attributes), on_end=hold.release if hold else None
+        )
+        if hold is not None:  # the asset's session ending (a new config, removal) ends it
+            hold.start(lambda: self._quietly(self.gateway.unpublish(asset_id, opened.session_id)))
+        return opened
 
     async def rtp_target(self, asset_id: uuid.UUID) -> RtpTargetOut:
         """The asset asks where to send its RTP (Janus path): the mountpoint's port."""
@@ -167,27 +197,7 @@ class VideoService(Service):
     async def recordings(self, asset_id: uuid.UUID) -> list[RecordingOut]:
         """The asset's recorded segments, newest first (empty when recording is off)."""
         await self._uav(asset_id)
-        folder = self._recording_folder(asset_id)
-        if folder is None or not folder.is_dir():
-            return []
-        out = []
-        base = f"/api/v1/assets/{asset_id}/video/recordings"
-        for path in sorted(folder.glob("*.webm"), reverse=True):
-            found = SEGMENT_NAME.match(path.name)
-            if found is None:
-                continue
-            started = datetime.strptime(found[1], "%Y%m%dT%H%M%S.%fZ").replace(tzinfo=UTC)
-            times = path.with_suffix(".times.jsonl").name
-            out.append(
-                RecordingOut(
-                    name=path.name,
-                    started_at=started,
-                    bytes=path.stat().st_size,
-                    url=f"{base}/{path.name}",
-                    times_url=f"{base}/{times}",
-                )
-            )
-        return out
+        return recorded_segments(self.settings.video_record_dir, asset_id)
 
     async def recording_file(self, asset_id: uuid.UUID, name: str) -> Path:
         """A segment or its times file (NotFound for any other name)."""
@@ -196,3 +206,65 @@ class VideoService(Service):
         if folder is None or SEGMENT_NAME.match(name) is None or not (folder / name).is_file():
             raise NotFound(f"no recording {name!r} of this asset")
         return folder / name
+
+
+def _last_frame_time(times: Path) -> datetime | None:
+    """The receive time of a segment's last frame (its times file's last line), None when none."""
+    try:
+        with times.open("rb") as f:
+            f.seek(0, 2)
+            f.seek(max(0, f.tell() - 512))
+            tail = f.read().decode("utf-8", errors="replace")
+    except OSError:
+        return None
+    for line in reversed(tail.splitlines()):
+        try:
+            t = json.loads(line)["t"]
+        except (ValueError, KeyError, TypeError):
+            continue  # a line being written, or cut by the seek
+        if isinstance(t, int) and not isinstance(t, bool):
+            return datetime.fromtimestamp(t / 1000, UTC)
+    return None
+
+
+def recorded_segments(
+    root: Path | None,
+    asset_id: uuid.UUID,
+    start: datetime | None = None,
+    end: datetime | None = None,
+) -> list[RecordingOut]:
+    """The asset's recorded segments under `root`, newest first; with `start` and `end`, only
+    those whose frames (first to last, server receive times) overlap [start, end]."""
+    folder = None if root is None else root / str(asset_id)
+    if folder is None or not folder.is_dir():
+        return []
+    out = []
+    base = f"/api/v1/assets/{asset_id}/video/recordings"
+    for path in sorted(folder.glob("*.webm"), reverse=True):
+        found = SEGMENT_NAME.match(path.name)
+        if found is None:
+            continue
+        started = datetime.strptime(found[1], "%Y%m%dT%H%M%S.%fZ").replace(tzinfo=UTC)
+        times = path.with_suffix(".times.jsonl")
+        ended = _last_frame_time(times)
+        if ended is not None:  # its times are whole milliseconds; the name has microseconds
+            ended = max(ended, started)
+        if end is not None and started > end:
+            continue
+        if start is not None and (ended or started) < start:
+            continue
+        try:
+            size = path.stat().st_size
+        except OSError:  # deleted by the retention meanwhile
+            continue
+        out.append(
+            RecordingOut(
+                name=path.name,
+                started_at=started,
+                ended_at=ended,
+                bytes=size,
+                url=f"{base}/{path.name}",
+                times_url=f"{base}/{times.name}",
+            )
+        )
+    return out

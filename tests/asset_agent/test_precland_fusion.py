@@ -305,3 +305,55 @@ def test_autopilot_steering_sends_each_new_measurement_once_as_the_camera_saw_it
     assert p.tick(0.15).landing_target is None  # held: nothing new to send
     p.fusion.submit(Measurement("aruco", 0.1, (0.3, 0.0, 4.0), None))
     assert p.tick(0.16).landing_target is not None
+
+
+def steady_state(kf: TargetKalman, rate_hz: float, seconds: float = 30.0) -> tuple[float, float]:
+    """Hover 5 m over the pad, predicted at 100 Hz of autopilot states, a reading from the camera
+    at `rate_hz`: the horizontal variance averaged over the last 10 s (m²), and the filter's
+    bandwidth, the rate at which a reading pulls the estimate (-ln(1 - gain) x rate, 1/s)."""
+    kf.reset((0.0, 0.0, 5.0), 1.0)
+    dt, frame = 0.01, round(100 / rate_hz)
+    variances, gain = [], 0.0
+    for k in range(round(seconds / dt)):
+        kf.predict((0.0, 0.0, 0.0), dt)
+        if k % frame == 0:
+            prior = kf.p[0, 0]
+            kf.update((0.0, 0.0, 5.0), t=k * dt)
+            gain = 1 - kf.p[0, 0] / prior
+        if k * dt > seconds - 10:
+            variances.append(kf.p[0, 0])
+    return float(np.mean(variances)), -math.log(1 - gain) * rate_hz
+
+
+@pytest.mark.parametrize(
+    "config",
+    [KalmanConfig(), KalmanConfig(position_noise_m_per_sqrt_s=0.05, vision_sigma_per_metre=0.01)],
+)
+def test_kalman_steady_state_is_the_same_at_5_and_30_hz_of_camera(config):
+    """Process noise per second and readings that share their error within the correlation
+    time: the covariance the filter settles to, and how fast it follows the camera, are physical
+    quantities — the same at 5 Hz as at 30 Hz (per-update tuning: variance 2.6x, bandwidth 2.3x apart)."""
+    var5, bw5 = steady_state(TargetKalman(config), 5.0)
+    var30, bw30 = steady_state(TargetKalman(config), 30.0)
+    assert var30 == pytest.approx(var5, rel=0.1)
+    # 10 % apart (5 Hz frames are a tenth of the filter's time constant); per update: 2.3x
+    assert bw30 == pytest.approx(bw5, rel=0.15)
+    assert bw5 > 0.1  # it does follow the camera
+
+
+def test_kalman_process_noise_is_per_second_and_per_metre_whatever_the_prediction_rate():
+    once, often = TargetKalman(), TargetKalman()
+    for kf in (once, often):
+        kf.reset((0.0, 0.0, 5.0), 0.1)
+        kf.update((0.0, 0.0, 5.0), heading=0.0)
+    once.predict((0.5, 0.0, 0.0), 1.0)
+    for _ in range(100):
+        often.predict((0.005, 0.0, 0.0), 0.01)
+    assert often.p == pytest.approx(once.p, rel=1e-6)
+    assert often.heading_var == pytest.approx(once.heading_var, rel=1e-6)
+    c = KalmanConfig()
+    grown = c.position_noise_m_per_sqrt_s**2 + c.position_noise_m_per_sqrt_m**2 * 0.5
+    fresh = TargetKalman()
+    fresh.reset((0.0, 0.0, 5.0), 0.1)
+    fresh.predict((0.5, 0.0, 0.0), 1.0)
+    assert fresh.p[0, 0] == pytest.approx(0.1**2 + grown)

@@ -545,3 +545,103 @@ async def test_the_map_draws_the_sites_tiles_when_a_tile_server_is_set(
     finally:
         await asyncio.to_thread(server.stop)
         tile_server.shutdown()
+
+
+def _plan_through(lat: float, lon: float, north_m: float) -> bytes:
+    """A .plan from the base straight north for `north_m` and back, with its own fence circle
+    (inclusion, 300 m) and one rally point 50 m east of the base."""
+    north = north_m / 111_195.0
+    east_50 = 50 / (111_195.0 * math.cos(math.radians(lat)))
+    item = {
+        "type": "SimpleItem", "autoContinue": True, "frame": 3, "AltitudeMode": 1, "Altitude": 30,
+        "AMSLAltAboveTerrain": None,
+    }  # fmt: skip
+    items = [
+        {**item, "command": 22, "doJumpId": 1, "params": [0, 0, 0, None, lat, lon, 30]},
+        {**item, "command": 16, "doJumpId": 2, "params": [0, 0, 0, None, lat + north, lon, 30]},
+        {**item, "command": 20, "doJumpId": 3, "params": [0, 0, 0, 0, 0, 0, 0]},
+    ]
+    plan = {
+        "fileType": "Plan", "version": 1, "groundStation": "QGroundControl",
+        "mission": {"version": 2, "firmwareType": 3, "vehicleType": 2, "cruiseSpeed": 15,
+                    "hoverSpeed": 5, "items": items, "plannedHomePosition": [lat, lon, 100]},
+        "geoFence": {"circles": [{"circle": {"center": [lat, lon], "radius": 300}, "inclusion": True,
+                                  "version": 1}], "polygons": [], "version": 2},
+        "rallyPoints": {"points": [[lat, lon + east_50, 20]], "version": 2},
+    }  # fmt: skip
+    return json.dumps(plan).encode()
+
+
+async def test_the_maps_draw_the_zones_and_the_plans_fence_and_the_mission_page_names_the_breach(
+    live_server, api, tenant: Tenant, browser
+):
+    from playwright.async_api import expect
+
+    lat, lon = 41.178, -8.598
+    base = tenant.create_asset("landing_base", attributes={"latitude": lat, "longitude": lon})
+    uav = tenant.create_asset("uav", base_id=base["id"])
+    d_lat, d_lon = 1 / 111_195.0, 1 / (111_195.0 * math.cos(math.radians(lat)))
+
+    def square(n0: float, n1: float, e0: float, e1: float) -> dict[str, object]:
+        ring = [
+            [lon + e * d_lon, lat + n * d_lat] for n, e in ((n0, e0), (n0, e1), (n1, e1), (n1, e0))
+        ]
+        return {"type": "Polygon", "coordinates": [[*ring, ring[0]]]}
+
+    past = {"start": "2020-01-01T00:00:00Z", "end": "2020-01-02T00:00:00Z"}
+    zones = [
+        {"name": "school", "kind": "exclusion", "geometry": square(80, 140, -40, 40), "ceiling_m": 60},
+        {"name": "fair", "kind": "exclusion", "geometry": square(-120, -60, 60, 140), "windows": [past]},
+        {"name": "operating area", "kind": "inclusion", "base_id": base["id"],
+         "geometry": {"type": "Point", "coordinates": [lon, lat]}, "radius_m": 250},
+    ]  # fmt: skip
+    for z in zones:
+        r = api.post("/api/v1/airspace/zones", json=z, headers=tenant.h("operator"))
+        assert r.status_code == 201, r.text
+    r = api.post(
+        "/api/v1/missions/import?name=north%20leg",
+        content=_plan_through(lat, lon, 200),
+        headers={**tenant.h("operator"), "Content-Type": "application/json"},
+    )
+    assert r.status_code == 201, r.text
+    mission = r.json()
+
+    page, traffic = await open_page(browser, live_server.url + "/")
+    await sign_in(page, tenant.emails["operator"], Tenant.PASSWORD)
+    # the fleet map: every zone that applies to the base, found by the map's accessible name
+    live_map = page.get_by_role("img", name=re.compile(f"^Live track of {uav['name']}"))
+    await expect(live_map).to_have_accessible_name(re.compile("exclusion zone 'school'"))
+    name = await live_map.get_attribute("aria-label")
+    assert "exclusion zone 'school', from the ground to ceiling 60 m" in name, name
+    assert "exclusion zone 'fair' (inactive now)" in name, name
+    assert "inclusion zone 'operating area', from the ground to ceiling 120 m" in name, name
+    # drawn: the school hatched, the fair dimmed, the operating area outlined
+    assert await live_map.locator("path.zone.exclusion:not(.inactive)").count() == 1
+    assert await live_map.locator("path.zone.exclusion.inactive").count() == 1
+    assert await live_map.locator("circle.zone.inclusion").count() == 1
+    await expect(live_map.locator(".legend")).to_contain_text("exclusion zone (keep out)")
+    weight = traffic.total()
+    await live_map.scroll_into_view_if_needed()
+    await shot(page, "fleet-airspace")
+
+    # the mission: its own fence and rally point on its map, and the breach the server names
+    await page.goto(f"{live_server.url}/#/missions/{mission['id']}")
+    mission_map = page.get_by_role("img", name=re.compile("^Mission north leg"))
+    await expect(mission_map).to_have_accessible_name(
+        re.compile("plan fence circle 0 \\(inclusion\\)")
+    )
+    await expect(mission_map).to_have_accessible_name(re.compile("exclusion zone 'school'"))
+    await expect(mission_map).to_have_accessible_name(re.compile("1 rally point"))
+    problems = page.get_by_role("table", name=re.compile(f"Not valid from {base['name']}"))
+    # out and back: both legs cross the school, each named with its segment
+    out_leg = problems.get_by_role("row").filter(has_text="items[0] → items[1]")
+    await expect(out_leg).to_contain_text("airspace")
+    await expect(out_leg).to_contain_text("exclusion zone 'school'")
+    await expect(out_leg).to_contain_text(re.compile(r"\b(59\.\d|60\.\d) m"))  # 60 m deep
+    back_leg = problems.get_by_role("row").filter(has_text="items[1] → home")
+    await expect(back_leg).to_contain_text("school")
+    await shot(page, "missions-airspace")
+    assert traffic.errors == [], traffic.errors
+    assert traffic.off_origin(live_server.url) == [], traffic.off_origin(live_server.url)
+    assert weight < PAGE_WEIGHT_LIMIT, weight
+    await page.context.close()

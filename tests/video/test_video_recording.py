@@ -2,18 +2,21 @@
 
 from __future__ import annotations
 
+import base64
 import io
 import itertools
 import json
 import os
 import time
+import uuid
 from collections.abc import Iterator
-from datetime import datetime
+from datetime import datetime, timedelta
 from pathlib import Path
 
 import av
 import httpx
 import pytest
+from sqlalchemy import update
 
 from server.video.recording import apply_retention, vp8_size
 from tests.conftest import LiveServer, Tenant, test_settings
@@ -112,3 +115,93 @@ def test_vp8_size_reads_keyframes_only():
     assert vp8_size(key) == (320, 240)
     assert vp8_size(b"\x31" + key[1:]) is None  # an interframe
     assert vp8_size(b"") is None
+
+
+def _utc(text: str) -> datetime:
+    return datetime.fromisoformat(text.replace("Z", "+00:00"))
+
+
+def _uav_at_base(tenant: Tenant, api: httpx.Client) -> tuple[dict[str, str], str]:
+    """A base, a UAV with a camera housed there, a mission; the run's ids and the UAV's token."""
+    from assetlink.configfile import decrypt_config
+
+    base = tenant.create_asset("landing_base")
+    uav = tenant.create_asset(
+        "uav", base_id=base["id"], attributes={"camera": {"width": 320, "height": 240}}
+    )
+    cfg = decrypt_config(base64.b64decode(uav["config_file"]), "asset-password-123")
+    token = api.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret})
+    assert token.status_code == 200, token.text
+    mission = api.post(
+        "/api/v1/missions",
+        headers=tenant.h("operator"),
+        json={"name": "square", "items": [{"command": 22, "alt": 20}, {"command": 20}]},
+    )
+    assert mission.status_code == 201, mission.text
+    ids = {"mission_id": mission.json()["id"], "uav_id": uav["id"], "base_id": base["id"]}
+    return ids, token.json()["access_token"]
+
+
+@pytest.mark.slow
+async def test_the_run_report_lists_the_segments_recorded_during_the_flight(
+    recording_server: LiveServer, database_url: str, superuser_email: str
+):
+    """A run's report lists the UAV's segments overlapping its flight, oldest first, with their
+    download URLs. The run is real (started and aborted through the API); its flight window is
+    written into its row, since flying it needs the simulated world (tests/e2e)."""
+    from server.kit.db import make_engine
+    from server.runs.models import Run
+
+    with httpx.Client(base_url=recording_server.url, timeout=30) as api:
+        tenant = Tenant(api, superuser_email, label="rec-run")
+        ids, token = _uav_at_base(tenant, api)
+    asset_id = ids["uav_id"]
+    h = tenant.h("viewer")
+    pub = publisher(recording_server.url, asset_id, token, 320, 240, 20)
+    async with httpx.AsyncClient(base_url=recording_server.url, timeout=30) as c:
+        base_url = f"/api/v1/assets/{asset_id}/video/recordings"
+        await pub.publish_once()
+
+        async def four_segments() -> bool:
+            return len((await c.get(base_url, headers=h)).json()) >= 4
+
+        try:
+            await eventually(four_segments, within=40, what="four segments")
+        finally:
+            await pub.stop()
+            await pub.track.aclose()  # type: ignore[attr-defined]
+        segments = (await c.get(base_url, headers=h)).json()[::-1]  # oldest first
+        for s in segments[:-1]:  # every segment but the newest is complete: a time span
+            assert _utc(s["ended_at"]) >= _utc(s["started_at"]), s
+        run = (await c.post("/api/v1/runs", headers=tenant.h("operator"), json=ids)).json()
+        report_url = f"/api/v1/runs/{run['id']}/report"
+        await c.post(f"/api/v1/runs/{run['id']}/abort", headers=tenant.h("operator"), json={})
+
+        async def aborted() -> bool:
+            r = await c.get(f"/api/v1/runs/{run['id']}", headers=h)
+            return r.json()["state"] == "aborted"
+
+        await eventually(aborted, within=20, what="the aborted run")
+        report = (await c.get(report_url, headers=h)).json()
+        assert report["recordings"] == []  # it never took off
+
+        # a flight from just after the second segment began until just after the third began
+        def at(text: str, plus_s: float) -> datetime:
+            return _utc(text) + timedelta(seconds=plus_s)
+
+        took_off, landed = at(segments[1]["started_at"], 0.1), at(segments[2]["started_at"], 0.1)
+        engine = make_engine(database_url)
+        async with engine.begin() as conn:
+            await conn.execute(
+                update(Run)
+                .where(Run.id == uuid.UUID(run["id"]))
+                .values(flight_started_at=took_off, flight_ended_at=landed)
+            )
+        await engine.dispose()
+        r = await c.get(report_url, headers=h)
+        assert r.status_code == 200, r.text
+        listed = r.json()["recordings"]
+        assert [s["name"] for s in listed] == [segments[1]["name"], segments[2]["name"]]
+        assert listed[0] == segments[1]  # the same entry as the asset's list: URLs, times, size
+        webm = await c.get(listed[0]["url"], headers=h)
+        assert webm.status_code == 200 and webm.headers["content-type"] == "video/webm"

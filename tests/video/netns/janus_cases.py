@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -153,6 +154,62 @@ async def test_a_viewer_gets_frames_through_janus(server: LiveServer, tenant: Te
         await viewer.close()
         sending.cancel()
         await pub.track.aclose()
+
+
+@pytest.mark.slow
+async def test_logging_out_hangs_up_that_sessions_janus_viewer(server: LiveServer, tenant: Tenant):
+    asset_id, token = uav_with_camera(tenant, httpx.Client(base_url=server.url))
+    pub = rtp_publisher(server, asset_id, token)
+    sending = asyncio.create_task(pub.run())
+    viewer = JanusViewer(server.url, asset_id, tenant.tokens["viewer"])
+    try:
+        await eventually(lambda: pub.packets > 50, within=20, what="RTP sent to Janus")
+        assert (await viewer.start()).status_code == 201
+        await eventually(lambda: viewer.frames >= 10, within=30, what="frames through Janus")
+        async with httpx.AsyncClient(base_url=server.url, timeout=30) as c:
+
+            async def viewers() -> int:
+                r = await c.get(f"/api/v1/assets/{asset_id}/video", headers=tenant.h("admin"))
+                return int(r.json()["viewers"])
+
+            assert await viewers() == 1
+            started = time.monotonic()
+            r = await c.post("/api/v1/auth/logout", headers=tenant.h("viewer"))
+            assert r.status_code == 204, r.text
+
+            async def detached() -> bool:
+                return await viewers() == 0
+
+            # the handle is detached: Janus counts the viewer gone and hangs up its peer
+            await eventually(detached, within=10, what="the logged-out viewer's handle detached")
+            assert time.monotonic() - started <= 1.5, time.monotonic() - started
+            await eventually(
+                lambda: viewer.pc.connectionState in ("closed", "failed"),
+                within=10,
+                what="Janus hanging up the viewer's peer",
+            )
+            gone = await c.delete(str(viewer.location), headers=tenant.h("admin"))
+            assert gone.status_code == 404  # the server forgot the session too
+            viewer.location = None
+    finally:
+        await viewer.close()
+        sending.cancel()
+        await pub.track.aclose()
+
+
+def test_readiness_names_janus_when_it_does_not_answer(server: LiveServer, janus: Janus):
+    """/api/ready checks Janus on the Janus path: 503 naming it while it is down, 200 again after."""
+    with httpx.Client(base_url=server.url, timeout=10) as api:
+        up = api.get("/api/ready")
+        assert up.status_code == 200 and up.json()["checks"]["janus"] == "ok", up.text
+        janus.stop()
+        try:
+            down = api.get("/api/ready")
+            assert down.status_code == 503, down.text
+            assert down.json()["checks"]["janus"].startswith("unreachable"), down.text
+        finally:
+            janus.start()
+        assert api.get("/api/ready").json()["checks"]["janus"] == "ok"
 
 
 @pytest.mark.slow

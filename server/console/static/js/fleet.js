@@ -3,13 +3,15 @@
 import { get } from "./api.js";
 import { commandButton } from "./commands.js";
 import { freshness, noteAvailability, on, state } from "./live.js";
-import { missionPoints, originOf } from "./geo.js";
+import { airspace, missionPoints, originOf } from "./geo.js";
 import { trackMap } from "./plot.js";
 import { livePanel } from "./video.js";
 import { ago, badge, clear, clock, h, metres, num } from "./ui.js";
 
 const trails = new Map(); // uav id -> [{north, east}] seen since the console opened
 const flying = new Map(); // uav id -> the mission of its unfinished run, in metres around its base
+const plans = new Map(); // uav id -> that mission as the API gives it (its geoFence and rally points)
+const zonesOf = new Map(); // uav id -> the airspace zones that apply to its base's flights
 
 function linkRow(asset) {
   const f = freshness(asset.id);
@@ -107,7 +109,8 @@ function card(ctx, asset) {
       const here = origin && v["position.lat"] !== undefined ? metres(origin, v["position.lat"], v["position.lon"]) : null;
       clear(mapBox, origin
         ? h("figure", {}, h("figcaption", {}, flying.has(asset.id) ? "Live track and the current run's mission (dashed), metres around the base" : "Live track, metres around the base"),
-          trackMap({ title: `Live track of ${asset.name}`, track: trail, uav: here, mission: flying.get(asset.id) || [], geo: origin }))
+          trackMap({ title: `Live track of ${asset.name}`, track: trail, uav: here, mission: flying.get(asset.id) || [], geo: origin,
+            airspace: airspace(origin, zonesOf.get(asset.id) || [], plans.get(asset.id)) }))
         : h("p", { class: "muted" }, "No map: the base's position (attributes latitude, longitude) is unknown."));
     }
   };
@@ -180,12 +183,18 @@ export function render(main, ctx) {
       const origin = originOf(ctx, u);
       if (run && !["completed", "aborted", "failed"].includes(run.state) && origin) {
         const m = await get(`/missions/${run.mission_id}`).catch(() => null);
-        if (m) flying.set(u.id, missionPoints(m, origin));
-      } else flying.delete(u.id);
+        if (m) { flying.set(u.id, missionPoints(m, origin)); plans.set(u.id, m); }
+      } else { flying.delete(u.id); plans.delete(u.id); }
       cards.get(u.id).update();
     }
   };
   missions();
+  // the zones over each UAV's map: those that apply to flights from its base
+  for (const u of uavs) {
+    const b = u.base_id || (bases[0] || {}).id;
+    get(`/airspace/zones?limit=1000${b ? `&base_id=${b}` : ""}`)
+      .then((zones) => { zonesOf.set(u.id, zones); cards.get(u.id).update(); }).catch(() => {});
+  }
   let pending = new Set();
   let frame = null;
   const offs = [

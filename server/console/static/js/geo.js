@@ -16,3 +16,37 @@ export function missionPoints(mission, origin) {
     .filter((it) => POSITIONAL.has(it.command) && (it.lat || it.lon))
     .map((it) => metres(origin, it.lat, it.lon));
 }
+
+// The airspace over a map, in metres around its origin: the zones that apply to the base (the API's
+// GeoJSON Polygon, or Point with radius_m) and a mission's own QGroundControl geoFence and rally points.
+// A shape is {name, kind: "inclusion"|"exclusion", active, source: "zone"|"plan", ring} or {…, centre, radius}.
+export function airspace(origin, zones = [], mission = null) {
+  const at = (lat, lon) => metres(origin, lat, lon);
+  const shapes = [];
+  for (const z of zones) {
+    const g = z.geometry || {};
+    const base = { name: z.name, kind: z.kind, active: z.active !== false, source: "zone", ceiling: z.ceiling_m, floor: z.floor_m };
+    if (g.type === "Polygon" && Array.isArray(g.coordinates) && g.coordinates[0]) {
+      shapes.push({ ...base, ring: g.coordinates[0].map(([lon, lat]) => at(lat, lon)) });
+    } else if (g.type === "Point" && z.radius_m > 0) {
+      shapes.push({ ...base, centre: at(g.coordinates[1], g.coordinates[0]), radius: z.radius_m });
+    }
+  }
+  const extras = (mission && mission.extras) || {};
+  const fence = extras.geoFence || {};
+  (fence.polygons || []).forEach((p, k) => {
+    if (Array.isArray(p.polygon) && p.polygon.length >= 3) {
+      shapes.push({ name: `plan fence polygon ${k}`, kind: p.inclusion === false ? "exclusion" : "inclusion", active: true, source: "plan",
+        ring: p.polygon.map(([lat, lon]) => at(lat, lon)) });
+    }
+  });
+  (fence.circles || []).forEach((c, k) => {
+    const circle = c.circle || {};
+    if (Array.isArray(circle.center) && circle.radius > 0) {
+      shapes.push({ name: `plan fence circle ${k}`, kind: c.inclusion === false ? "exclusion" : "inclusion", active: true, source: "plan",
+        centre: at(circle.center[0], circle.center[1]), radius: circle.radius });
+    }
+  });
+  const rally = ((extras.rallyPoints || {}).points || []).filter((p) => Array.isArray(p) && p.length >= 2).map(([lat, lon]) => at(lat, lon));
+  return { shapes, rally };
+}

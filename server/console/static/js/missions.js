@@ -1,8 +1,8 @@
 // Missions: the list, importing a QGroundControl .plan (or waypoint file) with every refused item
 // named, a mission's items on the local map, and export.
 
-import { api, ApiError, get } from "./api.js";
-import { missionPoints, originOf } from "./geo.js";
+import { api, ApiError, get, post } from "./api.js";
+import { airspace, missionPoints, originOf } from "./geo.js";
 import { trackMap } from "./plot.js";
 import { clear, h, notify, num, when } from "./ui.js";
 
@@ -72,9 +72,37 @@ function importForm(done) {
     out);
 }
 
+// the mission checked against limits and the airspace, from the organisation's (first) base:
+// each problem with the segment, the zone and the distance the server names
+function validation(m, base) {
+  const out = h("div", { "aria-live": "polite" }, h("p", { class: "muted" }, "Checking against the limits and the airspace…"));
+  post(`/missions/${m.id}/validate`, base ? { base_id: base.id } : {}).then((r) => {
+    const rows = r.problems || [];
+    clear(out, rows.length ? h("table", {},
+      h("caption", {}, `Not valid${base ? ` from ${base.name}` : ""} now: ${rows.length} problem${rows.length > 1 ? "s" : ""}`),
+      h("thead", {}, h("tr", {}, ["Kind", "Segment", "Zone", "Problem", "Distance / value", "Limit"].map((c) => h("th", { scope: "col" }, c)))),
+      h("tbody", {}, rows.map((d) => h("tr", {},
+        h("td", {}, d.code || d.where),
+        h("td", {}, d.segment ? d.segment.join(" → ") : d.index ?? "–"),
+        h("td", {}, d.zone ? `${d.zone.kind} ${d.zone.source === "plan" ? "fence" : "zone"} '${d.zone.name}'` : "–"),
+        h("td", {}, d.what),
+        h("td", {}, d.value === undefined || d.value === null ? "" : d.code === "airspace" ? `${num(d.value, 1, "m")}` : JSON.stringify(d.value)),
+        h("td", {}, d.limit === undefined || d.limit === null ? "" : JSON.stringify(d.limit))))))
+      : h("p", {}, `Valid${base ? ` from ${base.name}` : ""} now: within the limits and clear of the airspace zones.`));
+  }).catch((err) => clear(out, h("p", { role: "alert", class: "error" }, `Could not be checked: ${err.message}`)));
+  return out;
+}
+
 function detail(ctx, m) {
   const origin = m.home ? { lat: m.home.lat, lon: m.home.lon } : originOf(ctx, null)
     || (m.items.find((it) => it.lat) ? { lat: m.items.find((it) => it.lat).lat, lon: m.items.find((it) => it.lat).lon } : null);
+  const base = ctx.assets.find((a) => a.kind === "landing_base");
+  const map = h("div");
+  const draw = (zones) => origin && clear(map, h("figure", {},
+    h("figcaption", {}, `${m.home ? "The mission in metres around its home" : "The mission in metres around the base"}, with the zones and the plan's fence`),
+    trackMap({ title: `Mission ${m.name}`, mission: missionPoints(m, origin), geo: origin, airspace: airspace(origin, zones, m) })));
+  draw([]);
+  get(`/airspace/zones?limit=1000${base ? `&base_id=${base.id}` : ""}`).then(draw).catch(() => {});
   return h("section", { class: "card", "aria-labelledby": "mission-title" },
     h("h2", { id: "mission-title" }, m.name),
     h("p", {}, `${m.kind}, from ${m.source}; ${m.items.length} items; about ${num(m.estimate.distance_m, 0, "m")}, ` +
@@ -82,8 +110,8 @@ function detail(ctx, m) {
     h("div", { class: "actions" },
       h("button", { type: "button", "aria-label": `Export ${m.name} as a QGroundControl plan`, onclick: () => download(m, "qgc") }, "Export .plan"),
       h("button", { type: "button", "aria-label": `Export ${m.name} as a waypoint file`, onclick: () => download(m, "wpl") }, "Export waypoints")),
-    origin ? h("figure", {}, h("figcaption", {}, m.home ? "The mission in metres around its home" : "The mission in metres around the base"),
-      trackMap({ title: `Mission ${m.name}`, mission: missionPoints(m, origin), geo: origin })) : null,
+    map,
+    ctx.canOperate ? validation(m, base) : null,
     h("table", {},
       h("caption", {}, "Items"),
       h("thead", {}, h("tr", {}, ["#", "Command", "Frame", "Latitude", "Longitude", "Altitude"].map((c) => h("th", { scope: "col" }, c)))),

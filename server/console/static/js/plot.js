@@ -104,11 +104,67 @@ function tiles(geo, span, X, Y, W) {
   return group;
 }
 
+// what a zone is called, for the map's accessible name and its shapes' tooltips
+function zoneLabel(z) {
+  const what = z.source === "plan" ? `${z.name} (${z.kind})` : `${z.kind} zone '${z.name}'`;
+  const heights = z.floor != null || z.ceiling != null ? `, ${z.floor != null ? `floor ${+z.floor.toFixed(1)} m` : "from the ground"} to ${z.ceiling != null ? `ceiling ${+z.ceiling.toFixed(1)} m` : "no ceiling"}` : "";
+  return `${what}${z.active ? "" : " (inactive now)"}${heights}`;
+}
+
+// the airspace under the track: inclusion outlined, exclusion filled and hatched, inactive dimmed
+// (zones beyond 5 km of the base are drawn but do not widen the map)
+function airspaceLayer(svg, { shapes, rally }, X, Y, scale, clip) {
+  const hatch = `hatch-${Math.random().toString(36).slice(2)}`;
+  const pattern = s("pattern", { id: hatch, width: 6, height: 6, patternUnits: "userSpaceOnUse", patternTransform: "rotate(45)" });
+  pattern.append(s("line", { x1: 0, y1: 0, x2: 0, y2: 6, class: "hatch" }));
+  const defs = s("defs");
+  defs.append(pattern);
+  svg.append(defs);
+  const layer = s("g", { class: "airspace", "clip-path": `url(#${clip})` });
+  for (const z of [...shapes].sort((a, b) => (a.kind === "inclusion" ? -1 : 1) - (b.kind === "inclusion" ? -1 : 1))) {
+    const cls = `zone ${z.kind}${z.source === "plan" ? " plan" : ""}${z.active ? "" : " inactive"}`;
+    const attrs = { class: cls, fill: z.kind === "exclusion" ? `url(#${hatch})` : "none" };
+    const el = z.ring
+      ? s("path", { ...attrs, d: z.ring.map((p, i) => `${i ? "L" : "M"}${X(p).toFixed(1)},${Y(p).toFixed(1)}`).join("") + "Z" })
+      : s("circle", { ...attrs, cx: X(z.centre), cy: Y(z.centre), r: z.radius * scale });
+    el.append(s("title", {}, zoneLabel(z)));
+    layer.append(el);
+  }
+  for (const p of rally) {
+    const g = s("g", { class: "rally" });
+    g.append(s("title", {}, `rally point ${fmt(p.north)} m north, ${fmt(p.east)} m east`));
+    g.append(s("path", { d: `M${X(p)},${Y(p) - 6}L${X(p) + 5},${Y(p) + 3}L${X(p) - 5},${Y(p) + 3}Z` }));
+    layer.append(g);
+  }
+  svg.append(layer);
+  return hatch;
+}
+
+// a legend of what is drawn, in the map's top left corner
+function legend(svg, entries, M, hatch) {
+  if (!entries.length) return;
+  const g = s("g", { class: "legend", "aria-hidden": "true" });
+  g.append(s("rect", { x: M + 4, y: M + 4, width: 172, height: entries.length * 15 + 6, class: "legend-box" }));
+  entries.forEach(([cls, label], i) => {
+    const y = M + 10 + i * 15;
+    g.append(cls === "rally"
+      ? s("path", { d: `M${M + 16},${y}L${M + 21},${y + 9}L${M + 11},${y + 9}Z`, class: "rally-mark" })
+      : s("rect", { x: M + 9, y, width: 14, height: 9, class: cls, fill: cls.includes("exclusion") ? `url(#${hatch})` : "none" }));
+    g.append(s("text", { x: M + 28, y: y + 8 }, label));
+  });
+  svg.append(g);
+}
+
 // track, mission: [{north, east}] in metres from the base at (0, 0); uav: {north, east} or null;
-// geo: the base's {lat, lon}, for the site's map tiles when the server names a tile URL
-export function trackMap({ title, track = [], mission = [], uav = null, minSpan = 60, geo = null }) {
+// geo: the base's {lat, lon}, for the site's map tiles when the server names a tile URL;
+// airspace: {shapes, rally} from geo.js's airspace(), drawn under the track
+export function trackMap({ title, track = [], mission = [], uav = null, minSpan = 60, geo = null, airspace = null }) {
   const W = 420, M = 28;
-  const all = [{ north: 0, east: 0 }, ...track, ...mission, ...(uav ? [uav] : [])];
+  const shapes = airspace ? airspace.shapes : [], rally = airspace ? airspace.rally : [];
+  const zonePoints = shapes.flatMap((z) => z.ring || [
+    { north: z.centre.north + z.radius, east: z.centre.east + z.radius }, { north: z.centre.north - z.radius, east: z.centre.east - z.radius }]);
+  const near = [...zonePoints, ...rally].filter((p) => Math.hypot(p.north, p.east) <= 5000);
+  const all = [{ north: 0, east: 0 }, ...track, ...mission, ...(uav ? [uav] : []), ...near];
   const span = Math.max(minSpan, ...all.map((p) => Math.max(Math.abs(p.north), Math.abs(p.east)) * 2.2));
   const scale = (W - 2 * M) / span;
   const cx = W / 2, cy = W / 2;
@@ -129,6 +185,13 @@ export function trackMap({ title, track = [], mission = [], uav = null, minSpan 
   }
   svg.append(s("text", { x: M, y: W - 8 }, `grid ${fmt(step)} m · north up · base at the centre`));
   svg.append(s("text", { x: cx - 4, y: M - 10 }, "N"));
+  let hatch = null;
+  if (shapes.length || rally.length) {
+    const clip = `clip-${Math.random().toString(36).slice(2)}`;
+    svg.append(s("clipPath", { id: clip }));
+    svg.lastChild.append(s("rect", { x: M, y: M, width: W - 2 * M, height: W - 2 * M }));
+    hatch = airspaceLayer(svg, { shapes, rally }, X, Y, scale, clip);
+  }
   if (mission.length) {
     svg.append(s("path", { d: mission.map((p, i) => `${i ? "L" : "M"}${X(p)},${Y(p)}`).join(""), class: "mission" }));
     for (const p of mission) svg.append(s("circle", { cx: X(p), cy: Y(p), r: 3, class: "wp" }));
@@ -138,9 +201,19 @@ export function trackMap({ title, track = [], mission = [], uav = null, minSpan 
   }
   svg.append(s("rect", { x: cx - 5, y: cy - 5, width: 10, height: 10, class: "base" }));
   if (uav) svg.append(s("circle", { cx: X(uav), cy: Y(uav), r: 5, class: "uav" }));
+  const kinds = [
+    [shapes.some((z) => z.kind === "inclusion" && z.source === "zone" && z.active), "zone inclusion", "inclusion zone (stay inside)"],
+    [shapes.some((z) => z.kind === "exclusion" && z.source === "zone" && z.active), "zone exclusion", "exclusion zone (keep out)"],
+    [shapes.some((z) => z.source === "plan"), "zone inclusion plan", "the plan's own fence"],
+    [shapes.some((z) => !z.active), "zone inclusion inactive", "inactive now (dimmed)"],
+    [rally.length > 0, "rally", "rally point"],
+  ];
+  legend(svg, kinds.filter(([on]) => on).map(([, cls, label]) => [cls, label]), M, hatch);
   const far = Math.max(0, ...track.map((p) => Math.hypot(p.north, p.east)), ...mission.map((p) => Math.hypot(p.north, p.east)));
+  const zones = shapes.length ? `; airspace: ${shapes.map(zoneLabel).join("; ")}` : "";
   svg.setAttribute("aria-label",
     `${title}: ${track.length} track points, ${mission.length} mission points, ` +
-    `farthest ${fmt(far)} m from the base` + (uav ? `; UAV ${fmt(uav.north)} m north, ${fmt(uav.east)} m east` : ""));
+    `farthest ${fmt(far)} m from the base` + (uav ? `; UAV ${fmt(uav.north)} m north, ${fmt(uav.east)} m east` : "") +
+    zones + (rally.length ? `; ${rally.length} rally point${rally.length > 1 ? "s" : ""}` : ""));
   return svg;
 }
