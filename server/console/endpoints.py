@@ -25,9 +25,11 @@ TYPES = {
     ".svg": "image/svg+xml",
     ".txt": "text/plain; charset=utf-8",
 }
-# everything the page loads comes from its own origin; sockets to the same host
+# everything the page loads comes from its own origin; sockets to the same host. The live video is
+# a MediaStream (WebRTC is outside the policy); a recorded segment plays from a blob: URL (its
+# download needs the bearer token, which a <video src> cannot send).
 POLICY = (
-    "default-src 'self'; connect-src 'self'; img-src 'self' data: blob:; "
+    "default-src 'self'; connect-src 'self'; img-src 'self' data: blob:; media-src 'self' blob:; "
     "style-src 'self'; script-src 'self'; object-src 'none'; base-uri 'none'; "
     "frame-ancestors 'none'"
 )

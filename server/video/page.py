@@ -1,4 +1,4 @@
-"""The minimal viewer page (one HTML file and one ES module), served beside the API."""
+"""The minimal viewer page and the WHEP client module it shares with the console (`/video/whep.js`)."""
 
 from __future__ import annotations
 
@@ -6,9 +6,11 @@ from functools import cache
 from pathlib import Path
 
 from fastapi import APIRouter, Response
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 router = APIRouter(include_in_schema=False)
 STATIC = Path(__file__).parent / "static"
+MODULES = {"viewer", "whep"}  # the ES modules under static/; whep.js is imported by the console
 
 
 @cache
@@ -26,11 +28,13 @@ async def viewer_page() -> Response:
     )
 
 
-@router.get("/video/viewer.js")
-async def viewer_module() -> Response:
-    """The viewer's ES module."""
+@router.get("/video/{name}.js")
+async def viewer_module(name: str) -> Response:
+    """The viewer page's module, or the WHEP client it shares with the console (`whep.js`)."""
+    if name not in MODULES:
+        raise StarletteHTTPException(404, f"no video module {name}.js")
     return Response(
-        _read("viewer.js"),
+        _read(f"{name}.js"),
         media_type="text/javascript; charset=utf-8",
-        headers={"Cache-Control": "no-cache"},
+        headers={"Cache-Control": "no-cache", "X-Content-Type-Options": "nosniff"},
     )

@@ -119,11 +119,12 @@ class Recorder:
             return  # wait for a keyframe: a segment must start decodable
         packet = av.Packet(frame.data)
         packet.stream = segment.stream
-        packet.pts = packet.dts = (frame.timestamp - segment.first_pts) & 0xFFFFFFFF
+        pts = (frame.timestamp - segment.first_pts) & 0xFFFFFFFF
+        packet.pts = packet.dts = pts
         packet.time_base = TIME_BASE
         packet.is_keyframe = frame.keyframe
-        segment.container.mux(packet)
-        segment.times.write(json.dumps({"pts": packet.pts, "t": round(at * 1000)}) + "\n")  # type: ignore[attr-defined]
+        segment.container.mux(packet)  # rescales the packet to WebM's milliseconds, in place
+        segment.times.write(json.dumps({"pts": pts, "t": round(at * 1000)}) + "\n")  # type: ignore[attr-defined]
         self.frames += 1
 
     def _start(self, frame: EncodedFrame, at: float) -> _Segment | None:
@@ -138,7 +139,7 @@ class Recorder:
         stream.width, stream.height = size
         stream.pix_fmt = "yuv420p"
         stream.time_base = TIME_BASE
-        times = open(path.with_suffix(".times.jsonl"), "w")
+        times = open(path.with_suffix(".times.jsonl"), "w", buffering=1)  # whole lines, at once
         self._segment = _Segment(path, container, stream, times, frame.timestamp, at)
         return self._segment
 

@@ -21,14 +21,19 @@ def chromium() -> str:
     return CHROMIUM
 
 
+ARGS = [
+    "--no-sandbox",  # CI runs as root
+    "--allow-loopback-in-peer-connection",  # the test server's video candidates are on loopback
+    "--disable-features=WebRtcHideLocalIpsWithMdns",  # real candidates, not .local names
+]  # (as tests/video/test_viewer_browser.py; the page's muted <video> autoplays by itself)
+
+
 async def launch() -> AsyncIterator[Any]:
-    """A headless Chromium (no sandbox: CI runs as root)."""
+    """A headless Chromium that may watch the test server's video over loopback WebRTC."""
     from playwright.async_api import async_playwright
 
     async with async_playwright() as pw:
-        browser = await pw.chromium.launch(
-            executable_path=chromium(), headless=True, args=["--no-sandbox"]
-        )
+        browser = await pw.chromium.launch(executable_path=chromium(), headless=True, args=ARGS)
         try:
             yield browser
         finally:
@@ -44,8 +49,9 @@ class Traffic:
     transferred: dict[str, int] = field(default_factory=dict)
 
     def off_origin(self, origin: str) -> list[str]:
+        """Requests to another host; a blob: URL has its creator's origin (blob:http://host/uuid)."""
         host = urlsplit(origin).netloc
-        return [u for u in self.urls if urlsplit(u).netloc != host]
+        return [u for u in self.urls if urlsplit(u.removeprefix("blob:")).netloc != host]
 
     def total(self) -> int:
         return sum(self.transferred.values())

@@ -20,6 +20,7 @@ from tests.polling import eventually
 pytestmark = pytest.mark.slow  # a browser and the whole platform: not in the fast lane
 
 PAGE_WEIGHT_LIMIT = 300_000  # bytes transferred, compressed, for the first load (issue 18)
+CAMERA = {"width": 320, "height": 240, "fps": 15}  # the UAV's camera: the world's render, scaled
 
 
 @pytest.fixture(scope="module")
@@ -48,6 +49,10 @@ def _bad_plan(lat: float, lon: float) -> bytes:
     return json.dumps(plan).encode()
 
 
+async def _frames_over(video, n: int) -> bool:  # type: ignore[no-untyped-def]
+    return int(await video.get_attribute("data-frames") or 0) > n
+
+
 async def _numbers(locator) -> float | None:  # type: ignore[no-untyped-def]
     text = await locator.inner_text()
     m = re.search(r"-?\d+(?:\.\d+)?", text)
@@ -55,11 +60,33 @@ async def _numbers(locator) -> float | None:  # type: ignore[no-untyped-def]
 
 
 async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_reads_its_report(
-    live_server, tenant: Tenant, tmp_path, browser
+    database_url, superuser_email, tmp_path, browser
 ):
+    import httpx
+
+    from tests.conftest import LiveServer, test_settings
+
+    # a server whose video relay offers loopback candidates, as the agent's [video] does here, and
+    # records what it relays (the replay plays it back)
+    settings = test_settings(
+        database_url,
+        video_ice_loopback=True,
+        video_record_dir=tmp_path / "recordings",
+        video_record_segment_s=10.0,  # the run spans several segments, most of them closed
+    )
+    server = LiveServer(settings).start()
+    try:
+        with httpx.Client(base_url=server.url) as sync_api:
+            tenant = await asyncio.to_thread(Tenant, sync_api, superuser_email, "console")
+            await _operator_story(server, tenant, tmp_path, browser)
+    finally:
+        await asyncio.to_thread(server.stop)
+
+
+async def _operator_story(live_server, tenant: Tenant, tmp_path, browser) -> None:  # type: ignore[no-untyped-def]
     from playwright.async_api import expect
 
-    async with platform(live_server.url, tenant, tmp_path) as p:
+    async with platform(live_server.url, tenant, tmp_path, video=CAMERA) as p:
         uav = (await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}", headers=tenant.h())).json()
         base = (await p.api.get(f"/api/v1/assets/{p.ids['base_id']}", headers=tenant.h())).json()
         page, traffic = await open_page(browser, live_server.url + "/")
@@ -84,6 +111,13 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
         await dialog.get_by_role("button", name="Check availability").click()
         await expect(base_card.get_by_role("status")).to_contain_text("succeeded", timeout=30_000)
         await expect(base_card).to_contain_text(re.compile(r"Go / no-go\s*GO all conditions met"))
+        # the UAV's live camera: WHEP through the shared client, decoded frames counted by the page
+        video_state = uav_card.get_by_role("status", name=f"Video state of {uav['name']}")
+        await expect(video_state).to_have_text("live", timeout=60_000)
+        video = uav_card.get_by_label(f"Live video of {uav['name']}")
+        await eventually(lambda: _frames_over(video, 30), 60, "30 decoded video frames")
+        size = await video.evaluate("v => [v.videoWidth, v.videoHeight]")
+        assert size == [CAMERA["width"], CAMERA["height"]], size
         weight = traffic.total()
         await shot(page, "fleet")
 
@@ -194,6 +228,29 @@ async def test_an_operator_watches_the_fleet_schedules_a_run_to_completion_and_r
         for _ in range(40):
             await slider.press("ArrowRight")
         await expect(page.get_by_role("definition").first).not_to_have_text("pending")
+        # back to the middle of the flight (0.5 s a key): its recorded video, a segment fetched
+        # with the token and played from a blob: URL at that moment's frame
+        middle = int(float(await slider.get_attribute("max") or 0))
+        await slider.press("Home")
+        for _ in range(middle):
+            await slider.press("ArrowRight")
+        await expect(page.get_by_role("definition").first).to_contain_text("flying")
+        recorded = page.get_by_role("status", name="Recorded video state")
+        await expect(recorded).to_contain_text(re.compile(r"^recorded · \d{8}T"), timeout=30_000)
+        playback = page.get_by_label("Recorded video of the run")
+        media = "v => [v.readyState, v.seeking, v.currentTime, v.duration, v.error && v.error.code]"
+
+        async def playable() -> bool:
+            ready, seeking, at, _, _ = await playback.evaluate(media)
+            return ready >= 2 and not seeking and at > 0
+
+        try:
+            await eventually(playable, 30, "the recorded frame of that moment")
+        except AssertionError as err:
+            raise AssertionError(f"{err}: {await playback.evaluate(media)}") from None
+        shown = await playback.evaluate("v => [v.videoWidth, v.videoHeight, v.currentTime]")
+        assert shown[:2] == [CAMERA["width"], CAMERA["height"]] and shown[2] > 0, shown
+        await playback.evaluate("v => v.closest('figure').scrollIntoView({block: 'end'})")
         await shot(page, "replay")
         await page.get_by_role("link", name="History").click()
         await expect(page.get_by_role("table", name=re.compile("Past runs"))).to_contain_text(
@@ -332,6 +389,9 @@ async def test_the_console_reconnects_by_itself_after_a_server_restart_and_marks
                 await expect(page.locator("#link")).to_have_text("Live", timeout=30_000)
                 await expect(card).to_contain_text("connected", timeout=30_000)
                 assert await link.count() == 1
+                # the video panel came back by itself too: the UAV sends no video in this world
+                video = card.get_by_role("status", name=f"Video state of {uav['name']}")
+                await expect(video).to_have_text(re.compile("^no signal"), timeout=30_000)
                 # on the restarted server, commands still go out and come back with their outcome
                 base = page.get_by_role("region", name=re.compile("^Landing base "))
                 for command, panels in (

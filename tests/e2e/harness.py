@@ -137,6 +137,7 @@ async def platform(
     plan: dict[str, Any] | None = None,
     base_process: bool = False,
     metrics_ports: dict[str, int] | None = None,
+    video: dict[str, Any] | None = None,
 ) -> AsyncIterator[Platform]:
     """World + daemons connected to the server at `server_url`, assets registered in `tenant`.
 
@@ -145,7 +146,9 @@ async def platform(
     autopilot's (sim/vehicle/habits.py); `pad`: where the base stands (lat, lon, alt); `plan`: a
     QGroundControl plan imported as the run's mission instead of the pad square. `base_process`:
     the base daemon runs as its own `aerobase base-station` process (`Platform.base_daemon`), to
-    be killed. `metrics_ports`: {"base": port, "agent": port} turns on the daemons' own /metrics."""
+    be killed. `metrics_ports`: {"base": port, "agent": port} turns on the daemons' own /metrics.
+    `video`: the UAV's camera description ({"width", "height", "fps"}); the agent publishes the
+    world's downward camera at that size ([video], loopback ICE: the server must allow it too)."""
     extra = {"base": BaseParams(pad_geodetic=pad)} if pad else {}
     world = full_world(WorldConfig.for_tests(speed=speed, seed=seed, **extra))
     if habits is not None:
@@ -155,7 +158,8 @@ async def platform(
         world.weather.force(wind_mps=2.0, gust_mps=3.0, rain_mm_h=0.0, temperature_c=15.0)
         lat, lon, _ = world.base.pad_geodetic
         base = tenant.create_asset("landing_base", attributes={"latitude": lat, "longitude": lon})
-        uav = tenant.create_asset("uav", base_id=base["id"], attributes={"mass_g": 1450})
+        camera = {"camera": video} if video is not None else {}
+        uav = tenant.create_asset("uav", base_id=base["id"], attributes={"mass_g": 1450, **camera})
         async with httpx.AsyncClient(base_url=server_url, timeout=30) as api:
             if plan is not None:
                 r = await api.post(
@@ -204,6 +208,18 @@ async def platform(
                             }
                         }
                         if precland is not None
+                        else {}
+                    ),
+                    **(
+                        {
+                            "video": {
+                                "enabled": True,
+                                "camera_port": world.ports["camera"],
+                                "allow_loopback_ice": True,
+                                **video,
+                            }
+                        }
+                        if video is not None
                         else {}
                     ),
                 }

@@ -85,6 +85,9 @@ async def test_a_publication_is_recorded_in_segments_with_frame_times(
     assert len(times) == len(frames)  # one time per frame, every frame decodable
     stamps = [json.loads(line) for line in times]
     assert all(b["pts"] > a["pts"] and b["t"] >= a["t"] for a, b in itertools.pairwise(stamps))
+    # the times' pts are the documented 90 kHz: frame i plays at pts/90000 s in the WebM (ms)
+    for frame, stamp in zip(frames, stamps, strict=True):
+        assert abs(float(frame.time) - stamp["pts"] / 90000) <= 0.001, (frame.time, stamp)
     assert abs(stamps[0]["t"] / 1000 - t0) < 10
 
 

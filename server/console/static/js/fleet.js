@@ -5,6 +5,7 @@ import { commandButton } from "./commands.js";
 import { freshness, noteAvailability, on, state } from "./live.js";
 import { airspace, missionPoints, originOf } from "./geo.js";
 import { trackMap } from "./plot.js";
+import { livePanel } from "./video.js";
 import { ago, badge, clear, clock, h, metres, num } from "./ui.js";
 
 const trails = new Map(); // uav id -> [{north, east}] seen since the console opened
@@ -68,6 +69,7 @@ function card(ctx, asset) {
   const out = h("p", { role: "status", "aria-live": "polite", class: "muted" });
   const mapBox = h("div");
   const title = asset.kind === "uav" ? "UAV" : "Landing base";
+  const video = asset.kind === "uav" ? livePanel(asset) : null;
   const actions = [];
   if (ctx.canOperate && asset.kind === "uav") {
     actions.push(commandButton(asset, "Return to base", "return_to_base", {
@@ -95,9 +97,7 @@ function card(ctx, asset) {
     values,
     actions.length ? h("div", { class: "actions", role: "group", "aria-label": `Commands for ${asset.name}` }, actions) : null,
     out,
-    asset.kind === "uav" ? mapBox : null,
-    asset.kind === "uav" ? h("div", { class: "video", role: "note", "aria-label": `Video of ${asset.name}` },
-      "Video: not available in this console yet (placeholder — the live video API is not served by this server version).") : null);
+    asset.kind === "uav" ? h("div", { class: "views" }, mapBox, video.el) : null);
   const update = () => {
     const t = state.telemetry.get(asset.id);
     const v = t ? t.values : {};
@@ -114,7 +114,7 @@ function card(ctx, asset) {
         : h("p", { class: "muted" }, "No map: the base's position (attributes latitude, longitude) is unknown."));
     }
   };
-  return { asset, section, update };
+  return { asset, section, update, stop: () => video && video.stop() };
 }
 
 function eventsTable(ctx) {
@@ -218,5 +218,9 @@ export function render(main, ctx) {
     on("run_progress", (p) => { if (p.state === "checking" || p.final) missions(); }),
     on("tick", () => { for (const c of cards.values()) c.update(); }),
   ];
-  return () => { offs.forEach((f) => f()); if (frame) cancelAnimationFrame(frame); };
+  return () => {
+    offs.forEach((f) => f());
+    if (frame) cancelAnimationFrame(frame);
+    for (const c of cards.values()) c.stop(); // each live video session ends (WHEP DELETE)
+  };
 }

@@ -7,6 +7,7 @@ import { missionPoints } from "./geo.js";
 import { lineChart, trackMap } from "./plot.js";
 import { STEPS } from "./runs.js";
 import { clear, h, num } from "./ui.js";
+import { recordedPanel } from "./video.js";
 
 function before(rows, t) {
   let lo = 0, hi = rows.length - 1, found = null;
@@ -18,6 +19,7 @@ function before(rows, t) {
 }
 
 export function render(main, ctx, args) {
+  let recorded = null; // the run's recorded video (one element; the slider seeks it)
   const box = h("div", {}, h("p", {}, "Loading the run's telemetry…"));
   clear(main, h("h1", {}, "Replay"), box);
   (async () => {
@@ -30,8 +32,11 @@ export function render(main, ctx, args) {
     const label = Object.fromEntries(STEPS);
     const slider = h("input", { id: "replay-time", type: "range", min: 0, max: Math.max(1, Math.round((t1 - t0) / 1000)), step: 0.5, value: 0 });
     const readout = h("output", { for: "replay-time", id: "replay-readout" });
+    const left = h("div");
+    const now = h("div"); // the state at the slider's moment, redrawn; the video below it stays
     const view = h("div", { class: "cols" });
     const mission = f.mission && f.origin ? missionPoints(f.mission, f.origin) : [];
+    recorded = recordedPanel(run.uav_id, t0, t1);
     const draw = () => {
       const t = t0 + Number(slider.value) * 1000;
       const p = before(track, t);
@@ -39,25 +44,25 @@ export function render(main, ctx, args) {
       const s = before(steps, t);
       readout.textContent = `${Number(slider.value).toFixed(1)} s into the run`;
       const shown = track.filter((x) => x.t <= t);
-      clear(view,
-        h("div", {}, f.origin ? trackMap({ title: "Track until this moment", track: shown, mission, uav: p && Number.isFinite(p.north) ? p : null, geo: f.origin }) : null),
-        h("div", {},
-          h("dl", { class: "kv", "aria-label": "State at this moment" },
-            h("dt", {}, "Run step"), h("dd", {}, s ? `${s.to_state}${label[s.to_state] ? ` — ${label[s.to_state]}` : ""}` : "pending"),
-            h("dt", {}, "Reason"), h("dd", {}, s ? s.reason : "–"),
-            h("dt", {}, "UAV altitude"), h("dd", {}, p ? num(p["position.alt_rel_m"], 1, "m") : "–"),
-            h("dt", {}, "UAV battery"), h("dd", {}, p ? num(p["battery.percent"], 0, "%") : "–"),
-            h("dt", {}, "Base panels"), h("dd", {}, b && b["panels.state"] ? `${b["panels.state"]} ${num(b["panels.position_pct"], 0, "%")}` : "–"),
-            h("dt", {}, "Base lift"), h("dd", {}, b && b["lift.state"] ? `${b["lift.state"]} ${num(b["lift.position_pct"], 0, "%")}` : "–"),
-            h("dt", {}, "UAV on the scale"), h("dd", {}, b && b.uav_present !== undefined ? `${b.uav_present ? "yes" : "no"} ${num(b.scale_mass_g, 0, "g")}` : "–"),
-            h("dt", {}, "Charger"), h("dd", {}, b && b["charger.state"] ? b["charger.state"] : "–")),
-          lineChart({ title: "Altitude", unit: "m", points: track.map((x) => ({ t: x.t, v: x["position.alt_rel_m"] })), t0, t1, cursor: t }),
-          h("div", { class: "video", role: "note" }, "Recorded video: not available (placeholder — video recording is not served by this server version).")));
+      clear(left, f.origin ? trackMap({ title: "Track until this moment", track: shown, mission, uav: p && Number.isFinite(p.north) ? p : null, geo: f.origin }) : null);
+      clear(now,
+        h("dl", { class: "kv", "aria-label": "State at this moment" },
+          h("dt", {}, "Run step"), h("dd", {}, s ? `${s.to_state}${label[s.to_state] ? ` — ${label[s.to_state]}` : ""}` : "pending"),
+          h("dt", {}, "Reason"), h("dd", {}, s ? s.reason : "–"),
+          h("dt", {}, "UAV altitude"), h("dd", {}, p ? num(p["position.alt_rel_m"], 1, "m") : "–"),
+          h("dt", {}, "UAV battery"), h("dd", {}, p ? num(p["battery.percent"], 0, "%") : "–"),
+          h("dt", {}, "Base panels"), h("dd", {}, b && b["panels.state"] ? `${b["panels.state"]} ${num(b["panels.position_pct"], 0, "%")}` : "–"),
+          h("dt", {}, "Base lift"), h("dd", {}, b && b["lift.state"] ? `${b["lift.state"]} ${num(b["lift.position_pct"], 0, "%")}` : "–"),
+          h("dt", {}, "UAV on the scale"), h("dd", {}, b && b.uav_present !== undefined ? `${b.uav_present ? "yes" : "no"} ${num(b.scale_mass_g, 0, "g")}` : "–"),
+          h("dt", {}, "Charger"), h("dd", {}, b && b["charger.state"] ? b["charger.state"] : "–")),
+          lineChart({ title: "Altitude", unit: "m", points: track.map((x) => ({ t: x.t, v: x["position.alt_rel_m"] })), t0, t1, cursor: t }));
+      recorded.seek(t);
     };
     slider.addEventListener("input", draw);
     clear(box,
       h("div", { class: "field" }, h("label", { for: "replay-time" }, "Time in the run"), slider, readout),
-      view);
+      clear(view, left, h("div", {}, now, recorded.el)));
     draw();
   })().catch((err) => clear(box, h("p", { role: "alert", class: "error" }, `The replay could not be loaded: ${err.message}`)));
+  return () => { if (recorded) recorded.stop(); };
 }
