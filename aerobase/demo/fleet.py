@@ -141,6 +141,37 @@ async def wait_ready(c: httpx.AsyncClient, fleet: Fleet, procs: Processes) -> tu
     )
 
 
+async def wait_uav_available(c: httpx.AsyncClient, fleet: Fleet, procs: Processes) -> None:
+    """Ask the UAV `check_availability` (as an operator's console does) until it answers available.
+
+    An external autopilot that has just booted fails its pre-arm checks for 30-45 s (ArduPilot:
+    EKF, GPS, home); a survey scheduled before it is armable would abort at step 1."""
+    deadline = time.monotonic() + 180
+    h = {"Authorization": f"Bearer {fleet.ops_token}"}
+    told = ""
+    while time.monotonic() < deadline:
+        procs.check()
+        sent = await c.post(
+            f"/api/v1/assets/{fleet.uav['id']}/commands",
+            json={"name": "check_availability", "params": {}, "timeout_s": 10},
+            headers=h,
+        )
+        sent.raise_for_status()
+        status, reason = "queued", ""
+        while status in ("queued", "sent", "in_progress") and time.monotonic() < deadline:
+            await asyncio.sleep(0.3)
+            got = (await c.get(f"/api/v1/commands/{sent.json()['id']}", headers=h)).json()
+            status, reason = got["status"], got.get("reason") or ""
+        if status == "succeeded":
+            say("the UAV is available (its autopilot passes its pre-arm checks)")
+            return
+        if reason != told:
+            say(f"waiting for the UAV to be available: {reason or status}")
+            told = reason
+        await asyncio.sleep(2.0)
+    raise RuntimeError(f"the UAV was not available within 180 s: {told} (see agent.log)")
+
+
 def survey_polygon(lat: float, lon: float) -> dict[str, Any]:
     """A 60 m x 40 m field starting 20 m north of the base."""
     dlat, dlon = 1 / 111_320, 1 / (111_320 * 0.7527)  # metres to degrees near 41° N

@@ -36,6 +36,7 @@ from aerobase.demo.fleet import (
     report_run,
     schedule_survey,
     wait_ready,
+    wait_uav_available,
     watch,
 )
 from aerobase.demo.processes import Processes, free_port, say, serve_until_stopped, wait_http
@@ -126,6 +127,7 @@ async def run_mission(
         procs.start("base-station", ["base-station", "--config", str(folder / "base.toml")], env)
         procs.start("agent", ["agent", "--config", str(folder / "agent.toml")], env)
         lat, lon = await wait_ready(c, fleet, procs)
+        await wait_uav_available(c, fleet, procs)
         await announce_video(c, fleet, server_url)
         await schedule_survey(c, fleet, lat, lon)
         outcome = await watch(server_url, fleet, procs)
