@@ -228,13 +228,18 @@ async def _operator_story(live_server, tenant: Tenant, tmp_path, browser) -> Non
         for _ in range(40):
             await slider.press("ArrowRight")
         await expect(page.get_by_role("definition").first).not_to_have_text("pending")
-        # back to the middle of the flight (0.5 s a key): its recorded video, a segment fetched
+        # back to a moment in flight (0.5 s a key): its recorded video, a segment fetched
         # with the token and played from a blob: URL at that moment's frame
-        middle = int(float(await slider.get_attribute("max") or 0))
+        # (the first moment the run's step is `flying`: where it falls in the run depends on how
+        # fast this machine flew the 10x square, so the slider walks there rather than guessing)
+        steps = 2 * int(float(await slider.get_attribute("max") or 0)) + 1
         await slider.press("Home")
-        for _ in range(middle):
+        step = page.get_by_role("definition").first
+        for _ in range(steps):
+            if "flying" in (await step.text_content() or ""):
+                break
             await slider.press("ArrowRight")
-        await expect(page.get_by_role("definition").first).to_contain_text("flying")
+        await expect(step).to_contain_text("flying")
         recorded = page.get_by_role("status", name="Recorded video state")
         await expect(recorded).to_contain_text(re.compile(r"^recorded · \d{8}T"), timeout=30_000)
         playback = page.get_by_label("Recorded video of the run")
@@ -621,7 +626,9 @@ async def test_the_maps_draw_the_zones_and_the_plans_fence_and_the_mission_page_
     assert await live_map.locator("circle.zone.inclusion").count() == 1
     await expect(live_map.locator(".legend")).to_contain_text("exclusion zone (keep out)")
     weight = traffic.total()
-    await live_map.scroll_into_view_if_needed()
+    # scrolled by the page itself: live samples redraw the map, and Playwright's own scrolling
+    # waits for a stable element that a redraw may detach meanwhile
+    await live_map.evaluate("m => m.scrollIntoView({block: 'center'})")
     await shot(page, "fleet-airspace")
 
     # the mission: its own fence and rally point on its map, and the breach the server names
