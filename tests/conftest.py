@@ -169,31 +169,28 @@ def api(live_server: LiveServer) -> Iterator[httpx.Client]:
 SUPERUSER_PASSWORD = "super-secret-password-1"
 
 
+async def create_superuser(database_url: str, email: str) -> None:
+    """A platform superuser, created through the admin service on a migrated database."""
+    from server.kit.db import make_engine, make_sessionmaker
+    from server.kit.security import Passwords
+    from server.organizations.service import create_user
+
+    engine = make_engine(database_url)
+    async with make_sessionmaker(engine)() as db:
+        await create_user(
+            db, Passwords(1, 8192, 1), email=email, password=SUPERUSER_PASSWORD, is_superuser=True
+        )
+        await db.commit()
+    await engine.dispose()
+
+
 @pytest.fixture(scope="session")
 def superuser_email(database_url: str) -> str:
     """A platform superuser, created through the admin service on the real database."""
     import asyncio
 
-    from server.kit.db import make_engine, make_sessionmaker
-    from server.kit.security import Passwords
-    from server.organizations.service import create_user
-
     email = f"root-{uuid.uuid4().hex[:8]}@aerobase.test"
-
-    async def create() -> None:
-        engine = make_engine(database_url)
-        async with make_sessionmaker(engine)() as db:
-            await create_user(
-                db,
-                Passwords(1, 8192, 1),
-                email=email,
-                password=SUPERUSER_PASSWORD,
-                is_superuser=True,
-            )
-            await db.commit()
-        await engine.dispose()
-
-    asyncio.run(create())
+    asyncio.run(create_superuser(database_url, email))
     return email
 
 

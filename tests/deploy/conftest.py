@@ -13,10 +13,7 @@ from sqlalchemy import text
 from sqlalchemy.ext.asyncio import create_async_engine
 
 from server import migrate
-from server.kit.db import make_engine, make_sessionmaker
-from server.kit.security import Passwords
-from server.organizations.service import create_user
-from tests.conftest import IN_CI, PG_URL_DEFAULT, SUPERUSER_PASSWORD, need_service
+from tests.conftest import IN_CI, PG_URL_DEFAULT, create_superuser, need_service
 
 ROOT_EMAIL = "root@deploy.test"
 
@@ -44,17 +41,7 @@ async def own_database() -> AsyncIterator[str]:
     url = PG_URL_DEFAULT.rsplit("/", 1)[0] + f"/{name}"
     try:
         await asyncio.to_thread(migrate.upgrade, url)
-        engine = make_engine(url)
-        async with make_sessionmaker(engine)() as db:
-            await create_user(
-                db,
-                Passwords(1, 8192, 1),
-                email=ROOT_EMAIL,
-                password=SUPERUSER_PASSWORD,
-                is_superuser=True,
-            )
-            await db.commit()
-        await engine.dispose()
+        await create_superuser(url, ROOT_EMAIL)
         yield url
     finally:
         async with admin.connect() as conn:
