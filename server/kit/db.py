@@ -9,6 +9,7 @@ from typing import Any
 
 import orjson
 from sqlalchemy import DateTime, MetaData, event
+from sqlalchemy.exc import StatementError
 from sqlalchemy.ext.asyncio import (
     AsyncEngine,
     AsyncSession,
@@ -72,6 +73,21 @@ def json_dumps(value: Any) -> str:
         return orjson.dumps(value).decode()
     except TypeError:
         return json.dumps(value)
+
+
+def sqlstate(err: BaseException) -> str:
+    """The SQLSTATE of a database error, found along its causes (asyncpg's, through SQLAlchemy's
+    wrappers), or "" when none carries one (SQLite's errors do not)."""
+    seen: BaseException | None = err
+    for _ in range(5):
+        if seen is None:
+            return ""
+        code = getattr(seen, "sqlstate", None)
+        if code:
+            return str(code)
+        orig = seen.orig if isinstance(seen, StatementError) else None
+        seen = orig if isinstance(orig, BaseException) else seen.__cause__
+    return ""
 
 
 def make_engine(url: str, **kwargs: Any) -> AsyncEngine:

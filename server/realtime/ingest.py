@@ -34,6 +34,7 @@ from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 from asynckit.tasks import cancel_and_wait
 from server.commands import service as commands
 from server.kit import metrics
+from server.kit.db import sqlstate
 from server.telemetry import service as telemetry
 from server.telemetry.store import Sample, TelemetryStore, flatten
 
@@ -50,13 +51,13 @@ def _data_fault(err: BaseException) -> bool:
     query argument" (a ValueError) are raised while binding parameters; PostgreSQL's own refusals
     carry SQLSTATE class 22 (data exception) or 23 (integrity constraint violation).
     """
+    if sqlstate(err)[:2] in ("22", "23"):
+        return True
     seen: BaseException | None = err
     for _ in range(5):
         if seen is None:
             return False
         if isinstance(seen, DATA_FAULTS):
-            return True
-        if str(getattr(seen, "sqlstate", "") or "")[:2] in ("22", "23"):
             return True
         orig = seen.orig if isinstance(seen, StatementError) else None
         seen = orig if isinstance(orig, BaseException) else seen.__cause__

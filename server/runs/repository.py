@@ -141,7 +141,8 @@ async def claim(
         )
         .order_by(Run.created_at)
         .limit(limit)
-        .with_for_update(skip_locked=True)
+        # FOR NO KEY UPDATE: a mission's DELETE may check (KEY SHARE) the runs referring to it
+        .with_for_update(skip_locked=True, key_share=True)
     )
     runs = list((await db.execute(stmt)).scalars())
     for run in runs:
@@ -172,8 +173,10 @@ async def release(db: AsyncSession, owner: str, now: datetime) -> None:
 
 
 async def lock(db: AsyncSession, run_id: uuid.UUID) -> Run | None:
-    """A run, locked for the rest of the transaction."""
-    stmt = select(Run).where(Run.id == run_id).with_for_update()  # unscoped: engine
+    """A run, locked for the rest of the transaction (FOR NO KEY UPDATE: the engine never changes
+    a run's keys, and a lock that blocked KEY SHARE deadlocked with a mission's DELETE, whose
+    RESTRICT check waited for the run while the engine's next UPDATE re-checked the mission)."""
+    stmt = select(Run).where(Run.id == run_id).with_for_update(key_share=True)  # unscoped: engine
     return (await db.execute(stmt)).scalar_one_or_none()
 
 
