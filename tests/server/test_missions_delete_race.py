@@ -69,6 +69,7 @@ def _waiting_on_a_lock() -> bool:
     return asyncio.run(query())
 
 
+@pytest.mark.slow  # a server of its own on a database of its own
 def test_deleting_a_mission_while_the_engine_holds_its_run_answers_409(server: LiveServer):
     email = f"root-{uuid.uuid4().hex[:8]}@aerobase.test"
     asyncio.run(create_superuser(URL, email))
