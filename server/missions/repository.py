@@ -45,7 +45,8 @@ class MissionRepository(ScopedRepository[Mission]):
         in_use = Conflict(
             f"mission {mission_id} is used by runs and cannot be deleted", code="mission_in_use"
         )
-        if await self.db.scalar(select(exists().where(Run.mission_id == mission_id))):
+        referred = select(exists().where(Run.mission_id == mission_id))  # unscoped: its id
+        if await self.db.scalar(referred):
             raise in_use
         await self.db.delete(mission)
         try:
