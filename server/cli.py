@@ -21,6 +21,7 @@ from server.kit.uow import UnitOfWork
 from server.logging import configure_logging
 from server.organizations import service
 from server.organizations.repository import UserRepository
+from server.realtime.native import WebSocketProtocol
 
 
 def server_main(argv: Sequence[str] | None = None) -> int:
@@ -79,6 +80,8 @@ def uvicorn_options(settings: Settings) -> dict[str, Any]:
         "host": settings.host,
         "port": settings.port,
         "log_config": None,
+        # /ws/asset and /ws/operator served straight from the transport (server/realtime/native.py)
+        "ws": WebSocketProtocol,
         "ws_max_size": 1 << 20,
         "ws_per_message_deflate": False,
         "ws_ping_interval": settings.ws_ping_interval_s,

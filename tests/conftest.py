@@ -121,17 +121,11 @@ class LiveServer:
         self.url = f"http://127.0.0.1:{self.port}"
         settings.port = self.port
         self.app = create_app(settings)
-        config = uvicorn.Config(
-            self.app,
-            host="127.0.0.1",
-            port=self.port,
-            log_config=None,
-            ws_max_size=1 << 20,
-            ws_per_message_deflate=False,
-            proxy_headers=True,
-            forwarded_allow_ips="127.0.0.1",
-            lifespan="on",
-        )
+        from server.cli import uvicorn_options
+
+        # as `aerobase server` serves it (the hot sockets natively, uvloop, the WebSocket limits)
+        options = {**uvicorn_options(settings), "host": "127.0.0.1", "port": self.port}
+        config = uvicorn.Config(self.app, forwarded_allow_ips="127.0.0.1", lifespan="on", **options)
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(
             target=self.server.run, name=f"server-{self.port}", daemon=True

@@ -11,7 +11,7 @@ import contextlib
 import json
 import logging
 import time
-from collections import defaultdict
+from collections import defaultdict, deque
 from collections.abc import AsyncIterator, Callable
 from typing import Any, Protocol
 
@@ -37,6 +37,10 @@ class Broker(Protocol):
     async def publish(self, channel: str, message: dict[str, Any]) -> None:
         """Send to every subscriber of `channel`, in every process."""
 
+    def publish_nowait(self, channel: str, message: dict[str, Any]) -> None:
+        """`publish` without waiting (the hot path): in order with every other `publish_nowait`
+        of this process; never blocks, never raises."""
+
     def subscribe(self, channel: str, handler: Handler) -> None:
         """Call `handler` (in the event loop, must not block) for each message on `channel`."""
 
@@ -48,6 +52,9 @@ class Broker(Protocol):
 
     async def refresh(self, key: str, owner: str, ttl_s: float) -> bool:
         """Extend our claim; False when we no longer hold it."""
+
+    async def refresh_many(self, claims: list[tuple[str, str]], ttl_s: float) -> list[bool]:
+        """`refresh` of many (key, owner) claims at once (one round trip to Redis)."""
 
     async def release(self, key: str, owner: str) -> None:
         """Give up our claim."""
@@ -99,6 +106,10 @@ class InProcessBroker:
         """Deliver in this process."""
         self._subs.dispatch(channel, message)
 
+    def publish_nowait(self, channel: str, message: dict[str, Any]) -> None:
+        """Deliver in this process, now."""
+        self._subs.dispatch(channel, message)
+
     def subscribe(self, channel: str, handler: Handler) -> None:
         """Register a handler."""
         self._subs.add(channel, handler)
@@ -124,6 +135,10 @@ class InProcessBroker:
         self._claims[key] = (owner, time.monotonic() + ttl_s)
         return True
 
+    async def refresh_many(self, claims: list[tuple[str, str]], ttl_s: float) -> list[bool]:
+        """Extend each claim."""
+        return [await self.refresh(key, owner, ttl_s) for key, owner in claims]
+
     async def release(self, key: str, owner: str) -> None:
         """Drop our claim."""
         if self._claims.get(key, ("",))[0] == owner:
@@ -139,6 +154,7 @@ _REFRESH = (
 
 POOL_SIZE = 64  # connections to Redis per process (one is the subscription's)
 POOL_WAIT_S = 10.0  # a caller waits this long for a free connection, then the call fails
+OUTBOX_LIMIT = 100_000  # publish_nowait messages waiting for Redis; later ones are dropped
 
 
 class RedisBroker:
@@ -151,6 +167,10 @@ class RedisBroker:
         self._redis: Any = None
         self._pubsub: Any = None
         self._reader: asyncio.Task[None] | None = None
+        self._outbox: deque[tuple[str, str]] = deque()  # publish_nowait, in order
+        self._outbox_ready = asyncio.Event()
+        self._publisher: asyncio.Task[None] | None = None
+        self.dropped = 0  # publish_nowait messages dropped (Redis away past OUTBOX_LIMIT)
 
     async def start(self) -> None:
         """Connect and start the reader task."""
@@ -170,6 +190,7 @@ class RedisBroker:
         self._pubsub = self._redis.pubsub(ignore_subscribe_messages=True)
         await self._pubsub.subscribe(f"{self.prefix}__keepalive")
         self._reader = asyncio.create_task(self._read(), name="redis-broker")
+        self._publisher = asyncio.create_task(self._publish_outbox(), name="redis-publisher")
 
     async def ping(self) -> None:
         """Redis PING over the broker's own connection pool."""
@@ -178,8 +199,16 @@ class RedisBroker:
         await self._redis.ping()
 
     async def close(self) -> None:
-        """Stop the reader and disconnect."""
-        await cancel_and_wait([self._reader])
+        """Stop the reader and the publisher (after what it holds, for at most a second), and
+        disconnect."""
+        await cancel_and_wait([self._reader, self._publisher])
+        if self._outbox and self._redis is not None:
+            batch = list(self._outbox)
+            self._outbox.clear()
+            try:
+                await asyncio.wait_for(self._send(batch), 1.0)
+            except Exception as err:
+                log.warning("%d publications not sent at close: %r", len(batch), err)
         if self._pubsub:
             await self._pubsub.aclose()
         if self._redis:
@@ -210,6 +239,39 @@ class RedisBroker:
         """Publish to every process."""
         await self._redis.publish(self.prefix + channel, json.dumps(message, separators=(",", ":")))
 
+    def publish_nowait(self, channel: str, message: dict[str, Any]) -> None:
+        """Queue for the publisher task, which sends what queued in one pipeline."""
+        if len(self._outbox) >= OUTBOX_LIMIT:
+            self.dropped += 1
+            if self.dropped % 10_000 == 1:
+                log.warning("Redis is not taking publications: %d dropped so far", self.dropped)
+            return
+        self._outbox.append((self.prefix + channel, json.dumps(message, separators=(",", ":"))))
+        self._outbox_ready.set()
+
+    async def _publish_outbox(self) -> None:
+        """Send queued publications in order, as many as are waiting in one round trip."""
+        while True:
+            await self._outbox_ready.wait()
+            self._outbox_ready.clear()
+            while self._outbox:
+                batch = [self._outbox.popleft() for _ in range(min(len(self._outbox), 1000))]
+                while True:
+                    try:
+                        await self._send(batch)
+                        break
+                    except asyncio.CancelledError:
+                        raise
+                    except Exception:
+                        log.exception("publishing to Redis failed; retrying")
+                        await asyncio.sleep(0.5)
+
+    async def _send(self, batch: list[tuple[str, str]]) -> None:
+        async with self._redis.pipeline(transaction=False) as pipe:
+            for channel, data in batch:
+                pipe.publish(channel, data)
+            await pipe.execute()
+
     def subscribe(self, channel: str, handler: Handler) -> None:
         """Register a handler; the first one of a channel subscribes in Redis."""
         if self._subs.add(channel, handler):
@@ -238,6 +300,15 @@ class RedisBroker:
         return bool(
             await self._redis.eval(_REFRESH, 1, self.prefix + key, owner, int(ttl_s * 1000))
         )
+
+    async def refresh_many(self, claims: list[tuple[str, str]], ttl_s: float) -> list[bool]:
+        """Extend each claim we still hold: one pipeline for all."""
+        if not claims:
+            return []
+        async with self._redis.pipeline(transaction=False) as pipe:
+            for key, owner in claims:
+                pipe.eval(_REFRESH, 1, self.prefix + key, owner, int(ttl_s * 1000))
+            return [bool(held) for held in await pipe.execute()]
 
     async def release(self, key: str, owner: str) -> None:
         """Delete the key if we hold it."""

@@ -1,19 +1,38 @@
-"""Reading one frame from a server WebSocket: text only, within a time limit, as values or typed errors.
+"""What a session needs from its WebSocket (`Socket`), whichever server carries it, and the
+errors and close codes of that contract.
 
-Starlette's `receive_text` fails with a bare KeyError on a binary frame; here a binary frame is a
-`Refused(1003)` and a peer silent past the limit a `Refused(4408)`, which the sessions turn into a
+Two implementations: `native.NativeSocket` (the hot sockets served straight from the TCP
+transport, how `aerobase server` runs) and `asgi_socket.AsgiSocket` (the same sockets through
+any ASGI server). Both refuse binary frames with 1003 themselves (the sockets carry JSON text);
+a peer silent past a receive's time limit is a `Refused(4408)`, which the session turns into a
 close frame with that code (frontend_api.md, "Close codes").
 """
 
 from __future__ import annotations
 
 import asyncio
+import logging
+from collections.abc import Callable
+from typing import Any, Protocol
 
-from fastapi import WebSocket, WebSocketDisconnect
+from protocol.codec import encode
+from protocol.messages import ErrorPayload, envelope
+
+log = logging.getLogger(__name__)
 
 UNSUPPORTED_DATA = 1003  # RFC 6455: a binary frame where only text is accepted
 TIMED_OUT = 4408  # our code: too slow to say hello, or to take what is sent
 TOO_MANY = 4429  # our code: over a socket's limits (sockets per session, messages per second)
+BINARY_REFUSED = "binary frames are not accepted: send JSON text"
+
+
+def bearer_token(authorization: str, query_token: str | None) -> str | None:
+    """A socket's token: `Authorization: Bearer <token>`, else the `token` query parameter
+    (browsers cannot set headers on a WebSocket)."""
+    scheme, _, value = authorization.partition(" ")
+    if scheme.lower() == "bearer" and value.strip():
+        return value.strip()
+    return query_token
 
 
 class Refused(Exception):
@@ -25,19 +44,59 @@ class Refused(Exception):
         self.reason = reason
 
 
-async def receive_text(ws: WebSocket, timeout_s: float | None = None, waiting: str = "") -> str:
-    """The next text frame; WebSocketDisconnect once the peer left, Refused for a binary frame or
-    for nothing within `timeout_s` (`waiting` says what was expected, for the close reason)."""
-    try:
-        if timeout_s is None:
-            message = await ws.receive()  # the hot path: no wait_for wrapper per frame
-        else:
-            message = await asyncio.wait_for(ws.receive(), timeout_s)
-    except TimeoutError:
-        raise Refused(TIMED_OUT, f"no {waiting or 'message'} within {timeout_s:g} s") from None
-    if message["type"] == "websocket.disconnect":
-        raise WebSocketDisconnect(message.get("code", 1000), message.get("reason"))
-    text = message.get("text")
-    if text is None:
-        raise Refused(UNSUPPORTED_DATA, "binary frames are not accepted: send JSON text")
-    return str(text)
+class Disconnected(Exception):
+    """The connection is gone (closed by the peer, by us, or lost) with this close code."""
+
+    def __init__(self, code: int) -> None:
+        super().__init__(f"disconnected ({code})")
+        self.code = code
+
+
+class Socket(Protocol):
+    """One accepted text WebSocket as the sessions use it: sends never wait (they are written
+    at once or queued, in order), a close is queued behind what was sent before it."""
+
+    @property
+    def written(self) -> int:
+        """Messages handed to the connection."""
+
+    @property
+    def dropped(self) -> int:
+        """Messages refused: the queue was full or the socket closing."""
+
+    async def accept(self) -> None:
+        """Complete the opening handshake."""
+
+    async def receive_text(self, timeout_s: float | None = None, waiting: str = "") -> str:
+        """The next text message; `Disconnected` once the connection is gone, `Refused(4408)`
+        when nothing came within `timeout_s` (`waiting` names what was expected)."""
+
+    def deliver(self, handler: Callable[[str], None]) -> None:
+        """From now on call `handler` (synchronously, in order) with each text message instead
+        of queueing it for `receive_text`; messages already queued go to it first."""
+
+    def send_text(self, text: str) -> bool:
+        """Send a text message; False (and counted) when it was dropped."""
+
+    def close(self, code: int, reason: str = "") -> None:
+        """Close after what is queued (at once when the queue is full); idempotent."""
+
+    async def wait_closed(self) -> None:
+        """Return once the connection is gone (never raises)."""
+
+
+def error_text(code: str, message: str, seq: int | None = None) -> str:
+    """An `error` envelope (about message `seq` when given)."""
+    return encode(envelope(ErrorPayload(code=code, message=message[:2000], re_seq=seq)))
+
+
+def close_on_failure(task: asyncio.Task[Any], sock: Socket, what: str) -> None:
+    """When `task` (a session's helper) fails, log it and close `sock` with 1011: the peer
+    reconnects to a session whose helpers run."""
+
+    def done(t: asyncio.Task[Any]) -> None:
+        if not t.cancelled() and t.exception() is not None:
+            log.error("%s failed", what, exc_info=t.exception())
+            sock.close(1011, "internal error; reconnect")
+
+    task.add_done_callback(done)

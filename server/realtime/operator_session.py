@@ -8,7 +8,6 @@ per second, time to the first message, time for the peer to take a frame.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import json
 import logging
 import random
@@ -17,34 +16,39 @@ from collections import deque
 from collections.abc import Iterable
 from typing import Any
 
-from fastapi import WebSocket, WebSocketDisconnect
-
 from asynckit.ratelimit import TokenBucket
+from asynckit.tasks import cancel_and_wait
 from protocol.codec import DecodeError, decode
 from protocol.messages import Subscribe, Unsubscribe
 from server.assets.repository import AssetRepository
 from server.kit.principal import Principal
 from server.realtime.channels import asset_channel, socket_slot_key
-from server.realtime.frames import TOO_MANY, Refused, receive_text
-from server.realtime.sender import Sender, SlowReader
+from server.realtime.frames import (
+    TOO_MANY,
+    Disconnected,
+    Refused,
+    Socket,
+    close_on_failure,
+    error_text,
+)
 from server.services import Services
 
 log = logging.getLogger(__name__)
 RECENT_IDS = 256  # a run's progress is published on its UAV's and its base's channel
 SLOT_TTL_S = 30.0  # a crashed replica's slots free themselves after this
 MAX_LISTED_IDS = 20  # ids named in one not_found error
+OPERATOR_QUEUE = 5000  # frames that may wait for a slow operator before later ones are dropped
 
 
 class OperatorSession:
     """One operator socket: its subscriptions and the fan-in of their channels."""
 
-    def __init__(self, services: Services, ws: WebSocket, principal: Principal) -> None:
-        """A session of the user `principal` over the accepted socket `ws`."""
+    def __init__(self, services: Services, sock: Socket, principal: Principal) -> None:
+        """A session of the user `principal` over the accepted socket `sock`."""
         self.services = services
-        self.ws = ws
+        self.sock = sock
         self.principal = principal
         settings = services.settings
-        self.sender = Sender(ws, max_queue=5000, timeout_s=settings.ws_send_timeout_s)
         self.bucket = TokenBucket(settings.ws_operator_rate_per_s, settings.ws_operator_burst)
         self.subscribed: set[uuid.UUID] = set()
         self.recent: deque[str] = deque(maxlen=RECENT_IDS)
@@ -65,7 +69,7 @@ class OperatorSession:
         text = message.get("text")
         if not isinstance(text, str):
             text = json.dumps(message, separators=(",", ":"))
-        if self.sender.send_text(text):
+        if self.sock.send_text(text):
             self.services.hub.counters.sent_to_operators += 1
         else:
             self.services.hub.counters.operator_dropped += 1
@@ -75,59 +79,54 @@ class OperatorSession:
         hub = self.services.hub
         if not await self._claim_slot():
             limit = self.services.settings.ws_max_sockets_per_session
-            await self.ws.close(TOO_MANY, f"this session already has {limit} sockets open")
+            self.sock.close(TOO_MANY, f"this session already has {limit} sockets open")
             return
-        hub.register_closer(self.principal.session_id, self.sender.close)
-        send_task = asyncio.create_task(self.sender.run())
+        hub.register_closer(self.principal.session_id, self.sock.close)
         read_task = asyncio.create_task(self.read())
         keep_task = asyncio.create_task(self._keep_slot())
+        close_on_failure(read_task, self.sock, "an operator socket")
         try:
-            done, _ = await asyncio.wait(
-                [read_task, send_task], return_when=asyncio.FIRST_COMPLETED
-            )
-            if read_task in done and not read_task.exception() and send_task not in done:
-                # the reader queued a close: let the sender write it (bounded by its timeout)
-                with contextlib.suppress(Exception):
-                    await asyncio.wait_for(asyncio.shield(send_task), 2 * self.sender.timeout_s)
-            for task in done:
-                error = task.exception()
-                if error is not None and not isinstance(error, WebSocketDisconnect | SlowReader):
-                    log.error("operator socket failed", exc_info=error)
+            await self.sock.wait_closed()
         finally:
-            for task in (read_task, send_task, keep_task):
-                task.cancel()
+            await cancel_and_wait([read_task, keep_task])
             self.unsubscribe(list(self.subscribed))
-            hub.unregister_closer(self.principal.session_id, self.sender.close)
+            hub.unregister_closer(self.principal.session_id, self.sock.close)
             if self.slot is not None:
-                with contextlib.suppress(Exception):
+                try:
                     await self.services.broker.release(self.slot, self.owner)
+                except Exception as err:  # the broker away: the slot lapses by itself
+                    log.warning("could not release a socket slot: %r", err)
 
     async def read(self) -> None:
-        """Handle messages until the peer leaves; a refused socket is closed through the sender."""
+        """Handle messages until the peer leaves; a refused socket is closed."""
         settings = self.services.settings
         first = True
         try:
             while True:
                 # the first message (a subscribe, possibly empty) is due within the handshake time
                 timeout = settings.ws_handshake_s if first else None
-                raw = await receive_text(self.ws, timeout, "first message (subscribe)")
+                raw = await self.sock.receive_text(timeout, "first message (subscribe)")
                 first = False
                 if not self.bucket.take():
-                    self.sender.send_error(
-                        "rate_limited",
-                        f"over {self.bucket.rate:g} messages/s (burst {self.bucket.burst:g})",
+                    self.sock.send_text(
+                        error_text(
+                            "rate_limited",
+                            f"over {self.bucket.rate:g} messages/s (burst {self.bucket.burst:g})",
+                        )
                     )
                     raise Refused(TOO_MANY, "message rate limit exceeded")
                 msg = decode(raw, "operator_to_server")
                 if isinstance(msg, DecodeError):
                     self.services.hub.counters.malformed += 1
-                    self.sender.send_error(msg.code, msg.message, msg.seq)
+                    self.sock.send_text(error_text(msg.code, msg.message, msg.seq))
                 elif isinstance(msg, Subscribe):
                     await self.subscribe(msg.payload.asset_ids)
                 elif isinstance(msg, Unsubscribe):
                     self.unsubscribe(msg.payload.asset_ids)
         except Refused as refused:
-            self.sender.close(refused.code, refused.reason)
+            self.sock.close(refused.code, refused.reason)
+        except Disconnected:
+            pass
 
     async def subscribe(self, asset_ids: Iterable[uuid.UUID]) -> None:
         """Follow these assets (one query for all); those the caller may not see are answered with
@@ -146,7 +145,7 @@ class OperatorSession:
                 else ""
             )
             noun = "asset" if len(missing) == 1 else "assets"
-            self.sender.send_error("not_found", f"{noun} {named}{more} not found")
+            self.sock.send_text(error_text("not_found", f"{noun} {named}{more} not found"))
         room = self.services.settings.ws_max_subscriptions - len(self.subscribed)
         found = [i for i in wanted if i in visible]
         for asset_id in found[: max(room, 0)]:
@@ -154,9 +153,12 @@ class OperatorSession:
             self.services.broker.subscribe(asset_channel(asset_id), self.forward)
         if len(found) > room:
             limit = self.services.settings.ws_max_subscriptions
-            self.sender.send_error(
-                "too_many_subscriptions",
-                f"a socket follows at most {limit} assets: {len(found) - max(room, 0)} not followed",
+            self.sock.send_text(
+                error_text(
+                    "too_many_subscriptions",
+                    f"a socket follows at most {limit} assets: "
+                    f"{len(found) - max(room, 0)} not followed",
+                )
             )
 
     def unsubscribe(self, asset_ids: Iterable[uuid.UUID]) -> None:

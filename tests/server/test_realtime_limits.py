@@ -302,9 +302,9 @@ async def test_sockets_per_session_are_bounded_across_replicas(
 async def test_frames_held_back_by_a_slow_reader_arrive_complete_and_in_order(
     live_server: LiveServer, tenant: Tenant
 ) -> None:
-    """Frames go straight to the socket while it takes them; once the peer's window is full they
-    wait behind the blocked send (sender.py). When the reader catches up (well within the send
-    timeout) every frame arrives, once and in order."""
+    """Frames go straight to the socket while it takes them; once the peer's window is full the
+    transport pauses and they wait in the socket's queue (native.py). When the reader catches up
+    (well within the send timeout) every frame arrives, once and in order."""
     from server.deps import services_of
 
     closers = services_of(live_server.app).hub.closers
@@ -323,15 +323,13 @@ async def test_frames_held_back_by_a_slow_reader_arrive_complete_and_in_order(
     try:
         await op.send(subscribe(uav["id"]))
         session = (await eventually(lambda: set(closers) - before, 10, "the operator socket")).pop()
-        sender = closers[session][0][0].__self__  # type: ignore[attr-defined]
+        sock = closers[session][0][0].__self__  # type: ignore[attr-defined]
         big = "y" * 200_000
         async with asset_socket(live_server.url, asset_token(live_server.url, uav)) as ws:
             for seq in range(1, 31):
                 await ws.send(message("event", {"name": "bulk", "message": big}, seq=seq))
-            # the reader has taken (almost) nothing: frames now wait in the server's sender
-            await eventually(
-                lambda: bool(sender.queue) or sender._stuck is not None, 10, "back-pressure"
-            )
+            # the reader has taken (almost) nothing: frames now wait in the server's socket
+            await eventually(lambda: sock.paused and sock.waiting > 0, 10, "back-pressure")
             seqs = []
             while len(seqs) < 30:
                 got = await next_of(op, "event", within=10)
