@@ -13,6 +13,7 @@ accepts what the models refuse.
 from __future__ import annotations
 
 import json
+import random
 import time
 import uuid
 from typing import Annotated, Any, Literal
@@ -98,57 +99,24 @@ class _TelemetryEnvelope(_S):
 _DECODER = msgspec.json.Decoder(_TelemetryEnvelope)
 
 
-def _defaults(struct: type[msgspec.Struct]) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
-    """A struct's field defaults, and those of its struct-valued fields (by field name)."""
-    plain: dict[str, Any] = {}
-    nested: dict[str, dict[str, Any]] = {}
-    for f in msgspec.structs.fields(struct):
-        if f.default is not msgspec.NODEFAULT:
-            plain[f.name] = f.default
-        inner = [t for t in getattr(f.type, "__args__", (f.type,)) if isinstance(t, type)]
-        for t in inner:
-            if issubclass(t, msgspec.Struct) and _defaults(t)[0]:
-                nested[f.name] = _defaults(t)[0]
-    return plain, nested
-
-
-# what the models fill in for a field left out (so stored samples and operators see the same data)
-_PAYLOAD_DEFAULTS, _NESTED_DEFAULTS = _defaults(_UavTelemetry)
-
-
 def uav_telemetry(text: str | bytes) -> dict[str, Any] | None:
     """The envelope as JSON data when `text` is a valid UAV telemetry message (as
-    `decode(text, "asset_to_server")` would accept), None for anything else or anything unsure."""
+    `decode(text, "asset_to_server")` would accept), None for anything else or anything unsure.
+
+    The data is the mirror's own (`msgspec.to_builtins`), as the models would dump it: ids in
+    their canonical form, every payload field present (defaults filled in), no empty `re`.
+    Decoding once into the mirror and converting is ~3x cheaper than parsing the text again
+    with a JSON library (orjson's float parsing is the slow part for telemetry)."""
     if len(text) > MAX_MESSAGE_BYTES // 4:
         return None
     try:
         message = _DECODER.decode(text)
-        data = orjson.loads(text)
-    except (msgspec.DecodeError, orjson.JSONDecodeError):
+    except msgspec.DecodeError:
         return None
-    if type(data) is not dict:
-        return None
-    # ids in their canonical form, as the models give them (a hyphenless or upper-case id is valid)
-    if not _canonical(data["id"]):
-        data["id"] = str(message.id)
-    if data.get("re") is not None and not _canonical(data["re"]):
-        data["re"] = str(message.re)
-    elif "re" in data and data["re"] is None:
+    data: dict[str, Any] = msgspec.to_builtins(message)
+    if data["re"] is None:
         del data["re"]  # the models leave an empty `re` out
-    payload = data["payload"]
-    if len(payload) < len(_PAYLOAD_DEFAULTS) + 1:
-        for name, value in _PAYLOAD_DEFAULTS.items():
-            payload.setdefault(name, value)
-    for name, defaults in _NESTED_DEFAULTS.items():
-        inner = payload[name]
-        if inner is not None:
-            for key, value in defaults.items():
-                inner.setdefault(key, value)
     return data
-
-
-def _canonical(text: str) -> bool:
-    return len(text) == 36 and text == text.lower()
 
 
 def operator_text(
@@ -173,9 +141,21 @@ def operator_text(
     return json.dumps(data, separators=(",", ":")), data["payload"]
 
 
+_IDS = random.Random()  # seeded from the OS once: ids unique, not secret
+_VERSION_4 = (0x4000 << 64) | (0x8000 << 48)
+_VERSION_MASK = ~((0xF000 << 64) | (0xC000 << 48))
+
+
+def message_id() -> str:
+    """A random (version 4) UUID for a message id, without `uuid.uuid4`'s system call per id:
+    acks go out hundreds of times a second, and an envelope id need only be unique."""
+    h = f"{(_IDS.getrandbits(128) & _VERSION_MASK) | _VERSION_4:032x}"
+    return f"{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:]}"
+
+
 def ack_text(seq: int) -> str:
     """An `ack` envelope (what `encode(envelope(AckPayload(seq=seq)))` gives, formatted directly)."""
     return (
-        f'{{"v":1,"id":"{uuid.uuid4()}","seq":0,"ts":{int(time.time() * 1000)},'
+        f'{{"v":1,"id":"{message_id()}","seq":0,"ts":{int(time.time() * 1000)},'
         f'"type":"ack","payload":{{"seq":{seq}}}}}'
     )

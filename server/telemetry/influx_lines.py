@@ -8,12 +8,12 @@ never changes type between samples (InfluxDB refuses a type change within a shar
 from __future__ import annotations
 
 import logging
+import math
 from datetime import UTC, datetime, timedelta
-
-from influxdb_client import Point, WritePrecision
+from typing import Any
 
 from server.kit import time as kit_time
-from server.telemetry.store import Query, Sample
+from server.telemetry.store import Query, Sample, flatten
 
 log = logging.getLogger(__name__)
 
@@ -53,8 +53,38 @@ def rfc3339(ns: int) -> str:
     return whole.strftime("%Y-%m-%dT%H:%M:%S") + f".{ns % 1_000_000_000:09d}Z"
 
 
+_ESCAPE_MEASUREMENT = str.maketrans({",": r"\,", " ": r"\ ", "\n": r"\n", "\t": r"\t", "\r": r"\r"})
+_ESCAPE_KEY = str.maketrans(
+    {",": r"\,", "=": r"\=", " ": r"\ ", "\n": r"\n", "\t": r"\t", "\r": r"\r"}
+)
+_ESCAPE_STRING = str.maketrans({'"': r"\"", "\\": r"\\"})
+_PREFIX = MEASUREMENT.translate(_ESCAPE_MEASUREMENT) + ",asset_id="
+
+
+def _tag_value(text: str) -> str:
+    value = text.translate(_ESCAPE_KEY)
+    return value + " " if value.endswith("\\") else value
+
+
+def _field(name: str, value: Any) -> str | None:
+    """`name=value` in line protocol; None for a value InfluxDB cannot hold (not finite)."""
+    key = name.translate(_ESCAPE_KEY)
+    if isinstance(value, bool):
+        return f"{key}={'true' if value else 'false'}"
+    if isinstance(value, int | float):
+        number = float(value)  # every number a float: a field never changes type
+        if not math.isfinite(number):
+            return None
+        text = repr(number)
+        return f"{key}={text[:-2] if text.endswith('.0') else text}"
+    if isinstance(value, str):
+        return f'{key}="{str(value).translate(_ESCAPE_STRING)}"'
+    return None
+
+
 def to_line(sample: Sample) -> str | None:
-    """One sample as a line-protocol line, or None when it cannot be stored (logged)."""
+    """One sample as a line-protocol line (the flat form of its payload, fields sorted as
+    influxdb-client sorts them), or None when it cannot be stored (logged)."""
     ns = to_ns(sample.ts)
     if not NS_MIN <= ns <= NS_MAX:
         log.warning(
@@ -63,16 +93,19 @@ def to_line(sample: Sample) -> str | None:
             sample.ts,
         )
         return None
-    point = Point(MEASUREMENT).tag("asset_id", str(sample.asset_id)).time(ns, WritePrecision.NS)
-    for name, value in sample.fields.items():
+    fields = [("seq", f"seq={int(sample.seq)}i")]
+    for name, value in flatten(sample.fields).items():
+        if name == "asset_id":
+            continue  # the payload names its asset: that is the point's tag
         if name in RESERVED or not name:
             log.warning("telemetry field %r is reserved in InfluxDB; dropped", name)
-        elif isinstance(value, int) and not isinstance(value, bool):
-            point.field(name, float(value))
-        else:
-            point.field(name, value)
-    point.field("seq", int(sample.seq))
-    return str(point.to_line_protocol())
+            continue
+        encoded = _field(name, value)
+        if encoded is not None:
+            fields.append((name, encoded))
+    fields.sort()
+    body = ",".join(text for _, text in fields)
+    return f"{_PREFIX}{_tag_value(str(sample.asset_id))} {body} {ns}"
 
 
 def window_us(q: Query) -> tuple[int, int]:

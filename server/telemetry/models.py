@@ -19,7 +19,8 @@ def sqlite_int() -> Integer:
 
 
 class TelemetrySample(Base):
-    """One telemetry sample (flattened fields as JSON), indexed by (asset, time)."""
+    """One telemetry sample (the payload as JSON, nested as sent; rows written before issue 17
+    hold it flattened, which reads the same), indexed by (asset, time)."""
 
     __tablename__ = "telemetry"
     __table_args__ = (

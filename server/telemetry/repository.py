@@ -5,13 +5,13 @@ from __future__ import annotations
 import uuid
 from collections.abc import Iterable, Mapping
 from datetime import datetime
-from typing import cast
 
-from sqlalchemy import Table, bindparam, select, update
+from sqlalchemy import select
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.kit.paging import Page, Paged, paginate
 from server.kit.scope import ScopedRepository
+from server.telemetry import bulk
 from server.telemetry.models import AssetEvent, AssetStream
 
 
@@ -33,19 +33,11 @@ class EventRepository(ScopedRepository[AssetEvent]):
         return await paginate(self.db, stmt, page)
 
 
-_STREAMS = cast(Table, AssetStream.__table__)
-_ADVANCE = (
-    update(_STREAMS)
-    .where(_STREAMS.c.stream_id == bindparam("sid"), _STREAMS.c.last_seq < bindparam("seq"))
-    .values(last_seq=bindparam("seq"))
-)
-
-
 async def advance_streams(db: AsyncSession, highest: Mapping[uuid.UUID, int]) -> None:
     """Raise each stream's last_seq to `highest[stream]` where it is lower (portable `GREATEST`:
-    a Core executemany, no rows loaded)."""
+    one driver-level statement, `bulk.py`; no rows loaded)."""
     # unscoped: streams of connected, authenticated assets (the socket proved whose they are)
-    await db.execute(_ADVANCE, [{"sid": sid, "seq": seq} for sid, seq in highest.items()])
+    await bulk.writer(db).advance_streams(db, highest)
 
 
 async def streams(db: AsyncSession, stream_ids: Iterable[uuid.UUID]) -> list[AssetStream]:

@@ -6,15 +6,15 @@ import math
 import uuid
 from collections.abc import Sequence
 from datetime import UTC, datetime
-from typing import Any, cast
+from typing import Any
 
-from sqlalchemy import Table, delete, select
-from sqlalchemy.dialects import postgresql, sqlite
+from sqlalchemy import delete, select
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
 from server.kit.time import rfc3339
+from server.telemetry import bulk
 from server.telemetry.models import TelemetrySample
-from server.telemetry.store import Query, Sample
+from server.telemetry.store import Query, Sample, flatten
 
 
 class SqlTelemetryStore:
@@ -34,27 +34,17 @@ class SqlTelemetryStore:
         """The table is in the main database, which readiness checks on its own."""
 
     async def write(self, samples: Sequence[Sample], db: AsyncSession | None = None) -> None:
-        """Insert a batch (one Core executemany, no ORM objects); a sample already stored (a
+        """Insert a batch (one driver-level statement, `bulk.py`); a sample already stored (a
         replay) is skipped. Inside `db`'s transaction when given (the caller commits), else in
         one of its own."""
         if not samples:
             return
-        rows = [
-            {"asset_id": s.asset_id, "ts": s.ts, "seq": s.seq, "fields": s.fields} for s in samples
-        ]
         if db is not None:
-            await db.execute(self._insert, rows)
+            await bulk.writer(db).insert_samples(db, samples)
             return
         async with self.sessionmaker() as own:
-            await own.execute(self._insert, rows)
+            await bulk.writer(own).insert_samples(own, samples)
             await own.commit()
-
-    @property
-    def _insert(self) -> Any:
-        insert = postgresql.insert if self.dialect == "postgresql" else sqlite.insert
-        return insert(cast(Table, TelemetrySample.__table__)).on_conflict_do_nothing(
-            index_elements=["asset_id", "seq", "ts"]
-        )
 
     async def _rows(self, q: Query) -> list[TelemetrySample]:
         stmt = (
@@ -72,8 +62,9 @@ class SqlTelemetryStore:
             return list((await db.execute(stmt)).scalars())
 
     @staticmethod
-    def _pick(fields: dict[str, Any], wanted: Sequence[str] | None) -> dict[str, Any]:
-        return dict(fields) if wanted is None else {k: fields[k] for k in wanted if k in fields}
+    def _pick(stored: dict[str, Any], wanted: Sequence[str] | None) -> dict[str, Any]:
+        fields = flatten(stored)  # a payload as sent (or a flat one, stored so before)
+        return fields if wanted is None else {k: fields[k] for k in wanted if k in fields}
 
     async def query(self, q: Query) -> list[dict[str, Any]]:
         """Raw rows, or one row per bucket (mean of numbers, last of the rest)."""
@@ -94,7 +85,7 @@ class SqlTelemetryStore:
         )
         async with self.sessionmaker() as db:
             row = (await db.execute(stmt)).scalar_one_or_none()
-        return None if row is None else {"ts": rfc3339(row.ts), **row.fields}
+        return None if row is None else {"ts": rfc3339(row.ts), **flatten(row.fields)}
 
     async def prune(self, before: datetime) -> int:
         """Delete samples older than `before`."""

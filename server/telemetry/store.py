@@ -1,8 +1,10 @@
 """The telemetry store interface: append batches, read ranges (raw or downsampled), read the latest.
 
-A sample is one telemetry payload of one asset at one time: a flat mapping of dotted field names
-to numbers, booleans or strings (`flatten` turns a nested payload into it). Two implementations:
-`SqlTelemetryStore` (default, the main database) and `InfluxTelemetryStore` (INFLUXDB_URL).
+A sample is one telemetry payload of one asset at one time, as the asset sent it (nested); what
+readers see is its flat form, dotted field names to numbers, booleans or strings (`flatten`; a
+payload stored flat before reads the same). Two implementations: `SqlTelemetryStore` (default,
+the main database: the payload as JSON, flattened when read) and `InfluxTelemetryStore`
+(INFLUXDB_URL: one field per flat name).
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ class Sample:
     asset_id: uuid.UUID
     ts: datetime  # aware, UTC
     seq: int
-    fields: Mapping[str, Scalar] = field(default_factory=dict)
+    fields: Mapping[str, Any] = field(default_factory=dict)  # nested payload, or already flat
 
 
 @dataclass(frozen=True)

@@ -240,3 +240,43 @@ def test_pure_helpers() -> None:
         "aggregateWindow(every: 1500000us, offset: 0us, fn: last" in flux
         and 'timeSrc: "_start"' in flux
     )
+
+
+def test_line_protocol_is_what_influxdb_client_writes() -> None:
+    """Our encoder (no Point object per sample) writes what influxdb-client's Point wrote, for
+    keys and strings that need escaping, every value kind and the number-as-float rule; a nested
+    payload is written flat, and its `asset_id` (the point's tag) is not a field."""
+    from influxdb_client import Point, WritePrecision
+
+    asset = uuid.uuid4()
+    payload = {
+        "asset_id": str(asset),
+        "kind": "uav",
+        "position": {"lat": 41.000513570518, "alt m": 120.0, "x,y=z": -1},
+        "mode": 'say "hi"\\ now, a=b',
+        "armed": False,
+        "big": 12345678901234,
+        "tiny": 1e-300,
+        "none": None,
+    }
+    ts = datetime(2026, 11, 26, 12, 0, 0, 123456, tzinfo=UTC)
+    ours = to_line(Sample(asset, ts, 42, payload))
+    point = Point("telemetry").tag("asset_id", str(asset)).time(to_ns(ts), WritePrecision.NS)
+    for name, value in flatten(payload).items():
+        if name == "asset_id":
+            continue
+        is_number = isinstance(value, int | float) and not isinstance(value, bool)
+        point.field(name, float(value) if is_number else value)
+    point.field("seq", 42)
+    assert ours == point.to_line_protocol()
+    assert "asset_id=" + str(asset) + " " in (ours or "") and ",asset_id=" not in (ours or "")[60:]
+
+
+async def test_a_nested_payload_reads_back_flat(store: InfluxTelemetryStore) -> None:
+    """The ingest hands the store the payload as sent (nested); rows come back flat, as from
+    the SQL store."""
+    asset = uuid.uuid4()
+    payload = {"asset_id": str(asset), "battery": {"pct": 80.0, "volts": 16.1}, "mode": "AUTO"}
+    await store.write([Sample(asset, T0, 1, payload)])
+    rows = await store.query(Query(asset_id=asset, start=T0, end=END))
+    assert rows == [{"ts": utc_z(T0), "battery.pct": 80, "battery.volts": 16.1, "mode": "AUTO"}]
