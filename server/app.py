@@ -91,7 +91,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         )
         ingest = Ingest(sessionmaker, telemetry, writer=make_sessionmaker(ingest_engine))
         ingest.start()
-        hub = Hub(broker, sessionmaker)
+        hub = Hub(broker, sessionmaker, command_sweep_s=settings.command_sweep_s)
         await hub.start()
         metrics.watch_hub(hub)
         video = make_gateway(settings)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import uuid
 from datetime import datetime, timedelta
 
-from sqlalchemy import delete, func, select
+from sqlalchemy import delete, func, select, update
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.auth.models import AuthSession, LoginFailure
@@ -32,6 +32,14 @@ class SessionRepository:
         """The sessions with these ids (those that exist)."""
         stmt = select(AuthSession).where(AuthSession.id.in_(ids))  # unscoped: identity lookup
         return list((await self.db.execute(stmt)).scalars())
+
+    async def mark_seen(self, ids: list[uuid.UUID], now: datetime) -> None:
+        """Set `last_seen_at` of these sessions to `now` (one statement)."""
+        if ids:
+            # unscoped: identity upkeep of sessions this process holds sockets of
+            await self.db.execute(
+                update(AuthSession).where(AuthSession.id.in_(ids)).values(last_seen_at=now)
+            )
 
     async def open_for(
         self, *, user_id: uuid.UUID | None = None, asset_id: uuid.UUID | None = None

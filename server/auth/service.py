@@ -197,3 +197,16 @@ async def alive_until(
             idle_end = session.last_seen_at + timedelta(seconds=session.idle_timeout_s)
             out[session.id] = min(session.expires_at, idle_end)
     return out
+
+
+async def touch_many(db: AsyncSession, ids: list[uuid.UUID], now: datetime) -> set[uuid.UUID]:
+    """Heartbeats of many sessions at once (a process's asset sockets): those still alive are
+    marked seen now (one read, one UPDATE per 500); returns their ids."""
+    alive: set[uuid.UUID] = set()
+    repo = SessionRepository(db)
+    for start in range(0, len(ids), 500):
+        chunk = ids[start : start + 500]
+        seen = [s.id for s in await repo.by_ids(chunk) if s.alive_at(now)]
+        await repo.mark_seen(seen, now)
+        alive.update(seen)
+    return alive

@@ -145,6 +145,25 @@ async def due_for_delivery(db: AsyncSession, asset_id: uuid.UUID) -> list[AssetC
     return list((await db.execute(stmt)).scalars())
 
 
+async def assets_with_commands_due(db: AsyncSession, asset_ids: list[uuid.UUID]) -> set[uuid.UUID]:
+    """Which of these assets have queued commands whose deadline has not passed (one query per
+    500 assets)."""
+    due: set[uuid.UUID] = set()
+    now = utcnow()
+    for start in range(0, len(asset_ids), 500):
+        stmt = (
+            select(AssetCommand.asset_id)
+            .where(  # unscoped: delivery to authenticated assets' own sockets
+                AssetCommand.asset_id.in_(asset_ids[start : start + 500]),
+                AssetCommand.status == "queued",
+                AssetCommand.deadline > now,
+            )
+            .distinct()
+        )
+        due.update((await db.execute(stmt)).scalars())
+    return due
+
+
 async def expire(db: AsyncSession) -> list[AssetCommand]:
     """Every unfinished command past its deadline becomes timed_out."""
     stmt = select(AssetCommand).where(  # unscoped: system sweep

@@ -1,35 +1,35 @@
 """The server half of the link protocol: one connected asset's session on `/ws/asset`.
 
-After hello/welcome the session runs three tasks beside the reader: the sender's writer (used only
-when the socket cannot take a frame at once), the heartbeat (keeps the auth session alive and the
-presence claim ours) and command delivery (from the database, nudged through the broker). The
-reader rate-limits, de-duplicates by seq, fans durable messages out to operators (the received
-telemetry re-emitted once with `asset_id` set, not re-serialised from the model) and hands them to
-the ingest, which calls back once per batch with the highest seq of this session it stored: the
-session then sends one cumulative ack (nothing is acked before it is stored). A message whose only fault is a NaN or infinite number is
-kept without it: the asset is answered `invalid_payload` naming the field and the asset's events
-record `telemetry_field_dropped`. A binary frame closes the socket with 1003, no hello within the
-handshake time with 4408.
+After hello/welcome the socket delivers each message to `on_text`, synchronously (no task switch
+per message); beside it runs command delivery (from the database, woken by a broker nudge or by
+the process's command sweep). The process's `AssetKeeper` (keeper.py) keeps the presence claim
+and the login session alive for every asset session at once. `on_text`
+rate-limits, de-duplicates by seq, fans durable messages out to operators (the received telemetry
+re-emitted once with `asset_id` set, not re-serialised from the model) and hands them to the
+ingest, which calls back once per batch with the highest seq of this session it stored: the
+session acknowledges it with one cumulative ack, at once or, when it acked less than
+`ws_ack_interval_s` ago, once that interval is up (nothing is acked before it is stored; a UAV
+sending 10 messages a second gets 4 acks a second at the default 0.25 s). A message whose only
+fault is a NaN or infinite number is kept without it: the asset is answered `invalid_payload`
+naming the field and the asset's events record `telemetry_field_dropped`. A binary frame closes
+the socket with 1003 (the socket does), no hello within the handshake time with 4408.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import json
 import logging
-import random
 import time
 import uuid
 from typing import Any
 
 import orjson
 import structlog
-from fastapi import WebSocket, WebSocketDisconnect
 from sqlalchemy.exc import SQLAlchemyError
-from starlette.websockets import WebSocketState
 
 from asynckit.ratelimit import TokenBucket
+from asynckit.tasks import cancel_and_wait
 from protocol.codec import DecodeError, Salvaged, decode, drop_non_finite, encode
 from protocol.messages import (
     CommandPayload,
@@ -43,23 +43,17 @@ from protocol.messages import (
 from server.assets.models import Asset
 from server.commands import service as commands
 from server.kit.principal import Principal
-from server.kit.uow import unit_of_work
 from server.realtime.channels import asset_channel, command_channel, presence_key, rtcm_channel
 from server.realtime.fastpath import ack_text, operator_text, uav_telemetry
-from server.realtime.frames import Refused, receive_text
+from server.realtime.frames import Disconnected, Refused, Socket, close_on_failure, error_text
 from server.realtime.ingest import DROPPED_EVENT, Item
-from server.realtime.sender import Sender, SlowReader
+from server.realtime.keeper import HEARTBEAT_S, PRESENCE_TTL_S
 from server.services import Services
 from server.telemetry.service import StreamOfAnotherAsset
 
 log = logging.getLogger(__name__)
-HEARTBEAT_S = 15.0  # the asset session idles out after 60 s without one
-# An asset is live on one replica at a time (a key in the broker). A replica killed outright
-# cannot give the key back: it lapses after PRESENCE_TTL_S, and only then does a surviving
-# replica admit the asset's reconnect, so it is short and refreshed every PRESENCE_REFRESH_S.
-PRESENCE_TTL_S = 10.0
-PRESENCE_REFRESH_S = 3.0
 DURABLE = ("telemetry", "event", "command_result")
+ASSET_QUEUE = 10_000  # frames that may wait for a slow asset before later ones are dropped
 
 
 class AssetSession:
@@ -68,37 +62,43 @@ class AssetSession:
     def __init__(
         self,
         services: Services,
-        ws: WebSocket,
+        sock: Socket,
         principal: Principal,
         asset_id: uuid.UUID,
         organization_id: uuid.UUID,
     ) -> None:
-        """A session of `principal` (an asset session) over the accepted socket `ws`."""
+        """A session of `principal` (an asset session) over the accepted socket `sock`."""
         self.services = services
-        self.ws = ws
+        self.sock = sock
         self.principal = principal
+        self.session_id = principal.session_id
         self.asset_id = asset_id
         self.organization_id = organization_id
+        self.asset_key = str(asset_id)
+        self.channel = asset_channel(asset_id)
         self.presence = presence_key(asset_id)
         self.owner = f"{services.hub.node}:{uuid.uuid4().hex[:8]}"
         settings = services.settings
-        self.sender = Sender(ws, max_queue=10_000, timeout_s=settings.ws_send_timeout_s)
         self.bucket = TokenBucket(settings.ws_rate_per_s, settings.ws_burst)
         self.wake = asyncio.Event()  # commands wait in the database
         self.stream = uuid.UUID(int=0)
         self.last_seq = 0  # the highest seq received (handed to the ingest)
-        self.acked = 0  # the highest seq acknowledged (stored)
+        self.stored_seq = 0  # the highest seq stored
+        self.acked = 0  # the highest seq acknowledged (stored and said so)
+        self.ack_interval = settings.ws_ack_interval_s
+        self._acked_at = -self.ack_interval
+        self._ack_timer: asyncio.TimerHandle | None = None
         self.storage_failed = False  # a batch of ours failed: nothing more is acked on this socket
 
     async def serve(self) -> None:
-        """Claim presence, exchange hello/welcome, then serve until the socket or a task ends."""
+        """Claim presence, exchange hello/welcome, then serve until the socket closes."""
         hub, broker = self.services.hub, self.services.broker
         # this connection's task (and the tasks it starts) log with the asset's id
-        structlog.contextvars.bind_contextvars(asset_id=str(self.asset_id))
+        structlog.contextvars.bind_contextvars(asset_id=self.asset_key)
         if await broker.claim(self.presence, self.owner, PRESENCE_TTL_S) is not None:
-            await self.ws.close(4409, "another connection of this asset is live")
+            self.sock.close(4409, "another connection of this asset is live")
             return
-        hub.register_closer(self.principal.session_id, self.sender.close, kind="asset")
+        hub.register_closer(self.principal.session_id, self.sock.close, kind="asset")
         broker.subscribe(command_channel(self.asset_id), self._nudge)
         # a UAV bound to a landing base receives that base's RTK corrections
         async with self.services.sessionmaker() as db:
@@ -110,44 +110,31 @@ class AssetSession:
         try:
             if not await self._hello():
                 return
-            tasks = [
-                asyncio.create_task(self.sender.run()),
-                asyncio.create_task(self.heartbeat()),
-                asyncio.create_task(self.deliver_commands()),
-            ]
-            reader = asyncio.create_task(self.read())
-            tasks.append(reader)
-            done, _ = await asyncio.wait([reader, tasks[0]], return_when=asyncio.FIRST_COMPLETED)
-            if reader in done and not reader.exception() and tasks[0] not in done:
-                # the reader queued a close: let the sender write it (bounded by its timeout)
-                with contextlib.suppress(Exception):
-                    await asyncio.wait_for(asyncio.shield(tasks[0]), 2 * self.sender.timeout_s)
-            for t in done:
-                error = t.exception()
-                if error is not None and not isinstance(error, WebSocketDisconnect | SlowReader):
-                    log.error("asset socket failed", exc_info=error)
-        except WebSocketDisconnect:
+            self.sock.deliver(self.on_text)
+            hub.keeper.add(self)
+            tasks = [asyncio.create_task(self.deliver_commands())]
+            close_on_failure(tasks[0], self.sock, "an asset session's command delivery")
+            await self.sock.wait_closed()
+        except Disconnected:
             pass
         except Refused as refused:
-            with contextlib.suppress(Exception):
-                await self.ws.close(refused.code, refused.reason)
+            self.sock.close(refused.code, refused.reason)
         finally:
-            for t in tasks:
-                t.cancel()
+            hub.keeper.remove(self)
+            if self._ack_timer is not None:
+                self._ack_timer.cancel()
+            await cancel_and_wait(tasks)
             broker.unsubscribe(command_channel(self.asset_id), self._nudge)
             if corrections:
                 broker.unsubscribe(corrections, self._forward_rtcm)
-            hub.unregister_closer(self.principal.session_id, self.sender.close, kind="asset")
-            with contextlib.suppress(Exception):
+            hub.unregister_closer(self.principal.session_id, self.sock.close, kind="asset")
+            try:
                 await broker.release(self.presence, self.owner)
-            if (
-                self.ws.application_state != WebSocketState.DISCONNECTED
-                and self.ws.client_state != WebSocketState.DISCONNECTED
-            ):
-                with contextlib.suppress(Exception):
-                    await self.ws.close(1000)
+            except Exception as err:  # the broker away: the key lapses by itself
+                log.warning("could not release the presence of %s: %r", self.asset_id, err)
+            self.sock.close(1000)
 
-    async def _publish_dropped(self, seq: int, kind: str, salvaged: Salvaged) -> None:
+    def _publish_dropped(self, seq: int, kind: str, salvaged: Salvaged) -> None:
         """Tell the asset's operators what was dropped (the ingest records the same event)."""
         event = envelope(
             EventPayload(
@@ -158,34 +145,34 @@ class AssetSession:
                 data={"seq": seq, "kind": kind, "fields": list(salvaged.dropped)},
             )
         )
-        await self.services.broker.publish(
-            asset_channel(self.asset_id), {"id": str(event.id), "text": encode(event)}
+        self.services.broker.publish_nowait(
+            self.channel, {"id": str(event.id), "text": encode(event)}
         )
 
     def _nudge(self, _message: dict[str, Any]) -> None:
         self.wake.set()
 
     def _forward_rtcm(self, message: dict[str, Any]) -> None:
-        if self.sender.send_text(encode(envelope(RtcmPayload(data=message["data"])))):
+        if self.sock.send_text(encode(envelope(RtcmPayload(data=message["data"])))):
             self.services.hub.counters.rtcm_forwarded += 1
 
     async def _hello(self) -> bool:
         """Read the hello, find where its stream stands, send the welcome; False once closed."""
-        raw = await receive_text(self.ws, self.services.settings.ws_handshake_s, "hello")
+        raw = await self.sock.receive_text(self.services.settings.ws_handshake_s, "hello")
         hello = decode(raw, "asset_to_server")
         if not isinstance(hello, Hello):
-            await self.ws.close(1008, "the first message must be hello")
+            self.sock.close(1008, "the first message must be hello")
             return False
         self.stream = hello.payload.stream
         try:
             self.last_seq = await self.services.ingest.last_seq(self.stream, self.asset_id)
-            self.acked = self.last_seq
+            self.acked = self.stored_seq = self.last_seq
         except StreamOfAnotherAsset:
-            await self.ws.close(1008, "that stream belongs to another asset")
+            self.sock.close(1008, "that stream belongs to another asset")
             return False
         except SQLAlchemyError as err:  # the database busy or away: the asset retries
             log.warning("stream position of %s unavailable: %r", self.stream, err)
-            await self.ws.close(1011, "storage unavailable; reconnect and retry")
+            self.sock.close(1011, "storage unavailable; reconnect and retry")
             return False
         welcome = WelcomePayload(
             session_id=str(self.principal.session_id),
@@ -193,88 +180,88 @@ class AssetSession:
             heartbeat_s=HEARTBEAT_S,
             server_time=int(time.time() * 1000),
         )
-        await self.ws.send_text(encode(envelope(welcome)))
+        self.sock.send_text(encode(envelope(welcome)))
         return True
 
-    async def read(self) -> None:
-        """Validate, rate-limit, de-duplicate, fan out and store what the asset sends."""
-        hub, broker = self.services.hub, self.services.broker
-        while True:
-            try:
-                raw = await receive_text(self.ws)
-            except Refused as refused:
-                self.sender.close(refused.code, refused.reason)
-                return
-            hub.counters.received += 1
-            if not self.bucket.take():
-                # Acks are cumulative: storing later messages past a rejected one would lose it. So the
-                # excess is refused with an error and the socket closed; the client reconnects and
-                # replays from the last ack, at its own pace.
-                hub.counters.rate_limited += 1
-                self.sender.send_error(
+    def on_text(self, raw: str) -> None:
+        """One message from the asset: validate, rate-limit, de-duplicate, fan out and store."""
+        hub = self.services.hub
+        hub.counters.received += 1
+        if not self.bucket.take():
+            # Acks are cumulative: storing later messages past a rejected one would lose it. So the
+            # excess is refused with an error and the socket closed; the client reconnects and
+            # replays from the last ack, at its own pace.
+            hub.counters.rate_limited += 1
+            self.sock.send_text(
+                error_text(
                     "rate_limited",
                     f"over {self.bucket.rate:.0f} messages/s (burst "
                     f"{self.bucket.burst:.0f}): reconnect and replay from the last ack",
                 )
-                self.sender.close(1008, "rate limit exceeded")
+            )
+            self.sock.close(1008, "rate limit exceeded")
+            return
+        fast = uav_telemetry(raw)
+        if fast is not None:
+            # valid UAV telemetry (the common case): no model built, no re-serialisation
+            seq = fast["seq"]
+            if seq <= self.last_seq:
+                self._duplicate()
                 return
-            fast = uav_telemetry(raw)
-            if fast is not None:
-                # valid UAV telemetry (the common case): no model built, no re-serialisation
-                seq = fast["seq"]
-                if seq <= self.last_seq:
-                    self._duplicate()
-                    continue
-                payload = fast["payload"]
-                payload["asset_id"] = str(self.asset_id)
-                try:
-                    text = orjson.dumps(fast).decode()
-                except orjson.JSONEncodeError:  # a lone surrogate in a string
-                    text = json.dumps(fast, separators=(",", ":"))
-                await self._durable(seq, "telemetry", fast["ts"], fast["id"], payload, text)
-                continue
-            decoded = decode(raw, "asset_to_server")
-            salvaged = None
-            if isinstance(decoded, DecodeError):
-                hub.counters.malformed += 1
-                if decoded.code == "invalid_payload" and decoded.kind in DURABLE:
-                    salvaged = drop_non_finite(raw, "asset_to_server")
-                if salvaged is None:
-                    self.sender.send_error(decoded.code, decoded.message, decoded.seq)
-                    continue
-                self.sender.send_error("invalid_payload", _dropped_message(salvaged), decoded.seq)
-            msg: Envelope = salvaged.message if salvaged else decoded  # type: ignore[assignment]
-            if msg.type in DURABLE:
-                if msg.seq <= self.last_seq:
-                    self._duplicate()
-                    continue
-                text, payload = operator_text(raw, msg, salvaged is not None, str(self.asset_id))
-                await self._durable(
-                    msg.seq,
-                    msg.type,
-                    msg.ts,
-                    str(msg.id),
-                    payload,
-                    text,
-                    getattr(msg, "re", None),
-                    salvaged.dropped if salvaged else (),
-                )
-                if salvaged:
-                    await self._publish_dropped(msg.seq, msg.type, salvaged)
-            elif msg.type == "rtcm":
-                await broker.publish(rtcm_channel(self.asset_id), {"data": msg.payload.data})
-            elif msg.type == "hello":
-                self.sender.send_error(
-                    "unexpected_hello", "hello is only valid as the first message", msg.seq
-                )
+            payload = fast["payload"]
+            payload["asset_id"] = self.asset_key
+            try:
+                text = orjson.dumps(fast).decode()
+            except orjson.JSONEncodeError:  # a lone surrogate in a string
+                text = json.dumps(fast, separators=(",", ":"))
+            self._durable(seq, "telemetry", fast["ts"], fast["id"], payload, text)
+            return
+        decoded = decode(raw, "asset_to_server")
+        salvaged = None
+        if isinstance(decoded, DecodeError):
+            hub.counters.malformed += 1
+            if decoded.code == "invalid_payload" and decoded.kind in DURABLE:
+                salvaged = drop_non_finite(raw, "asset_to_server")
+            if salvaged is None:
+                self.sock.send_text(error_text(decoded.code, decoded.message, decoded.seq))
+                return
+            self.sock.send_text(
+                error_text("invalid_payload", _dropped_message(salvaged), decoded.seq)
+            )
+        msg: Envelope = salvaged.message if salvaged else decoded  # type: ignore[assignment]
+        if msg.type in DURABLE:
+            if msg.seq <= self.last_seq:
+                self._duplicate()
+                return
+            text, payload = operator_text(raw, msg, salvaged is not None, self.asset_key)
+            self._durable(
+                msg.seq,
+                msg.type,
+                msg.ts,
+                str(msg.id),
+                payload,
+                text,
+                getattr(msg, "re", None),
+                salvaged.dropped if salvaged else (),
+            )
+            if salvaged:
+                self._publish_dropped(msg.seq, msg.type, salvaged)
+        elif msg.type == "rtcm":
+            self.services.broker.publish_nowait(
+                rtcm_channel(self.asset_id), {"data": msg.payload.data}
+            )
+        elif msg.type == "hello":
+            self.sock.send_text(
+                error_text("unexpected_hello", "hello is only valid as the first message", msg.seq)
+            )
 
     def _duplicate(self) -> None:
         """A replayed message already stored (or on its way): answered by the ack that covers it."""
         self.services.hub.counters.duplicates += 1
-        if self.acked == self.last_seq:  # else the pending ack covers it
-            self.sender.send_text(ack_text(self.last_seq))
+        if self.acked == self.last_seq:  # else a pending ack covers it
+            self.sock.send_text(ack_text(self.last_seq))
 
-    async def _durable(
+    def _durable(
         self,
         seq: int,
         kind: str,
@@ -288,9 +275,7 @@ class AssetSession:
         """Fan a new durable message out to operators (encoded once here, not once per operator
         socket) and hand it to the ingest, which acks it once stored."""
         self.last_seq = seq
-        await self.services.broker.publish(
-            asset_channel(self.asset_id), {"id": msg_id, "text": text}
-        )
+        self.services.broker.publish_nowait(self.channel, {"id": msg_id, "text": text})
         self.services.ingest.submit(
             Item(
                 self.stream,
@@ -309,58 +294,55 @@ class AssetSession:
     # --- what the ingest says (Acks) ---
 
     def stored(self, seq: int) -> None:
-        """Every message up to `seq` is stored: one cumulative ack."""
-        if not self.storage_failed and seq > self.acked:
-            self.acked = seq
-            self.sender.send_text(ack_text(seq))
+        """Every message up to `seq` is stored: one cumulative ack, now or when the ack interval
+        since the last one is up."""
+        if self.storage_failed or seq <= self.stored_seq:
+            return
+        self.stored_seq = seq
+        if self._ack_timer is None:
+            loop = asyncio.get_running_loop()
+            wait = self._acked_at + self.ack_interval - loop.time()
+            if wait <= 0:
+                self._ack()
+            else:
+                self._ack_timer = loop.call_later(wait, self._ack)
+
+    def _ack(self) -> None:
+        self._ack_timer = None
+        if self.storage_failed or self.stored_seq <= self.acked:
+            return
+        self.acked = self.stored_seq
+        self._acked_at = asyncio.get_running_loop().time()
+        self.sock.send_text(ack_text(self.acked))
 
     def rejected(self, seq: int, reason: str) -> None:
         """This one message cannot be stored (the others of its batch were): it is refused, and
         acknowledged with the rest so that the asset does not replay it forever."""
         if not self.storage_failed:
-            self.sender.send_error("invalid_payload", reason, seq)
+            self.sock.send_text(error_text("invalid_payload", reason, seq))
             self.stored(seq)
 
     def failed(self, err: BaseException) -> None:
         """Storage failed: nothing after this is acked; the asset reconnects and replays."""
         if not self.storage_failed:
             self.storage_failed = True
-            self.sender.close(1011, "storage failed; reconnect and replay")
+            self.sock.close(1011, "storage failed; reconnect and replay")
 
-    async def heartbeat(self) -> None:
-        """Keep the session alive and the presence claim ours while the socket lives."""
-        from server.auth.service import SessionService
+    # --- what the keeper says (keeper.Kept) ---
 
-        rng = random.Random()
-        touched = time.monotonic()
-        while True:
-            # jittered so that a thousand sockets opened together do not all write at once
-            await asyncio.sleep(PRESENCE_REFRESH_S * rng.uniform(0.8, 1.2))
-            if time.monotonic() - touched >= HEARTBEAT_S:
-                touched = time.monotonic()
-                async with unit_of_work(self.services.sessionmaker) as uow:
-                    alive = await SessionService(uow, self.services.settings).touch(
-                        self.principal.session_id
-                    )
-                if not alive:
-                    self.sender.close(4001, "session ended")
-                    return
-            broker = self.services.broker
-            if not await broker.refresh(self.presence, self.owner, PRESENCE_TTL_S):
-                # our key is gone: taken by a newer connection of this asset (then it is live
-                # elsewhere and this one must go), or lapsed because this process stalled past
-                # the TTL under load (then nobody holds it and this connection is still the one)
-                holder = await broker.claim(self.presence, self.owner, PRESENCE_TTL_S)
-                if holder is not None:
-                    self.sender.close(4409, "another connection of this asset took over")
-                    return
-                log.warning("the presence of asset %s had lapsed; claimed again", self.asset_id)
+    def evict(self, code: int, reason: str) -> None:
+        """The login session ended, or a newer connection of the asset took over."""
+        self.sock.close(code, reason)
+
+    def commands_due(self) -> None:
+        """The process's sweep found commands waiting for this asset."""
+        self.wake.set()
 
     async def deliver_commands(self) -> None:
-        """Send queued commands (from the database) now and whenever nudged through the broker; a
-        slow, jittered sweep covers a nudge lost in a broker hiccup."""
-        rng = random.Random()
+        """Send queued commands (from the database) now and whenever woken: by a nudge through
+        the broker, or by the keeper's sweep (a nudge lost in a broker hiccup)."""
         while True:
+            self.wake.clear()  # before reading: a nudge arriving meanwhile reads again
             async with self.services.sessionmaker() as db:
                 for cmd in await commands.due_for_delivery(db, self.asset_id):
                     text = encode(
@@ -373,14 +355,10 @@ class AssetSession:
                             id=cmd.id,
                         )
                     )
-                    if self.sender.send_text(text):
+                    if self.sock.send_text(text):
                         await commands.set_status(db, cmd, "sent", "delivered to the asset")
                 await db.commit()
-            self.wake.clear()
-            with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(
-                    self.wake.wait(), self.services.settings.command_sweep_s * rng.uniform(0.5, 1.5)
-                )
+            await self.wake.wait()
 
 
 def _dropped_message(salvaged: Salvaged) -> str:

@@ -25,6 +25,7 @@ from server.kit.periodic import Periodic
 from server.kit.time import utcnow
 from server.realtime.broker import Broker
 from server.realtime.channels import asset_channel, sessions_ended_channel
+from server.realtime.keeper import AssetKeeper
 
 log = logging.getLogger(__name__)
 RECHECK_S = 30.0
@@ -51,6 +52,7 @@ class Hub:
         broker: Broker,
         sessionmaker: async_sessionmaker[AsyncSession],
         session_sweep_s: float = 0.25,
+        command_sweep_s: float = 20.0,
     ) -> None:
         self.broker = broker
         self.sessionmaker = sessionmaker
@@ -64,15 +66,18 @@ class Hub:
         self._stopping: set[asyncio.Task[None]] = set()  # held things being stopped (`hold`)
         self._sweeper = Periodic("command-sweeper", self.expire_commands, 1.0)
         self._session_sweeper = Periodic("session-sweeper", self.sweep_sessions, session_sweep_s)
+        self.keeper = AssetKeeper(broker, sessionmaker, command_sweep_s)  # the asset sockets'
 
     async def start(self) -> None:
         """Listen for ended sessions; run the command-deadline and session-expiry sweepers."""
         self.broker.subscribe(sessions_ended_channel(), self._on_sessions_ended)
         self._sweeper.start()
         self._session_sweeper.start()
+        self.keeper.start()
 
     async def stop(self) -> None:
         """Stop the sweepers."""
+        await self.keeper.stop()
         await self._session_sweeper.stop()
         await self._sweeper.stop()
 
