@@ -59,6 +59,12 @@ class NullTransport:
 
     abort = close
 
+    def pause_reading(self) -> None:
+        """Nothing to pause: the harness hands frames in itself."""
+
+    def resume_reading(self) -> None:
+        """See `pause_reading`."""
+
     def get_extra_info(self, name: str, default: Any = None) -> Any:
         return default
 

@@ -267,7 +267,11 @@ def _median(values: list[Any]) -> Any:
     if not nums:
         return values[0] if values else None
     mid = len(nums) // 2
-    return nums[mid] if len(nums) % 2 else round((nums[mid - 1] + nums[mid]) / 2, 4)
+    if len(nums) % 2:
+        return nums[mid]
+    middle = (nums[mid - 1] + nums[mid]) / 2
+    # counts stay counts (an even number of runs: 23,000.5 sent is not a figure anyone sent)
+    return round(middle) if all(isinstance(v, int) for v in nums) else round(middle, 4)
 
 
 def median_run(runs: list[dict[str, Any]]) -> dict[str, Any]:

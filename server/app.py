@@ -41,6 +41,7 @@ from server.schedules.service import Scheduler
 from server.services import Services
 from server.stations.ntrip import ntrip_router
 from server.stations.service import BaseCorrections, caster_authenticator
+from server.telemetry.bulk import OneTrip, PostgresOneTrip, SqliteOneTrip
 from server.telemetry.endpoints import router as telemetry_router
 from server.telemetry.sql import SqlTelemetryStore
 from server.telemetry.store import TelemetryStore, retention_loop
@@ -87,9 +88,22 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # in-memory SQLite database, which another engine would not see
         in_memory = settings.database_url.startswith("sqlite") and path is None
         ingest_engine = (
-            engine if in_memory else make_engine(settings.database_url, pool_size=2, max_overflow=0)
+            engine
+            if in_memory
+            # no pre-ping: a dead connection fails its batch (replayed) and is replaced
+            else make_engine(
+                settings.database_url, pool_size=2, max_overflow=0, pool_pre_ping=False
+            )
         )
-        ingest = Ingest(sessionmaker, telemetry, writer=make_sessionmaker(ingest_engine))
+        # plain telemetry batches in one trip (bulk.py); in-memory SQLite has one connection only
+        one_trip: OneTrip | None = None
+        if path is not None:
+            one_trip = SqliteOneTrip(str(path), engine.dialect)
+        elif engine.dialect.name == "postgresql":
+            one_trip = PostgresOneTrip(ingest_engine)
+        ingest = Ingest(
+            sessionmaker, telemetry, writer=make_sessionmaker(ingest_engine), one_trip=one_trip
+        )
         ingest.start()
         hub = Hub(broker, sessionmaker, command_sweep_s=settings.command_sweep_s)
         await hub.start()
@@ -128,6 +142,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             await runs.stop()
             await hub.stop()
             await ingest.stop()
+            if one_trip is not None:
+                await one_trip.close()
             await telemetry.close()
             await broker.close()
             if ingest_engine is not engine:

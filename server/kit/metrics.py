@@ -63,7 +63,8 @@ LEASE_TAKEOVERS = Counter(
 )
 INGEST_LAG = Histogram(
     "aerobase_ingest_lag_seconds",
-    "From a durable message's arrival to its batch being stored",
+    "From the arrival of a stored batch's oldest durable message to the batch being stored "
+    "(one observation per batch: the worst lag in it)",
     buckets=(0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5),
     registry=REGISTRY,
 )

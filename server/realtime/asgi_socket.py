@@ -101,6 +101,12 @@ class AsgiSocket:
         except (Disconnected, Refused):
             self._done.set()
 
+    def pause_reading(self) -> None:
+        """Not offered by ASGI: the reader task keeps reading (the ingest's queue absorbs it)."""
+
+    def resume_reading(self) -> None:
+        """See `pause_reading`."""
+
     def send_text(self, text: str) -> bool:
         """Write now or queue (see `Sender.send_text`)."""
         return self.sender.send_text(text)

@@ -89,6 +89,7 @@ class AssetSession:
         self._acked_at = -self.ack_interval
         self._ack_timer: asyncio.TimerHandle | None = None
         self.storage_failed = False  # a batch of ours failed: nothing more is acked on this socket
+        self._paused = False  # not read while the ingest's queue is long
 
     async def serve(self) -> None:
         """Claim presence, exchange hello/welcome, then serve until the socket closes."""
@@ -276,7 +277,8 @@ class AssetSession:
         socket) and hand it to the ingest, which acks it once stored."""
         self.last_seq = seq
         self.services.broker.publish_nowait(self.channel, {"id": msg_id, "text": text})
-        self.services.ingest.submit(
+        ingest = self.services.ingest
+        ingest.submit(
             Item(
                 self.stream,
                 self.asset_id,
@@ -290,6 +292,16 @@ class AssetSession:
                 acks=self,
             )
         )
+        if ingest.congested and not self._paused:
+            # storage is behind: read no more from this asset until it catches up (TCP pushes
+            # back; the asset keeps its messages on disk and sends them later)
+            self._paused = True
+            self.sock.pause_reading()
+            ingest.resume_later(self._resume_reading)
+
+    def _resume_reading(self) -> None:
+        self._paused = False
+        self.sock.resume_reading()
 
     # --- what the ingest says (Acks) ---
 

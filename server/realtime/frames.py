@@ -78,6 +78,12 @@ class Socket(Protocol):
     def send_text(self, text: str) -> bool:
         """Send a text message; False (and counted) when it was dropped."""
 
+    def pause_reading(self) -> None:
+        """Read nothing more from the peer (TCP pushes back) until `resume_reading`."""
+
+    def resume_reading(self) -> None:
+        """Read again."""
+
     def close(self, code: int, reason: str = "") -> None:
         """Close after what is queued (at once when the queue is full); idempotent."""
 

@@ -21,9 +21,11 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import sqlite3
 import time
 import uuid
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any, Protocol
@@ -36,12 +38,25 @@ from server.commands import service as commands
 from server.kit import metrics
 from server.kit.db import sqlstate
 from server.telemetry import service as telemetry
+from server.telemetry.bulk import OneTrip
 from server.telemetry.store import Sample, TelemetryStore
 
 log = logging.getLogger(__name__)
 DROPPED_EVENT = "telemetry_field_dropped"
 # what a value the storage cannot hold raises: a replay would fail the same way
-DATA_FAULTS = (DataError, IntegrityError, ValueError, OverflowError, TypeError, UnicodeError)
+DATA_FAULTS = (
+    DataError,
+    IntegrityError,
+    sqlite3.IntegrityError,  # the SQLite one-trip writer's own (a deleted asset's foreign key)
+    sqlite3.DataError,
+    ValueError,
+    OverflowError,
+    TypeError,
+    UnicodeError,
+)
+# the queue length past which asset sockets stop being read (TCP pushes back to the assets, which
+# keep their messages on disk), and below which they are read again
+HIGH_WATER, LOW_WATER = 20_000, 5_000
 
 
 def _data_fault(err: BaseException) -> bool:
@@ -119,17 +134,21 @@ class Ingest:
         self,
         sessionmaker: async_sessionmaker[AsyncSession],
         store: TelemetryStore,
-        max_batch: int = 500,
-        max_delay_s: float = 0.05,
+        max_batch: int = 2000,
+        max_delay_s: float = 0.1,
         writer: async_sessionmaker[AsyncSession] | None = None,
+        one_trip: OneTrip | None = None,
     ) -> None:
         """`writer` (default `sessionmaker`) stores the batches: a pool of its own keeps the
-        ingest from waiting behind a thousand sockets' sweeps and heartbeats for a connection."""
+        ingest from waiting behind a thousand sockets' sweeps and heartbeats for a connection;
+        `one_trip` (bulk.py), when given, stores a batch of nothing but telemetry in one trip."""
         self.sessionmaker = sessionmaker
         self.writer = writer or sessionmaker
         self.store = store
         self.max_batch = max_batch
         self.max_delay_s = max_delay_s
+        self.one_trip = one_trip
+        self._resume: list[Callable[[], None]] = []  # sockets paused while the queue was long
         self.queue: deque[Item] = deque()
         self._ready = asyncio.Event()
         self._task: asyncio.Task[None] | None = None
@@ -155,6 +174,15 @@ class Ingest:
         self.queue.append(item)
         self._ready.set()
 
+    @property
+    def congested(self) -> bool:
+        """The queue is past its high-water mark: stop reading what adds to it."""
+        return len(self.queue) >= HIGH_WATER
+
+    def resume_later(self, resume: Callable[[], None]) -> None:
+        """Call `resume` once the queue is back under its low-water mark."""
+        self._resume.append(resume)
+
     async def _run(self) -> None:
         while True:
             await self._ready.wait()
@@ -166,6 +194,10 @@ class Ingest:
             if not self.queue:
                 self._ready.clear()
             await self._store_isolated(batch)
+            if self._resume and len(self.queue) <= LOW_WATER:
+                resume, self._resume = self._resume, []
+                for call in resume:
+                    call()
 
     async def _store_isolated(self, batch: list[Item]) -> None:
         """Store a batch and tell its connections; a batch refused for its data is halved until
@@ -209,10 +241,21 @@ class Ingest:
             if i.kind == "telemetry"
         ]
         highest: dict[uuid.UUID, int] = {}
+        for item in batch:
+            highest[item.stream_id] = max(highest.get(item.stream_id, 0), item.seq)
+        if self.one_trip is not None and all(
+            i.kind == "telemetry" and not i.dropped for i in batch
+        ):
+            if self.store.in_database:
+                await self.one_trip.store(samples, highest)
+            else:  # InfluxDB: durable when it answers, then the positions
+                await self.store.write(samples)
+                await self.one_trip.store((), highest)
+            observe_stored(batch)
+            return
         async with self.writer() as db:
             await self.store.write(samples, db)
             for item in batch:
-                highest[item.stream_id] = max(highest.get(item.stream_id, 0), item.seq)
                 if item.kind == "event":
                     telemetry.record_event(
                         db, item.organization_id, item.asset_id, _ts(item.ts_ms), item.payload
@@ -233,10 +276,11 @@ class Ingest:
 
 
 def observe_stored(batch: list[Item]) -> None:
-    """Ingest lag per message, and what landing bases said of their PLC link and RTK."""
-    now = time.monotonic()
+    """The batch's ingest lag (of its oldest message: one observation per batch, not a histogram
+    update per message), and what landing bases said of their PLC link and RTK."""
+    if batch:
+        metrics.INGEST_LAG.observe(time.monotonic() - min(item.arrived for item in batch))
     for item in batch:
-        metrics.INGEST_LAG.observe(now - item.arrived)
         if item.kind == "telemetry" and "plc_link" in item.payload:
             asset = str(item.asset_id)
             metrics.BASE_PLC_LINK.labels(asset).set(item.payload["plc_link"] == "up")

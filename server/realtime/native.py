@@ -217,6 +217,16 @@ class NativeSocket:
                 self._waiter = None
         return self._inbox.popleft()
 
+    def pause_reading(self) -> None:
+        """Stop reading from the transport (frames already received are still delivered)."""
+        if self.state != "closed":
+            self.transport.pause_reading()
+
+    def resume_reading(self) -> None:
+        """Read from the transport again."""
+        if self.state != "closed" and not self.transport.is_closing():
+            self.transport.resume_reading()
+
     def deliver(self, handler: Callable[[str], None]) -> None:
         """Messages go to `handler` from now on (queued ones first)."""
         while self._inbox and self.state == "open":

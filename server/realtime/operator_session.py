@@ -37,7 +37,9 @@ log = logging.getLogger(__name__)
 RECENT_IDS = 256  # a run's progress is published on its UAV's and its base's channel
 SLOT_TTL_S = 30.0  # a crashed replica's slots free themselves after this
 MAX_LISTED_IDS = 20  # ids named in one not_found error
-OPERATOR_QUEUE = 5000  # frames that may wait for a slow operator before later ones are dropped
+# frames that may wait for a slow operator before later ones are dropped (5 s of 1,000 UAVs at
+# 10 Hz; a peer that takes nothing for ws_send_timeout_s is closed before that matters)
+OPERATOR_QUEUE = 50_000
 
 
 class OperatorSession:

@@ -72,6 +72,8 @@ class InfluxTelemetryStore:
     and are `every_s` wide (to the microsecond), `seq` is stored but not returned.
     """
 
+    in_database = False  # samples in InfluxDB; stream positions stay in SQL
+
     def __init__(
         self,
         url: str,

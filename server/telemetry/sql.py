@@ -20,6 +20,8 @@ from server.telemetry.store import Query, Sample, flatten
 class SqlTelemetryStore:
     """Telemetry in the `telemetry` table, indexed by (asset, time)."""
 
+    in_database = True
+
     def __init__(self, sessionmaker: async_sessionmaker[AsyncSession], dialect: str) -> None:
         self.sessionmaker = sessionmaker
         self.dialect = dialect

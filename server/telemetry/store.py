@@ -48,6 +48,8 @@ class Query:
 class TelemetryStore(Protocol):
     """Where telemetry samples live."""
 
+    in_database: bool  # the samples live in the main database (they join its transactions)
+
     async def start(self) -> None:
         """Connect and prepare (create buckets/retention policies where needed)."""
 
