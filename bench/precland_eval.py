@@ -25,6 +25,7 @@ import json
 import math
 import statistics
 import sys
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,6 +46,8 @@ from asset_agent.precland.control import VelocitySetpoint
 from asset_agent.precland.detect import PadDetector
 from asset_agent.precland.geometry import wrap_angle
 from asset_agent.precland.pipeline import LandingPipeline, VehicleState
+from bench.precland_report import Trace, write_report
+from bench.precland_wind import trial_weather
 from sim.camera.render import CameraEffects, PadRenderer
 from sim.ir import IrSensorConfig, ir_reading
 
@@ -70,6 +73,7 @@ class KinematicVehicle:
     wind_tau: float = 2.0
     wind_seen: np.ndarray = field(default_factory=lambda: np.zeros(2))
     landed: bool = False
+    seed: int | None = None  # unused: the wind it gets is the 20 ft wind, no shear or turbulence
 
     def pose(self) -> tuple[float, float, float, float, float, float]:
         """(north, east, up, roll, pitch, yaw) relative to the pad centre."""
@@ -111,16 +115,19 @@ class KinematicVehicle:
 class SharedVehicle:
     """The world's multirotor (sim.vehicle.dynamics.Dynamics) behind the evaluation's vehicle
     interface: velocity setpoints in, pose out; the yaw rate becomes a yaw target ahead of the
-    current yaw; the camera sits SEAT_HEIGHT above the vehicle's ground contact."""
+    current yaw; the camera sits SEAT_HEIGHT above the vehicle's ground contact. It flies in the
+    air of its own `sim.wind.Airflow` (shear and Dryden turbulence, seeded), as the world's copter."""
 
     YAW_LEAD_S = 0.5
 
-    def __init__(self, n: float, e: float, up: float, yaw: float) -> None:
+    def __init__(self, n: float, e: float, up: float, yaw: float, seed: int | None = None) -> None:
         from sim.vehicle.dynamics import Dynamics, DynamicsState
+        from sim.wind import Airflow
 
         start = DynamicsState(position=(n, e, -(up - SEAT_HEIGHT)), yaw=yaw, landed=False)
         self.dyn = Dynamics(state=start)
         self.dyn.motors_on = True
+        self.airflow = Airflow(seed=seed)
         self.landed = False
 
     @property
@@ -151,12 +158,14 @@ class SharedVehicle:
         )
 
     def step(self, dt: float, sp: VelocitySetpoint, wind_ne=(0.0, 0.0)) -> None:
-        """Advance dt seconds tracking the setpoint, pushed by the wind."""
+        """Advance dt seconds tracking the setpoint in the wind `wind_ne` 20 ft above the ground."""
         if self.landed:
             return
         vel = (0.0, 0.0, 0.3) if sp.land else (sp.vn, sp.ve, sp.vd)
         self.dyn.set_velocity_target(vel, yaw=self.dyn.state.yaw + sp.yaw_rate * self.YAW_LEAD_S)
-        self.landed = self.dyn.step(dt, wind_ne).landed
+        st = self.dyn.state
+        air = self.airflow.step(dt, wind_ne, st.altitude, (st.velocity[0], st.velocity[1]))
+        self.landed = self.dyn.step(dt, (air[0], air[1])).landed
 
 
 VEHICLES = {"shared": SharedVehicle, "kinematic": KinematicVehicle}
@@ -210,8 +219,8 @@ class Scenario:
     faults: dict[str, FaultConfig] = field(default_factory=dict)
     cautious: bool = False
     start_height: float = 10.0
-    wind: float = 2.0  # mean wind, m/s
-    gust: float = 1.0  # gust amplitude, m/s
+    wind: float = 2.0  # mean wind 20 ft above the ground, m/s (bench/precland_wind.py)
+    gust: float = 1.0  # the peak of one discrete 1 - cosine gust on top, m/s
 
 
 def _marker(f: FaultConfig) -> dict[str, FaultConfig]:
@@ -243,6 +252,21 @@ SCENARIOS: dict[str, Scenario] = {
             "fused-ir-below3-marker-above3", ("marker", "ir"), {"ir": BELOW3, **_marker(ABOVE3)}
         ),
         Scenario("fused-6m", ("marker", "ir"), start_height=6.0),
+        # wind (issue 19 item 4, bench/precland_wind.py): W20 with a gust of half of it on top
+        *(Scenario(f"fused-wind{w}", ("marker", "ir"), wind=w, gust=w / 2) for w in (0, 5, 8, 12)),
+        # the thesis's field trial: fused, "windy" (6 m/s, a 3 m/s gust), no RTK; the paper's
+        # field camera (§4): the pattern seen only below ~4 m and half its frames rejected, the
+        # ArUco's rate cut by flare and saturation
+        Scenario(
+            "thesis-field",
+            ("marker", "ir"),
+            {
+                "pattern": FaultConfig(fail_above_m=4.0, r_drop=0.5),
+                "aruco": FaultConfig(r_drop=0.5),
+            },
+            wind=6.0,
+            gust=3.0,
+        ),
     )
 }
 PER_SOURCE = "per-source"
@@ -256,10 +280,12 @@ PUBLISHED = {  # thesis field results (cm, mean / max) where a scenario matches 
     "fused": "13.6 / 24.6",
     "fused-random": "29.4 / 46.1",
     "fused-ir-below3-marker-above3": "14.7 / 20.6",
+    "thesis-field": "13.6 / 24.6",
 }
 
 
 CAMERA_HZ = 100 / 3  # a frame every third 10 ms step, with each control step
+RETURNED_M = 0.5  # RTL's return is over this close to home (sim.vehicle.guidance)
 
 
 @dataclass(frozen=True)
@@ -298,13 +324,16 @@ def run_trial(
     vehicle_model: str = "shared",
     motion: Literal["position", "velocity"] | None = None,
     camera_hz: float = CAMERA_HZ,
+    trace: Trace | None = None,
 ) -> Trial:
     """Fly one closed-loop landing of scenario `sc` with the chosen vehicle model (and what
     predicts the agent's filter, when not its configured default), the camera at `camera_hz`
     (the control loop stays at 33 Hz)."""
     rng = np.random.default_rng(seed)
     a0, yaw0 = rng.uniform(0, 2 * math.pi), rng.uniform(-math.pi, math.pi)
-    vehicle = VEHICLES[vehicle_model](2.0 * math.cos(a0), 2.0 * math.sin(a0), sc.start_height, yaw0)
+    vehicle = VEHICLES[vehicle_model](
+        2.0 * math.cos(a0), 2.0 * math.sin(a0), sc.start_height, yaw0, seed=seed
+    )
     camera = "marker" in sc.sensors
     sources = {"ir"} if "ir" in sc.sensors else set()
     if camera:
@@ -319,8 +348,7 @@ def run_trial(
     survey = rng.uniform(0, 1.0) * np.array([math.cos(a := rng.uniform(0, 6.3)), math.sin(a), 0.0])
     survey[2] = rng.normal(0, 0.2)
     dt, t, sp = 0.01, 0.0, VelocitySetpoint(0.0, 0.0, 0.0)
-    gust_phase = rng.uniform(0, 2 * math.pi)
-    wind_dir = rng.uniform(0, 2 * math.pi)
+    weather = trial_weather(sc.wind, sc.gust, seed)  # the world's wind model (precland_wind.py)
 
     # its own generator, so that the other random streams are the same as without it
     vel_error = EkfVelocityError(np.random.default_rng((seed, 1)))
@@ -338,9 +366,8 @@ def run_trial(
     )
     k, next_frame = 0, dt  # the first frame with the first control step
     while t < max_time and not vehicle.landed:
-        speed = sc.wind + sc.gust * math.sin(0.7 * t + gust_phase) + rng.normal(0, 0.3)
         before = true_position()
-        vehicle.step(dt, sp, (speed * math.cos(wind_dir), speed * math.sin(wind_dir)))
+        vehicle.step(dt, sp, weather.flow_ne(t))
         # the ground velocity over the step (wind leak included), as the EKF would estimate it
         vel = (true_position() - before) / dt + vel_error.step(dt)
         gnss = gauss_markov(gnss, sigma, tau, dt, rng, scale=np.array([1, 1, 0.5]))
@@ -364,6 +391,9 @@ def run_trial(
             tick = pipeline.tick(t)
             if tick.command is not None:
                 sp = tick.command.setpoint
+        if trace is not None:  # the report's error-vs-time plot (precland_report.py)
+            est = pipeline.kalman.estimate().rel_ned if pipeline.kalman.initialised else None
+            trace.record(t, (vehicle.n, vehicle.e), pose[2], None if est is None else est[:2])
         k += 1
     return Trial(
         math.hypot(vehicle.n, vehicle.e),
@@ -375,32 +405,39 @@ def run_trial(
 
 
 def run_autopilot_trial(
-    sc: Scenario, seed: int, max_time: float = 150.0, camera_hz: float = CAMERA_HZ
+    sc: Scenario,
+    seed: int,
+    max_time: float = 150.0,
+    camera_hz: float = CAMERA_HZ,
+    trace: Trace | None = None,
 ) -> Trial:
-    """The other landing path: the simulated autopilot (profile ardupilot-4, its own GNSS at a 3D
-    fix) flies LAND with ArduPilot's precision landing (sim/vehicle/plnd.py) and the agent only
-    feeds it LANDING_TARGET — each new detection once, unfiltered, in the body frame of its
-    capture (`steering="autopilot"`). Same start, wind and sensors as `run_trial`; the heading is
-    not the autopilot's to align (PLND steers position only), so it is reported as it lands."""
+    """The other landing path: the simulated autopilot (profile ardupilot-4, its own GNSS without
+    RTK, 0.5 m over 120 s as the agent path's) returns as RTL does (to the base's surveyed position, at its height, then RTL_LOIT_TIME)
+    and flies LAND with ArduPilot's precision landing (sim/vehicle/plnd.py); the agent only feeds
+    it LANDING_TARGET while it lands — each new detection once, unfiltered, in the body frame of
+    its capture (`steering="autopilot"`). Same start, wind and sensors as `run_trial`; the heading
+    is not the autopilot's to align (PLND steers position only), so it is reported as it lands."""
     from dataclasses import replace
 
     from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
     from sim.vehicle.constants import GUIDED, LAND
     from sim.vehicle.copter import Copter, CopterConfig
+    from sim.vehicle.gnss import GnssParams
+    from sim.vehicle.guidance import Goal
     from sim.vehicle.habits import profile
     from sim.vehicle.standalone import OpenPad
 
     rng = np.random.default_rng(seed)
     a0, yaw0 = rng.uniform(0, 2 * math.pi), rng.uniform(-math.pi, math.pi)
-    c = Copter(OpenPad(), CopterConfig(seed=seed, habits=profile("ardupilot-4")))
+    # its GNSS as the agent path's: no RTK, 0.5 m drifting over 120 s
+    gnss = GnssParams(sigma_3d_m=0.5, correlation_s=120.0)
+    c = Copter(OpenPad(), CopterConfig(seed=seed, habits=profile("ardupilot-4"), gnss=gnss))
     start = (2.0 * math.cos(a0), 2.0 * math.sin(a0), -(sc.start_height - SEAT_HEIGHT))
     c.dyn.state = replace(c.dyn.state, position=start, landed=False, yaw=yaw0)
     c.armed = c.dyn.motors_on = True
     c._was_landed = False
     c.mode = GUIDED
-    if not c.set_mode(LAND):
-        raise RuntimeError("the simulated autopilot refused LAND")
     camera = "marker" in sc.sensors
     sources = {"ir"} if "ir" in sc.sensors else set()
     if camera:
@@ -412,8 +449,10 @@ def run_autopilot_trial(
     ir_cfg = IrSensorConfig()
     survey = rng.uniform(0, 1.0) * np.array([math.cos(a := rng.uniform(0, 6.3)), math.sin(a), 0.0])
     survey[2] = rng.normal(0, 0.2)
-    gust_phase = rng.uniform(0, 2 * math.pi)
-    wind_dir = rng.uniform(0, 2 * math.pi)
+    weather = trial_weather(sc.wind, sc.gust, seed)  # the world's wind model (precland_wind.py)
+    # RTL's return: to where the base was surveyed (its home), at the start's height
+    c.guidance.goal = Goal("goto", float(survey[0]), float(survey[1]), start[2])
+    returned_t: float | None = None
 
     def pose() -> tuple[float, float, float, float, float, float]:
         st = c.dyn.state
@@ -423,9 +462,15 @@ def run_autopilot_trial(
     pipeline.set_pad_prior(survey - np.asarray(c.estimated_position()), 1.0)
     dt, t, k, next_frame = 0.01, 0.0, 0, 0.01
     while t < max_time and not c.dyn.state.landed:
-        speed = sc.wind + sc.gust * math.sin(0.7 * t + gust_phase) + rng.normal(0, 0.3)
+        c.tick(dt, t + dt, weather.flow_ne(t))  # the copter's Airflow adds shear, turbulence
         t += dt
-        c.tick(dt, t, (speed * math.cos(wind_dir), speed * math.sin(wind_dir)))
+        if c.mode != LAND:
+            est = c.estimated_position()
+            if returned_t is None and math.dist(est[:2], survey[:2]) < RETURNED_M:
+                returned_t = t
+            if returned_t is not None and t - returned_t >= c.config.rtl_loiter_s:
+                if not c.set_mode(LAND):
+                    raise RuntimeError("the simulated autopilot refused LAND")
         p, st = pose(), c.dyn.state
         pipeline.vehicle(
             VehicleState(t, c.estimated_position(), (p[3], p[4], p[5]), tuple(st.velocity))
@@ -436,12 +481,16 @@ def run_autopilot_trial(
         if renderer is not None and detector is not None and t >= next_frame - 1e-9:
             next_frame += 1.0 / camera_hz
             pipeline.detections(t, detector.detect(renderer.render(p), p[3], p[4]))
-        if k % 3 == 0 and (lt := pipeline.tick(t).landing_target) is not None:
+        lt = pipeline.tick(t).landing_target if k % 3 == 0 else None
+        if lt is not None and c.mode == LAND:  # the supervisor sends while the autopilot lands
             msg = mavlink.MAVLink_landing_target_message(
                 lt.time_usec, lt.target_num, lt.frame, lt.angle_x, lt.angle_y, lt.distance,
                 lt.size_x, lt.size_y, lt.x, lt.y, lt.z, list(lt.q), lt.type, lt.position_valid,
             )  # fmt: skip
             c.handle(msg, None, t)
+        if trace is not None:  # the PLND estimator's target minus vehicle while it has one
+            found = c.plnd is not None and c.plnd.state == "found"
+            trace.record(t, st.position[:2], p[2], c.plnd.rel_out if found else None)  # type: ignore[union-attr]
         k += 1
     st = c.dyn.state
     return Trial(
@@ -513,55 +562,6 @@ def _row(trials: list[Trial], name: str) -> dict:
     }
 
 
-def write_report(folder: Path, results: dict, touchdowns: dict[str, list[Trial]]) -> None:
-    """`--report`: report.md (the table, the run's settings) and touchdown.png (a touchdown
-    scatter per scenario and landing path, the pad's 5 cm contact circle drawn) in `folder`."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    folder.mkdir(parents=True, exist_ok=True)
-    n = len(touchdowns)
-    cols = min(n, 4)
-    rows = max(1, math.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 3.2 * rows), squeeze=False)
-    for ax in axes.flat[n:]:
-        ax.set_visible(False)
-    for ax, (label, trials) in zip(axes.flat, touchdowns.items(), strict=False):
-        cm = np.array([[100 * tr.touchdown[1], 100 * tr.touchdown[0]] for tr in trials])
-        lim = max(10.0, float(np.abs(cm).max()) * 1.2)
-        ax.add_patch(plt.Circle((0, 0), 5.0, fill=False, color="green", label="contacts 5 cm"))
-        ax.scatter(cm[:, 0], cm[:, 1], s=14, color="tab:red")
-        ax.plot(0, 0, "k+")
-        ax.set(xlim=(-lim, lim), ylim=(-lim, lim), aspect="equal", title=label)
-        ax.set_xlabel("east, cm", fontsize=8)
-        ax.set_ylabel("north, cm", fontsize=8)
-        ax.title.set_fontsize(8)
-    fig.tight_layout()
-    fig.savefig(folder / "touchdown.png", dpi=90)
-    plt.close(fig)
-    lines = [
-        "# precland-eval report",
-        "",
-        f"{results['trials']} trials per row, seeds {results['seed']}000…, camera "
-        f"{results['camera_hz']} Hz, vehicle model {results['vehicle_model']}, filter "
-        f"predicted by {results['motion']}. Landing error in cm.",
-        "",
-        "| scenario | path | landed | mean | max | heading ° | time s | thesis |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
-    for key, path in (("scenarios", "agent steers"), ("autopilot", "autopilot PLND")):
-        for name, row in results[key].items():
-            lines.append(
-                f"| {name} | {path} | {row['landed']}/{results['trials']} | {row['mean_cm']} "
-                f"| {row['max_cm']} | {row['heading_deg']} | {row['time_s']} "
-                f"| {row['published'] or ''} |"
-            )
-    lines += ["", "![touchdown per scenario](touchdown.png)", ""]
-    (folder / "report.md").write_text("\n".join(lines))
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the chosen scenarios and print the table (and one JSON object last with --json)."""
     ap = argparse.ArgumentParser(
@@ -598,10 +598,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument(
         "--report",
         type=Path,
-        help="write report.md and touchdown.png (matplotlib) into this folder",
+        help="write report.md, touchdown.png and error_vs_time.png (matplotlib) into this folder",
+    )
+    ap.add_argument(
+        "--trace",
+        choices=list(SCENARIOS),
+        help="the scenario whose first trial the report follows through time (default: the "
+        "first one run)",
     )
     ap.add_argument("--json", action="store_true")
-    args = ap.parse_args(list(sys.argv[1:] if argv is None else argv))
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = ap.parse_args(argv)
     motion = args.motion or PrecisionLandingConfig().kalman.motion
     chosen = args.scenario or [*SCENARIOS, PER_SOURCE]
     results: dict = {
@@ -612,8 +619,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         "motion": motion,
         "camera_hz": round(args.camera_hz, 2),
         "seed": args.seed,
+        "seeds": [args.seed * 1000 + i for i in range(args.trials)],  # the same for every row
+        "command": " ".join(["aerobase sim precland-eval", *argv]),
     }
     touchdowns: dict[str, list[Trial]] = {}
+    traces: dict[str, Trace] = {}
+    traced = args.trace or next((n for n in chosen if n != PER_SOURCE), None)
     print(
         f"{'scenario':<32}{'landed':>8}{'mean cm':>9}{'max cm':>8}{'hdg °':>7}{'time s':>8}   published (cm, mean / max)"
     )
@@ -625,19 +636,29 @@ def main(argv: Sequence[str] | None = None) -> int:
             if path == "autopilot" and SCENARIOS[name].cautious:
                 continue  # the autopilot's own retry: the same flight as the plain scenario
             label = name if path == "agent" else f"{name} [autopilot PLND]"
-            trials = []
+            sc, trials, started = SCENARIOS[name], [], time.monotonic()
+            print(  # live progress, on stderr: the table on stdout stays parseable
+                f"{label}: {args.trials} trials, seeds {results['seeds'][0]}-"
+                f"{results['seeds'][-1]}, wind {sc.wind:g} m/s, gust {sc.gust:g} m/s",
+                file=sys.stderr,
+                flush=True,
+            )
             for i in range(args.trials):
                 seed = args.seed * 1000 + i
+                trace = None
+                if name == traced and i == 0 and args.report is not None:
+                    trace = traces[label] = Trace()
                 if path == "agent":
                     tr = run_trial(
-                        SCENARIOS[name],
+                        sc,
                         seed,
                         vehicle_model=args.vehicle,
                         motion=motion,
                         camera_hz=args.camera_hz,
+                        trace=trace,
                     )
                 else:
-                    tr = run_autopilot_trial(SCENARIOS[name], seed, camera_hz=args.camera_hz)
+                    tr = run_autopilot_trial(sc, seed, camera_hz=args.camera_hz, trace=trace)
                 trials.append(tr)
                 print(  # live progress, on stderr: the table on stdout stays parseable
                     f"  {label}: trial {i + 1}/{args.trials} (seed {seed}) "
@@ -647,6 +668,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                     flush=True,
                 )
             row = _row(trials, name)
+            row["errors_cm"] = [round(100 * tr.error_m, 2) for tr in trials]  # seed by seed
+            print(
+                f"{label}: done in {time.monotonic() - started:.0f} s of wall time",
+                file=sys.stderr,
+                flush=True,
+            )
             touchdowns[label] = trials
             results["scenarios" if path == "agent" else "autopilot"][name] = row
             print(
@@ -656,7 +683,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 flush=True,
             )
             if args.report is not None:  # rewritten as each row comes: a run cut short keeps it
-                write_report(args.report, results, touchdowns)
+                write_report(args.report, results, touchdowns, SCENARIOS, traces)
     if PER_SOURCE in chosen:
         rows = per_source_errors(
             (0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0), max(args.trials, 5) * 2, args.seed

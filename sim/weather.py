@@ -1,8 +1,10 @@
 """Simulated weather: a seedable random process (wind, gusts, rain spells, temperature, humidity).
 
 Wind is a mean speed following a slow Ornstein-Uhlenbeck process around `wind_mean_mps`
-plus a fast gust component and occasional gust events; the direction (degrees FROM which
-the wind blows, meteorological convention) wanders slowly. Rain comes in spells: a two-state
+plus a fast gust component (the anemometer's own turbulence) and occasional gust events; the
+direction (degrees FROM which the wind blows, meteorological convention) wanders slowly.
+`wind_ne` is what the anemometer feels; `flow_ne` is the wind without its turbulence, which the
+vehicle's own (sim/wind.py `Airflow`: shear and Dryden turbulence at its height) rides on. Rain comes in spells: a two-state
 Markov chain (dry/raining) with a random rate per spell. Temperature follows a daily
 sinusoid plus noise; humidity rises when it rains and falls when it is warm.
 
@@ -226,12 +228,25 @@ class Weather:
         the discrete gusts scheduled by `gust()`), blowing FROM the direction."""
         self.advance_to(t_sim)
         r = self.reading()
-        n, e = from_direction(r.wind_mps, r.direction_deg)
+        return self._with_gusts(t_sim, from_direction(r.wind_mps, r.direction_deg))
+
+    def _with_gusts(self, t_sim: float, wind_ne: tuple[float, float]) -> tuple[float, float]:
+        n, e = wind_ne
         self.gusts = [g for g in self.gusts if not g.over(t_sim)]
         for g in self.gusts:
             gn, ge = from_direction(g.speed(t_sim), g.direction_deg)
             n, e = n + gn, e + ge
         return n, e
+
+    def flow_ne(self, t_sim: float) -> tuple[float, float]:
+        """The wind the vehicle's own turbulence rides on (sim/wind.py `Airflow`): as `wind_ne`
+        but without the anemometer's turbulence (the mean, the gust events, the scheduled
+        discrete gusts), 20 ft above the ground, (north, east) m/s."""
+        self.advance_to(t_sim)
+        s, f = self._s, self.forced
+        speed = f.wind_mps if f.wind_mps is not None else max(0.0, s.mean_wind + s.gust_event)
+        direction = f.direction_deg if f.direction_deg is not None else s.direction
+        return self._with_gusts(t_sim, from_direction(speed, direction))
 
     def raining(self) -> bool:
         """Whether rain is falling now."""

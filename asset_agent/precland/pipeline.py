@@ -150,9 +150,9 @@ class LandingPipeline:
         state = self.state_at(t)
         if not detected or state is None or not self.kalman.initialised:
             return []
-        height = self.kalman.estimate().rel_ned[2]
-        if height <= 0:
-            return []
+        # the camera is never lower than its seat on the pad: a height estimate below that (a
+        # surveyed pad altitude off by decimetres) would shrink or drop the last readings
+        height = max(self.kalman.estimate().rel_ned[2], self.config.control.touchdown_height)
         m = from_ir(
             angle_x,
             angle_y,

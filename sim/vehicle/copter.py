@@ -46,6 +46,7 @@ from sim.vehicle.mission_link import MissionProtocolMixin
 from sim.vehicle.plnd import ArduPrecLand
 from sim.vehicle.plnd_flight import landing_target, plnd_update
 from sim.vehicle.precland import PrecisionLanding
+from sim.wind import Airflow, AirflowParams
 
 
 class Base(Protocol):
@@ -88,6 +89,7 @@ class CopterConfig:
     pad_radius_m: float = 0.6  # landing inside this radius puts the mass on the scale
     contacts_tolerance_m: float = 0.05  # charging contacts seat inside this radius
     dynamics: DynamicsParams = field(default_factory=DynamicsParams)
+    airflow: AirflowParams = field(default_factory=AirflowParams)  # shear and turbulence
     gnss: GnssParams = field(default_factory=GnssParams)
     habits: Habits = field(default_factory=Habits)  # which ArduPilot release it behaves as
 
@@ -120,6 +122,7 @@ class Copter(MissionProtocolMixin, BootMixin):
         self.base = base
         self.origin = GeoOrigin(*base.pad_geodetic)
         self.dyn = Dynamics(cfg.dynamics)
+        self.airflow = Airflow(cfg.airflow, seed=cfg.seed)  # the air at the vehicle (sim/wind.py)
         self.gnss = GnssModel(cfg.gnss, seed=cfg.seed)
         self.precland = PrecisionLanding()  # the simulator's own, when no PLND habit
         self.plnd = ArduPrecLand(cfg.habits.plnd) if cfg.habits.plnd is not None else None
@@ -260,7 +263,8 @@ class Copter(MissionProtocolMixin, BootMixin):
 
     # --- time ------------------------------------------------------------------------------
     def tick(self, dt: float, wall: float, wind_ne: tuple[float, float] = (0.0, 0.0)) -> None:
-        """Advance simulated time by `dt` seconds (wall time `wall` for protocol timers)."""
+        """Advance `dt` simulated seconds (wall time `wall` for protocol timers) in the wind
+        `wind_ne` 20 ft above the ground (Weather.flow_ne; `Airflow` adds shear, turbulence)."""
         self.wall = wall
         self.t += dt
         self._boot_tick(wall)
@@ -275,7 +279,9 @@ class Copter(MissionProtocolMixin, BootMixin):
         if blocked and not self._blocked_told:
             self.text(WARNING, "Base closed: cannot take off")
         self._blocked_told = blocked
-        self.dyn.step(dt, wind_ne)
+        st = self.dyn.state
+        air = self.airflow.step(dt, wind_ne, st.altitude, (st.velocity[0], st.velocity[1]))
+        self.dyn.step(dt, (air[0], air[1]))
         self.fence_tick(self.flying)
         self._check_landing()
         self._check_battery()

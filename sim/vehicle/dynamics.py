@@ -1,7 +1,8 @@
-"""Pure multirotor point-mass dynamics: velocity tracking with limits, wind, battery, landing.
+"""Pure multirotor point-mass dynamics: thrust leaned against drag, limits, battery, landing.
 
-No I/O and no clock: the caller owns time and calls `step(dt, wind_ne)`. Coordinates are
-local NED metres with the origin at the pad centre (z is down, the ground is z = 0).
+No I/O and no clock: the caller owns time and calls `step(dt, wind_ne)` with the air's velocity
+at the vehicle (sim/wind.py `Airflow` makes it from the weather). Coordinates are local NED
+metres with the origin at the pad centre (z is down, the ground is z = 0).
 
 Usage::
 
@@ -13,10 +14,17 @@ Usage::
     dyn.state.position                           # true position (ground truth)
 
 A position target is tracked with a sqrt (constant-deceleration) profile so the vehicle stops
-on the target; a velocity target is tracked directly. Both are limited by the horizontal and
-vertical speed limits and by the acceleration limit. Wind acts as a disturbance the
-controller rejects once it has learnt it (`wind_adapt_s`); `wind_leak` is the fraction of the
-not-yet-learnt wind (gusts, changes) that leaks into the ground velocity while flying.
+on the target; a velocity target is tracked directly; both shaped by the speed limits and the
+acceleration limit into the velocity the controller asks for. Horizontally the vehicle is a
+mass pushed by its thrust, leaned at most `angle_max_deg` (ANGLE_MAX) and following the demanded
+lean with `attitude_tau_s`, and dragged by the air it moves through (linear rotor drag plus
+quadratic body drag, sized so that at ANGLE_MAX it holds `max_airspeed_mps`). The controller
+leans into the drag it expects from its wind estimate (learnt in about `wind_adapt_s`, as the
+velocity loop's integrator does) and corrects the velocity error with `vel_p` (PSC_VELXY_P).
+So a steady wind is held at the lean it needs (22 degrees at 12 m/s), a gust it has not learnt
+pushes it off until the loop catches up, and a wind stronger than the lean limit can hold
+carries it downwind. Roll and pitch are that lean in the body frame. Vertically the vehicle
+follows its vertical speed target within the acceleration limit (no vertical wind).
 """
 
 from __future__ import annotations
@@ -25,9 +33,8 @@ import math
 from dataclasses import dataclass, replace
 from enum import Enum
 
-from sim.wind import overpowering
-
 Vec3 = tuple[float, float, float]
+G = 9.81
 
 
 class Phase(Enum):
@@ -51,9 +58,11 @@ class DynamicsParams:
     pos_gain: float = 1.0  # 1/s, position error -> velocity
     yaw_rate: float = math.radians(90.0)  # rad/s
     attitude_tau_s: float = 0.15  # roll/pitch follow the demanded tilt with this time constant
-    wind_leak: float = 0.1  # fraction of an unexpected wind change that shows in ground velocity
+    angle_max_deg: float = 30.0  # ANGLE_MAX: the most it leans, whatever the controller asks
+    max_airspeed_mps: float = 15.0  # the airspeed its drag balances at ANGLE_MAX
+    rotor_drag_per_s: float = 0.2  # linear drag per m/s of airspeed (rotors); the rest quadratic
+    vel_p: float = 2.0  # PSC_VELXY_P: demanded acceleration per m/s of velocity error
     wind_adapt_s: float = 1.0  # the controller learns a steady wind in about this long
-    wind_authority_mps: float = 15.0  # wind it can lean into; the excess carries it (sim/wind.py)
     mass_g: float = 1450.0
     battery_capacity_mah: float = 5000.0
     cells: int = 4
@@ -120,6 +129,22 @@ class Dynamics:
         self._yaw_target: float | None = None
         self._limits: tuple[float | None, float | None, float | None] = (None, None, None)
         self._wind_est: tuple[float, float] = (0.0, 0.0)
+        self._command: tuple[float, float] = (0.0, 0.0)  # shaped horizontal velocity (NE)
+        self._thrust: tuple[float, float] = (0.0, 0.0)  # horizontal thrust per mass (NE, m/s²)
+        top = G * math.tan(math.radians(self.params.angle_max_deg))
+        vmax, k1 = self.params.max_airspeed_mps, self.params.rotor_drag_per_s
+        self._k2 = max(0.0, (top - k1 * vmax) / vmax**2)
+
+    def drag(self, air_n: float, air_e: float) -> tuple[float, float]:
+        """The drag's acceleration (NE, m/s²) on the vehicle moving at (air_n, air_e) m/s
+        through the air: linear rotor drag plus quadratic body drag, against the motion."""
+        k = self.params.rotor_drag_per_s + self._k2 * math.hypot(air_n, air_e)
+        return -k * air_n, -k * air_e
+
+    def hold_lean_deg(self, wind_mps: float) -> float:
+        """The lean (degrees) it needs to hold station in a steady wind of `wind_mps`; above
+        ANGLE_MAX it cannot."""
+        return math.degrees(math.atan2(self.drag(-wind_mps, 0.0)[0], G))
 
     # --- targets ---------------------------------------------------------------------------
     def set_position_target(
@@ -193,22 +218,45 @@ class Dynamics:
             return self.state
         want = self._desired_velocity()
         dv = p.max_accel * dt
-        vn = _approach(s.velocity[0], want[0], dv)
-        ve = _approach(s.velocity[1], want[1], dv)
         vd = _approach(s.velocity[2], want[2], dv)
         airborne = s.position[2] < -0.01 or vd < 0
-        # the position controller's integrator learns the wind; only the unlearnt part (gusts,
-        # changes) pushes the vehicle off its track
+        # the velocity the controller asks for, shaped by the acceleration limit, and the
+        # acceleration that shaping asks for (the feedforward)
+        cn = _approach(self._command[0], want[0], dv)
+        ce = _approach(self._command[1], want[1], dv)
+        ff = ((cn - self._command[0]) / dt, (ce - self._command[1]) / dt)
+        self._command = (cn, ce)
+        # the velocity loop's integrator learns the wind in about wind_adapt_s
         k = min(1.0, dt / p.wind_adapt_s)
         self._wind_est = (
             self._wind_est[0] + (wind_ne[0] - self._wind_est[0]) * k,
             self._wind_est[1] + (wind_ne[1] - self._wind_est[1]) * k,
         )
-        push = overpowering(wind_ne, p.wind_authority_mps) if airborne else (0.0, 0.0)
-        leak_n = (wind_ne[0] - self._wind_est[0]) * p.wind_leak + push[0] if airborne else 0.0
-        leak_e = (wind_ne[1] - self._wind_est[1]) * p.wind_leak + push[1] if airborne else 0.0
-        n = s.position[0] + (vn + leak_n) * dt
-        e = s.position[1] + (ve + leak_e) * dt
+        vn, ve = s.velocity[0], s.velocity[1]
+        if airborne:
+            # lean to accelerate as shaped, against the drag expected from the wind estimate,
+            # and to correct the velocity error; never beyond ANGLE_MAX
+            expect = self.drag(cn - self._wind_est[0], ce - self._wind_est[1])
+            an = ff[0] - expect[0] + p.vel_p * (cn - vn)
+            ae = ff[1] - expect[1] + p.vel_p * (ce - ve)
+            lean = math.hypot(an, ae)
+            top = G * math.tan(math.radians(p.angle_max_deg))
+            if lean > top:
+                an, ae = an * top / lean, ae * top / lean
+            # the attitude loop follows the demanded lean with a time constant (a real copter
+            # takes ~0.1-0.2 s to bank; a line of sight seen from 5 m swings metres with it)
+            k = min(1.0, dt / p.attitude_tau_s) if p.attitude_tau_s > 0 else 1.0
+            tn, te = self._thrust
+            self._thrust = (tn + (an - tn) * k, te + (ae - te) * k)
+            drag = self.drag(vn - wind_ne[0], ve - wind_ne[1])
+            vn += (self._thrust[0] + drag[0]) * dt
+            ve += (self._thrust[1] + drag[1]) * dt
+        else:  # standing on the ground: it does not slide
+            vn = ve = 0.0
+            self._thrust = (0.0, 0.0)
+            self._command = (0.0, 0.0)
+        n = s.position[0] + vn * dt
+        e = s.position[1] + ve * dt
         d = s.position[2] + vd * dt
         landed = False
         if d >= 0.0:  # the ground
@@ -218,24 +266,17 @@ class Dynamics:
                 landed = True
                 vn = ve = 0.0
                 n, e = s.position[0], s.position[1]
+                self._thrust = self._command = (0.0, 0.0)
         yaw = s.yaw
         if self._yaw_target is not None and not landed:
             err = (self._yaw_target - yaw + math.pi) % (2 * math.pi) - math.pi
             yaw = (yaw + _clip(err, -p.yaw_rate * dt, p.yaw_rate * dt)) % (2 * math.pi)
-        # tilt from acceleration (small-angle), rotated into the body frame
-        an, ae = (vn - s.velocity[0]) / dt, (ve - s.velocity[1]) / dt
-        fwd = an * math.cos(yaw) + ae * math.sin(yaw)
-        right = -an * math.sin(yaw) + ae * math.cos(yaw)
-        lim = math.radians(35.0)
-        pitch = _clip(-math.atan2(fwd, 9.81), -lim, lim) if not landed else 0.0
-        roll = _clip(math.atan2(right, 9.81), -lim, lim) if not landed else 0.0
-        if not landed and p.attitude_tau_s > 0:
-            # the attitude loop follows the tilt the acceleration asks for with a time constant:
-            # a real copter takes ~0.1-0.2 s to bank, never the 17 degrees in one 10 ms step that
-            # a bang-bang acceleration would read as (a line of sight seen from 5 m swings metres)
-            k = min(1.0, dt / p.attitude_tau_s)
-            pitch = s.pitch + (pitch - s.pitch) * k
-            roll = s.roll + (roll - s.roll) * k
+        # the lean in the body frame (the thrust's horizontal part over g)
+        tn, te = self._thrust
+        fwd = tn * math.cos(yaw) + te * math.sin(yaw)
+        right = -tn * math.sin(yaw) + te * math.cos(yaw)
+        pitch = -math.atan2(fwd, G) if not landed else 0.0
+        roll = math.atan2(right, G) if not landed else 0.0
         phase = Phase.GROUND if landed else self._phase(vn, ve, vd)
         new = replace(
             s,

@@ -36,7 +36,7 @@ class VehiclePart:
             host=world.config.host,
             tcp_port=port,
             udp_port=port,
-            wind_ne=world.weather.wind_ne,
+            wind_ne=world.weather.flow_ne,  # the copter adds shear and turbulence
             own_loop=False,
         )
         await self.server.start()

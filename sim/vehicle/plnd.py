@@ -13,7 +13,7 @@ shared/notes/ardupilot-precision-landing.md); written here, not copied:
 - it is taken `lag_s` late (PLND_LAG): rotated with the attitude of then, fused into a
   position/velocity Kalman filter per horizontal axis (PosVelEKF) predicted with the vehicle's
   velocity changes (process noise PLND_ACC_P_NSE · dt), measurement variance
-  (z · (0.01 + 0.01·|gyro|) + 0.02)², innovations with NIS ≥ 3 rejected (at most 3 in a row);
+  (z · (0.01 + 0.01·|gyro|) + 0.02)² (|gyro| from the attitude's change), innovations with NIS ≥ 3 rejected (at most 3 in a row);
   then predicted forward over the lag to now;
 - "PrecLand: Target Found" on the first measurement, "Init Complete" after 2 s of measurements
   each < 0.5 s apart (else "Init Failed"); no fused measurement for 2 s: "Target Lost";
@@ -25,6 +25,9 @@ shared/notes/ardupilot-precision-landing.md); written here, not copied:
   where the vehicle last saw it, 1.5 m higher), then the failsafe: hover (STRICT 2), hover 7 s
   then land (STRICT 1), land at once (STRICT 0). Without a rangefinder the range check fails
   whenever ALT_MIN or ALT_MAX is set, so, as on a vehicle with none, no retry ever starts.
+
+Long because: AC_PrecLand's backend, estimator and retry state machine side by side, in the order
+of ArduPilot's sources, so that each rule can be checked against them.
 """
 
 from __future__ import annotations
@@ -64,6 +67,17 @@ class PlndParams:
     fast_descend: bool = False  # PLND_OPTIONS bit 2: no slow final descent
     position_fields: bool = True  # reads x, y, z when position_valid (3.x read the angles only)
     rangefinder: bool = False  # a healthy downward rangefinder (the true height)
+
+
+def _rate(
+    before: tuple[float, float, float], after: tuple[float, float, float], dt: float
+) -> float:
+    """How fast the attitude turned (rad/s): the Euler angles' change, yaw wrapped."""
+    if dt <= 0:
+        return 0.0
+    d = [a - b for a, b in zip(after, before, strict=True)]
+    d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
+    return math.sqrt(sum(x * x for x in d)) / dt
 
 
 @dataclass(frozen=True)
@@ -183,9 +197,12 @@ class ArduPrecLand:
         vel_ne: tuple[float, float],
         pos_ned: tuple[float, float, float],
         height: float,
-        gyro: float = 0.0,
+        gyro: float | None = None,
     ) -> None:
-        """AC_PrecLand::update: record the inertial frame, run the estimator, judge the target."""
+        """AC_PrecLand::update: record the inertial frame, run the estimator, judge the target.
+        `gyro`: the body rate's magnitude (rad/s); by default from the attitude's change."""
+        if gyro is None:
+            gyro = _rate(self._history[-1].attitude, attitude, dt) if self._history else 0.0
         dvel = (0.0, 0.0) if self._last_vel is None else (
             vel_ne[0] - self._last_vel[0], vel_ne[1] - self._last_vel[1]
         )  # fmt: skip

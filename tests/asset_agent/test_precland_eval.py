@@ -3,17 +3,23 @@
 from __future__ import annotations
 
 import json
+import math
+import statistics
 
 import numpy as np
 import pytest
 
+from asset_agent.precland.control import VelocitySetpoint
 from bench.precland_eval import (
     SCENARIOS,
     EkfVelocityError,
+    SharedVehicle,
     main,
     run_autopilot_trial,
     run_trial,
 )
+from bench.precland_report import Trace
+from bench.precland_wind import draw, trial_weather
 
 
 @pytest.mark.slow
@@ -87,12 +93,51 @@ def test_the_landing_error_does_not_depend_on_the_cameras_frame_rate():
     assert abs(np.mean(errors[5.0]) - np.mean(errors[30.0])) < 0.015, errors
 
 
-def test_the_cli_shows_progress_and_writes_a_report_with_a_touchdown_plot(capsys, tmp_path):
+@pytest.mark.slow  # two plots by matplotlib: ~2 s
+def test_the_cli_shows_progress_and_writes_a_report_with_its_plots_and_seeds(capsys, tmp_path):
     argv = ["--trials", "2", "--scenario", "none", "--path", "agent", "--report", str(tmp_path)]
     assert main(argv) == 0
     err = capsys.readouterr().err
+    assert "none: 2 trials, seeds 1000-1001, wind 2 m/s, gust 1 m/s" in err
     assert "none: trial 1/2 (seed 1000)" in err and "none: trial 2/2 (seed 1001)" in err
     report = (tmp_path / "report.md").read_text()
     assert "| none | agent steers | 2/2 |" in report and "touchdown.png" in report
-    png = (tmp_path / "touchdown.png").read_bytes()
-    assert png.startswith(b"\x89PNG") and len(png) > 5000
+    assert "same 2 seeds, 1000–1001" in report and "--report" in report  # published seeds
+    assert "| none | none | — |  | 10 | 2 | 1 |" in report  # the scenario's conditions
+    assert "error_vs_time.png" in report
+    for plot in ("touchdown.png", "error_vs_time.png"):
+        png = (tmp_path / plot).read_bytes()
+        assert png.startswith(b"\x89PNG") and len(png) > 5000
+
+
+def test_a_trace_follows_one_trial_through_time():
+    trace = Trace()
+    trial = run_autopilot_trial(SCENARIOS["ir"], seed=1000, trace=trace)
+    a = np.array(trace.rows)
+    assert len(a) == pytest.approx(trial.time_s * 20, rel=0.05)  # every 5th 10 ms step
+    assert a[0, 1] == pytest.approx(2.0, abs=0.01) and a[0, 2] == pytest.approx(10.0, abs=0.01)
+    assert a[-1, 1] == pytest.approx(trial.error_m, abs=0.01) and a[-1, 2] < 0.3
+    assert np.isnan(a[0, 3]) and np.nanmax(a[-50:, 3]) < 0.05  # PLND's estimate, once found
+
+
+def test_the_evaluations_wind_is_the_simulators_model_drawn_from_the_seed():
+    w = draw(12.0, 6.0, 7)
+    assert w == draw(12.0, 6.0, 7) and w != draw(12.0, 6.0, 8)
+    assert 5.0 <= w.gust_start_s <= 25.0
+    assert abs((w.gust_direction_deg - w.direction_deg + 180) % 360 - 180) <= 45
+    weather = trial_weather(12.0, 6.0, 7)
+    calm = math.hypot(*weather.flow_ne(1.0))
+    peak = math.hypot(*weather.flow_ne(w.gust_start_s + 1.5))
+    assert calm == pytest.approx(12.0) and peak > 16.0  # up to 6 on top, within 45° of it
+    # the evaluation's copter holds 12 m/s leaning into it, in its own turbulence
+    v = SharedVehicle(0.0, 0.0, 10.0, 0.0, seed=7)
+    leans, track = [], []
+    for k in range(1000):  # 10 s, before the gust
+        v.step(0.01, VelocitySetpoint(0.0, 0.0, 0.0), weather.flow_ne(k * 0.01))
+        leans.append(math.degrees(math.hypot(v.dyn.state.roll, v.dyn.state.pitch)))
+        track.append((v.n, v.e))
+    assert 18 < statistics.fmean(leans[500:]) < 30 and statistics.pstdev(leans[500:]) > 1
+    # told to stand still (no position loop): the onset pushes it until the wind is learnt, then
+    # only the turbulence moves it
+    assert 0.5 < math.dist(track[0], track[200]) < 5.0
+    assert math.dist(track[500], track[-1]) < 0.5 * math.dist(track[0], track[200])

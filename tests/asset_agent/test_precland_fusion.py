@@ -15,6 +15,7 @@ from asset_agent.precland.config import (
     PrecisionLandingConfig,
     SourceConfig,
 )
+from asset_agent.precland.detect import Detections
 from asset_agent.precland.faults import FaultInjector
 from asset_agent.precland.fusion import Fusion
 from asset_agent.precland.geometry import ElementPose
@@ -262,9 +263,22 @@ def test_no_landing_target_is_made_once_the_pad_is_level_with_the_camera():
     assert above.target is not None and above.landing_target is not None
     assert above.landing_target.below
     p.set_pad_prior((0.05, 0.0, 0.0), 0.01)  # touched down
-    p.ir(0.02, True, 0.0, 0.0)
+    # a reading level with the camera (IR is never scaled below the camera's seat height, so a
+    # vision element stands for it)
+    p.detections(0.02, Detections(None, ElementPose("aruco", 0.05, 0.0, 0.0, None, 1.0), None))
     level = p.tick(0.03)
     assert level.target is not None and level.landing_target is None
+
+
+def test_ir_is_scaled_to_no_less_than_the_cameras_seat_height():
+    """A height estimate below the camera's seat (a surveyed pad altitude off by decimetres)
+    neither drops the last IR readings nor shrinks them: they are scaled to the seat height."""
+    p = LandingPipeline(PrecisionLandingConfig(mode="landing_target"))
+    p.vehicle(vehicle_state(0.0, (0.0, 0.0, -0.25)))
+    p.set_pad_prior((0.0, 0.0, -0.1), 0.01)  # the filter believes the pad is above the camera
+    (m,) = p.ir(0.0, True, 0.0, math.atan(-0.1))  # ahead: 0.1 m per metre of height
+    seat = PrecisionLandingConfig().control.touchdown_height
+    assert m.height == pytest.approx(seat) and m.rel_ned[0] == pytest.approx(0.1 * seat)
 
 
 def test_agent_steering_carries_the_estimate_to_now_by_the_vehicles_velocity():
