@@ -67,9 +67,9 @@ class Settings(BaseSettings):
     ws_ping_timeout_s: float = Field(default=10.0, gt=0)
     # what is sent to one socket goes out in one write per ws_flush_interval_s at most (the first
     # frame after a quiet spell at once): fewer, larger writes, at most this much added latency
-    ws_flush_interval_s: float = Field(default=0.005, ge=0, le=0.1)
+    ws_flush_interval_s: float = Field(default=0.01, ge=0, le=0.1)
     # an asset's cumulative ack (of what is stored) is sent at most once per ws_ack_interval_s
-    ws_ack_interval_s: float = Field(default=0.25, ge=0, le=5)
+    ws_ack_interval_s: float = Field(default=0.5, ge=0, le=5)
     # operator WebSocket: sockets per login session (across replicas), assets followed per socket,
     # messages per second per socket (beyond the burst: error rate_limited and close 4429)
     ws_max_sockets_per_session: int = Field(default=8, ge=1)

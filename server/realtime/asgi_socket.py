@@ -107,9 +107,9 @@ class AsgiSocket:
     def resume_reading(self) -> None:
         """See `pause_reading`."""
 
-    def send_text(self, text: str) -> bool:
+    def send_text(self, text: str | bytes) -> bool:
         """Write now or queue (see `Sender.send_text`)."""
-        return self.sender.send_text(text)
+        return self.sender.send_text(text.decode() if isinstance(text, bytes) else text)
 
     def close(self, code: int, reason: str = "") -> None:
         """Queue a close behind what was sent."""

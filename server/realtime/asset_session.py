@@ -9,7 +9,7 @@ re-emitted once with `asset_id` set, not re-serialised from the model) and hands
 ingest, which calls back once per batch with the highest seq of this session it stored: the
 session acknowledges it with one cumulative ack, at once or, when it acked less than
 `ws_ack_interval_s` ago, once that interval is up (nothing is acked before it is stored; a UAV
-sending 10 messages a second gets 4 acks a second at the default 0.25 s). A message whose only
+sending 10 messages a second gets 2 acks a second at the default 0.5 s). A message whose only
 fault is a NaN or infinite number is kept without it: the asset is answered `invalid_payload`
 naming the field and the asset's events record `telemetry_field_dropped`. A binary frame closes
 the socket with 1003 (the socket does), no hello within the handshake time with 4408.
@@ -18,13 +18,11 @@ the socket with 1003 (the socket does), no hello within the handshake time with 
 from __future__ import annotations
 
 import asyncio
-import json
 import logging
 import time
 import uuid
 from typing import Any
 
-import orjson
 import structlog
 from sqlalchemy.exc import SQLAlchemyError
 
@@ -202,20 +200,14 @@ class AssetSession:
             )
             self.sock.close(1008, "rate limit exceeded")
             return
-        fast = uav_telemetry(raw)
+        fast = uav_telemetry(raw, self.asset_id)
         if fast is not None:
-            # valid UAV telemetry (the common case): no model built, no re-serialisation
-            seq = fast["seq"]
-            if seq <= self.last_seq:
+            # valid UAV telemetry (the common case): decoded once, encoded for operators and for
+            # storage by the mirror, no model built
+            if fast.seq <= self.last_seq:
                 self._duplicate()
                 return
-            payload = fast["payload"]
-            payload["asset_id"] = self.asset_key
-            try:
-                text = orjson.dumps(fast).decode()
-            except orjson.JSONEncodeError:  # a lone surrogate in a string
-                text = json.dumps(fast, separators=(",", ":"))
-            self._durable(seq, "telemetry", fast["ts"], fast["id"], payload, text)
+            self._durable(fast.seq, "telemetry", fast.ts, None, {}, fast.text, fast.payload_json)
             return
         decoded = decode(raw, "asset_to_server")
         salvaged = None
@@ -242,8 +234,8 @@ class AssetSession:
                 str(msg.id),
                 payload,
                 text,
-                getattr(msg, "re", None),
-                salvaged.dropped if salvaged else (),
+                re=getattr(msg, "re", None),
+                dropped=salvaged.dropped if salvaged else (),
             )
             if salvaged:
                 self._publish_dropped(msg.seq, msg.type, salvaged)
@@ -267,16 +259,20 @@ class AssetSession:
         seq: int,
         kind: str,
         ts: int,
-        msg_id: str,
+        msg_id: str | None,
         payload: dict[str, Any],
-        text: str,
+        text: str | bytes,
+        payload_json: str | None = None,
         re: uuid.UUID | None = None,
         dropped: tuple[str, ...] = (),
     ) -> None:
         """Fan a new durable message out to operators (encoded once here, not once per operator
-        socket) and hand it to the ingest, which acks it once stored."""
+        socket) and hand it to the ingest, which acks it once stored. Telemetry goes out without
+        its id: it is published on one channel only, so no operator needs to de-duplicate it."""
         self.last_seq = seq
-        self.services.broker.publish_nowait(self.channel, {"id": msg_id, "text": text})
+        self.services.broker.publish_nowait(
+            self.channel, {"text": text} if msg_id is None else {"id": msg_id, "text": text}
+        )
         ingest = self.services.ingest
         ingest.submit(
             Item(
@@ -290,6 +286,7 @@ class AssetSession:
                 re,
                 dropped=dropped,
                 acks=self,
+                payload_json=payload_json,
             )
         )
         if ingest.congested and not self._paused:

@@ -246,6 +246,9 @@ class RedisBroker:
             if self.dropped % 10_000 == 1:
                 log.warning("Redis is not taking publications: %d dropped so far", self.dropped)
             return
+        text = message.get("text")
+        if isinstance(text, bytes):  # a frame's text, already UTF-8 (the hot path's telemetry)
+            message = {**message, "text": text.decode()}
         self._outbox.append((self.prefix + channel, json.dumps(message, separators=(",", ":"))))
         self._outbox_ready.set()
 

@@ -75,8 +75,8 @@ class Socket(Protocol):
         """From now on call `handler` (synchronously, in order) with each text message instead
         of queueing it for `receive_text`; messages already queued go to it first."""
 
-    def send_text(self, text: str) -> bool:
-        """Send a text message; False (and counted) when it was dropped."""
+    def send_text(self, text: str | bytes) -> bool:
+        """Send a text message (`bytes`: already UTF-8); False (and counted) when dropped."""
 
     def pause_reading(self) -> None:
         """Read nothing more from the peer (TCP pushes back) until `resume_reading`."""

@@ -106,11 +106,12 @@ class Item:
     seq: int
     kind: str  # telemetry | event | command_result
     ts_ms: int
-    payload: dict[str, Any]
+    payload: dict[str, Any]  # empty when `payload_json` carries it (UAV telemetry's fast path)
     re: uuid.UUID | None = None
     dropped: tuple[str, ...] = ()  # non-finite fields the server removed (recorded as an event)
     acks: Acks | None = None
     arrived: float = field(default_factory=time.monotonic)
+    payload_json: str | None = None
 
 
 def _ts(ms: int) -> datetime:
@@ -236,7 +237,7 @@ class Ingest:
     async def _store(self, batch: list[Item]) -> None:
         # the payload as it came (nested): flattened when read, not here, a thousand times a second
         samples = [
-            Sample(i.asset_id, _ts(i.ts_ms), i.seq, i.payload)
+            Sample(i.asset_id, _ts(i.ts_ms), i.seq, i.payload, i.payload_json)
             for i in batch
             if i.kind == "telemetry"
         ]

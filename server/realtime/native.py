@@ -82,7 +82,7 @@ class Limits:
     send_timeout_s: float = 10.0
     ping_interval_s: float | None = 10.0
     ping_timeout_s: float | None = 10.0
-    flush_interval_s: float = 0.005
+    flush_interval_s: float = 0.01
 
 
 class NativeSocket:
@@ -156,6 +156,10 @@ class NativeSocket:
         """Frames in: messages to the handler (or the inbox), control frames answered here."""
         if self.state == "closed":
             return
+        single = self.reader.single_text(data)
+        if single is not None:
+            self._text(single)
+            return
         try:
             messages = self.reader.feed(data)
         except ws.ProtocolError as err:
@@ -163,22 +167,7 @@ class NativeSocket:
             return
         for opcode, payload in messages:
             if opcode == ws.TEXT:
-                if self.state != "open":
-                    continue  # after our close frame, data is discarded (RFC 6455 §1.4)
-                try:
-                    text = payload.decode("utf-8")
-                except UnicodeDecodeError:
-                    self._fail(ws.INVALID_DATA, "text message is not valid UTF-8")
-                    return
-                if self._handler is None:
-                    self._inbox.append(text)
-                    self._wake()
-                    continue
-                try:
-                    self._handler(text)
-                except Exception:
-                    log.exception("a WebSocket message handler failed")
-                    self._fail(ws.INTERNAL_ERROR, "internal error")
+                if not self._text(payload):
                     return
             elif opcode == ws.BINARY:
                 self._fail(ws.UNSUPPORTED, BINARY_REFUSED)
@@ -196,6 +185,27 @@ class NativeSocket:
                     return
                 self._peer_closed(code)
                 return
+
+    def _text(self, payload: bytes) -> bool:
+        """A text message in: to the handler, or the inbox; False once the socket failed."""
+        if self.state != "open":
+            return True  # after our close frame, data is discarded (RFC 6455 §1.4)
+        try:
+            text = payload.decode("utf-8")
+        except UnicodeDecodeError:
+            self._fail(ws.INVALID_DATA, "text message is not valid UTF-8")
+            return False
+        if self._handler is None:
+            self._inbox.append(text)
+            self._wake()
+            return True
+        try:
+            self._handler(text)
+        except Exception:
+            log.exception("a WebSocket message handler failed")
+            self._fail(ws.INTERNAL_ERROR, "internal error")
+            return False
+        return True
 
     async def receive_text(self, timeout_s: float | None = None, waiting: str = "") -> str:
         """The next text message (see `Socket`)."""
@@ -244,12 +254,15 @@ class NativeSocket:
         """Frames queued for the next write."""
         return len(self._out)
 
-    def send_text(self, text: str) -> bool:
-        """Queue a text frame for the next flush; False (counted) when closing or too many wait."""
+    def send_text(self, text: str | bytes) -> bool:
+        """Queue a text frame (`bytes`: text already encoded as UTF-8) for the next flush;
+        False (counted) when closing or too many wait."""
         if self.state != "open" or len(self._out) >= self.limits.max_queue:
             self.dropped += 1
             return False
-        self._out.append(ws.text_frame(text))
+        self._out.append(
+            ws.frame(ws.TEXT, text) if isinstance(text, bytes) else ws.text_frame(text)
+        )
         if self._flush is None and not self.paused:
             wait = self._last_flush + self.limits.flush_interval_s - self.loop.time()
             if wait <= 0:

@@ -59,9 +59,11 @@ class OperatorSession:
         self.slot: str | None = None
 
     def forward(self, message: dict[str, Any]) -> None:
-        """Pass one broker message on to the socket (once, even when it came on two channels)."""
-        mid = str(message.get("id", ""))
+        """Pass one broker message on to the socket (once, even when it came on two channels:
+        those carry an `id`; telemetry, on one channel only, comes without)."""
+        mid = message.get("id")
         if mid:
+            mid = str(mid)
             if mid in self.recent_set:
                 return
             if len(self.recent) == RECENT_IDS:
@@ -69,7 +71,7 @@ class OperatorSession:
             self.recent.append(mid)
             self.recent_set.add(mid)
         text = message.get("text")
-        if not isinstance(text, str):
+        if not isinstance(text, str | bytes):
             text = json.dumps(message, separators=(",", ":"))
         if self.sock.send_text(text):
             self.services.hub.counters.sent_to_operators += 1

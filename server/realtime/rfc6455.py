@@ -117,6 +117,23 @@ class FrameReader:
         self._frags: list[bytes] = []
         self._frag_size = 0
 
+    def single_text(self, data: bytes) -> bytes | None:
+        """The payload when `data` is exactly one whole, final, masked text frame and nothing is
+        pending (how a small message usually arrives); None for anything else, which `feed`
+        handles (the common case without a list, a loop or a buffer)."""
+        if self._buf or self._frag_opcode is not None or len(data) < 6 or data[0] != 0x81:
+            return None
+        n = data[1] ^ 0x80  # the mask bit set; a length of 126/127 extends it
+        if n < 126:
+            head = 6
+        elif n == 126 and len(data) >= 8:
+            n, head = (data[2] << 8) | data[3], 8
+        else:
+            return None
+        if len(data) != head + n or n > self.max_size:
+            return None
+        return _unmask(data[head:], data[head - 4 : head])
+
     def feed(self, data: bytes) -> list[tuple[int, bytes]]:
         """The messages and control frames completed by `data`, in order: (opcode, payload),
         the opcode of a reassembled message being that of its first frame. Raises ProtocolError."""

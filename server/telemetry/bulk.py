@@ -38,7 +38,6 @@ from sqlalchemy import Column, Table
 from sqlalchemy.engine import Dialect
 from sqlalchemy.ext.asyncio import AsyncEngine, AsyncSession
 
-from server.kit.db import json_dumps
 from server.telemetry.models import AssetStream, TelemetrySample
 from server.telemetry.store import Sample
 
@@ -106,11 +105,11 @@ class BulkWriter:
                 [s.asset_id for s in samples],
                 [ts(s.ts) for s in samples],
                 [s.seq for s in samples],
-                [json_dumps(s.fields) for s in samples],
+                [s.json() for s in samples],
             )
             await conn.exec_driver_sql(_PG_INSERT, columns)
             return
-        params = [(asset(s.asset_id), ts(s.ts), s.seq, json_dumps(s.fields)) for s in samples]
+        params = [(asset(s.asset_id), ts(s.ts), s.seq, s.json()) for s in samples]
         await conn.exec_driver_sql(_SQLITE_INSERT, params)
 
     async def advance_streams(self, db: AsyncSession, highest: Mapping[uuid.UUID, int]) -> None:
@@ -155,7 +154,7 @@ class SqliteOneTrip:
     def _write(self, samples: Sequence[Sample], highest: dict[uuid.UUID, int]) -> None:
         conn = self._conn or self._open()
         w = self.writer
-        rows = [(w._asset(s.asset_id), w._ts(s.ts), s.seq, json_dumps(s.fields)) for s in samples]
+        rows = [(w._asset(s.asset_id), w._ts(s.ts), s.seq, s.json()) for s in samples]
         positions = [(seq, w._stream(sid), seq) for sid, seq in highest.items()]
         conn.execute("BEGIN IMMEDIATE")
         try:
@@ -200,7 +199,7 @@ class PostgresOneTrip:
             [s.asset_id for s in samples],
             [ts(s.ts) for s in samples],
             [s.seq for s in samples],
-            [json_dumps(s.fields) for s in samples],
+            [s.json() for s in samples],
             list(highest),
             list(highest.values()),
         )

@@ -94,7 +94,7 @@ def to_line(sample: Sample) -> str | None:
         )
         return None
     fields = [("seq", f"seq={int(sample.seq)}i")]
-    for name, value in flatten(sample.fields).items():
+    for name, value in flatten(sample.data()).items():
         if name == "asset_id":
             continue  # the payload names its asset: that is the point's tag
         if name in RESERVED or not name:

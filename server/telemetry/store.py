@@ -13,7 +13,11 @@ import uuid
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import TYPE_CHECKING, Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol, cast
+
+import orjson
+
+from server.kit.db import json_dumps
 
 if TYPE_CHECKING:
     from sqlalchemy.ext.asyncio import AsyncSession
@@ -30,6 +34,17 @@ class Sample:
     ts: datetime  # aware, UTC
     seq: int
     fields: Mapping[str, Any] = field(default_factory=dict)  # nested payload, or already flat
+    fields_json: str | None = None  # the same payload as JSON, when it came encoded already
+
+    def data(self) -> Mapping[str, Any]:
+        """The payload as data (parsed from `fields_json` when that is what it carries)."""
+        if self.fields_json is not None and not self.fields:
+            return cast(Mapping[str, Any], orjson.loads(self.fields_json))
+        return self.fields
+
+    def json(self) -> str:
+        """The payload as JSON text (encoded only when it came as data)."""
+        return self.fields_json if self.fields_json is not None else json_dumps(self.fields)
 
 
 @dataclass(frozen=True)

@@ -233,6 +233,21 @@ def test_frame_reader_reassembles_across_any_split() -> None:
         for i in range(0, len(stream), size):
             got += reader.feed(stream[i : i + size])
         assert got == expected, size
+    # the shortcut for one whole text frame agrees with feed, and declines everything else
+    for text in (b"", b"x" * 125, b"y" * 126, b"z" * 1000):
+        whole = client_frame(ws.TEXT, text)
+        assert ws.FrameReader(1 << 20).single_text(whole) == text
+        assert ws.FrameReader(1 << 20).feed(whole) == [(ws.TEXT, text)]
+        assert ws.FrameReader(1 << 20).single_text(whole[:-1] if text else whole[:5]) is None
+    for other in (
+        client_frame(ws.TEXT, b"ab", fin=False),
+        client_frame(ws.BINARY, b"ab"),
+        client_frame(ws.PING, b"ab"),
+        bytes([0x81, 0x02]) + b"ab",  # unmasked
+        client_frame(ws.TEXT, b"ab") + client_frame(ws.TEXT, b"cd"),  # two frames
+        client_frame(ws.TEXT, b"w" * 2000),  # over this reader's size
+    ):
+        assert ws.FrameReader(1000).single_text(other) is None
     assert ws.frame(ws.TEXT, big)[:10] == bytes([0x81, 127]) + struct.pack("!Q", 70_000)
     assert ws.frame(ws.TEXT, b"y" * 1000)[:4] == bytes([0x81, 126]) + struct.pack("!H", 1000)
     assert ws.frame(ws.PONG, b"p") == bytes([0x8A, 1]) + b"p"
