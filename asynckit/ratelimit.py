@@ -33,8 +33,18 @@ class TokenBucket:
         return (1 - self._tokens) / self.rate
 
     def take(self) -> bool:
-        """Take a token if one is available; False means refuse (nothing is taken)."""
-        return self.delay() == 0.0
+        """Take a token if one is available; False means refuse (nothing is taken). (`delay`
+        inlined: the server asks once per message received.)"""
+        now = self._clock()
+        tokens = self._tokens + (now - self._at) * self.rate
+        if tokens > self.burst:
+            tokens = self.burst
+        self._at = now
+        if tokens >= 1:
+            self._tokens = tokens - 1
+            return True
+        self._tokens = tokens
+        return False
 
     def slow_down(self, factor: float = 0.5, min_rate: float = 1.0) -> None:
         """Cut the rate and the burst by `factor` (the other side said we were too fast)."""

@@ -11,7 +11,7 @@ import contextlib
 import json
 import logging
 import time
-from collections import defaultdict, deque
+from collections import deque
 from collections.abc import AsyncIterator, Callable
 from typing import Any, Protocol
 
@@ -62,24 +62,27 @@ class Broker(Protocol):
 
 class _Subscribers:
     def __init__(self) -> None:
-        self.handlers: dict[str, list[Handler]] = defaultdict(list)
+        # a tuple per channel, replaced on (un)subscribe: a dispatch iterates it as it was, even
+        # when a handler unsubscribes meanwhile, without copying it per message
+        self.handlers: dict[str, tuple[Handler, ...]] = {}
 
     def add(self, channel: str, handler: Handler) -> bool:
-        first = not self.handlers[channel]
-        self.handlers[channel].append(handler)
-        return first
+        now = self.handlers.get(channel, ())
+        self.handlers[channel] = (*now, handler)
+        return not now
 
     def remove(self, channel: str, handler: Handler) -> bool:
-        handlers = self.handlers.get(channel, [])
+        now = list(self.handlers.get(channel, ()))
         with contextlib.suppress(ValueError):
-            handlers.remove(handler)
-        if not handlers:
+            now.remove(handler)
+        if not now:
             self.handlers.pop(channel, None)
             return True
+        self.handlers[channel] = tuple(now)
         return False
 
     def dispatch(self, channel: str, message: dict[str, Any]) -> None:
-        for handler in list(self.handlers.get(channel, ())):
+        for handler in self.handlers.get(channel, ()):
             try:
                 handler(message)
             except Exception:

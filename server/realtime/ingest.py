@@ -7,8 +7,10 @@ multi-row INSERT; InfluxDB is written first), events and stream positions (telem
 service). Then it tells each connection the highest seq of its own that is stored (`Acks.stored`,
 once per batch, not per message), so acks are cumulative and cost no task wake-up per message.
 Writes are idempotent (a replay after a crash stores nothing twice). The batcher waits at most
-`max_delay_s` after the first queued message, then takes up to `max_batch` (bounded so that
-building one batch never holds the event loop for more than a few milliseconds).
+`max_delay_s` (0.25 s: a commit's cost is shared by more rows) after the first queued message,
+or not at all once an event or command result waits (what a run reacts to), then takes up to
+`max_batch` (bounded so that building one batch never holds the event loop for more than a few
+milliseconds).
 
 One bad row never fails a batch shared by many connections: a batch refused because of its data
 (a value the database or the store cannot hold) is split in halves and retried until the rows at
@@ -136,7 +138,7 @@ class Ingest:
         sessionmaker: async_sessionmaker[AsyncSession],
         store: TelemetryStore,
         max_batch: int = 2000,
-        max_delay_s: float = 0.1,
+        max_delay_s: float = 0.25,
         writer: async_sessionmaker[AsyncSession] | None = None,
         one_trip: OneTrip | None = None,
     ) -> None:
@@ -150,6 +152,8 @@ class Ingest:
         self.max_delay_s = max_delay_s
         self.one_trip = one_trip
         self._resume: list[Callable[[], None]] = []  # sockets paused while the queue was long
+        self._due = asyncio.Event()  # the batch's wait is over
+        self._urgent = False  # a message other than telemetry waits: store without waiting
         self.queue: deque[Item] = deque()
         self._ready = asyncio.Event()
         self._task: asyncio.Task[None] | None = None
@@ -174,6 +178,9 @@ class Ingest:
         """Queue an item; `item.acks` hears once it is stored (or rejected, or failed)."""
         self.queue.append(item)
         self._ready.set()
+        if item.kind != "telemetry" and not self._urgent:
+            self._urgent = True
+            self._due.set()
 
     @property
     def congested(self) -> bool:
@@ -185,11 +192,18 @@ class Ingest:
         self._resume.append(resume)
 
     async def _run(self) -> None:
+        loop = asyncio.get_running_loop()
         while True:
             await self._ready.wait()
-            if len(self.queue) < self.max_batch:
-                # one timer per batch (not one per message): what arrives meanwhile joins it
-                await asyncio.sleep(self.max_delay_s)
+            if len(self.queue) < self.max_batch and not self._urgent:
+                # one timer per batch (not one per message): what arrives meanwhile joins it,
+                # unless something other than telemetry comes (events, command results: what a
+                # run waits for), which cuts the wait short
+                self._due.clear()
+                timer = loop.call_later(self.max_delay_s, self._due.set)
+                await self._due.wait()
+                timer.cancel()
+            self._urgent = False
             n = min(len(self.queue), self.max_batch)
             batch = [self.queue.popleft() for _ in range(n)]
             if not self.queue:
@@ -236,17 +250,18 @@ class Ingest:
 
     async def _store(self, batch: list[Item]) -> None:
         # the payload as it came (nested): flattened when read, not here, a thousand times a second
-        samples = [
-            Sample(i.asset_id, _ts(i.ts_ms), i.seq, i.payload, i.payload_json)
-            for i in batch
-            if i.kind == "telemetry"
-        ]
+        samples = []
         highest: dict[uuid.UUID, int] = {}
-        for item in batch:
-            highest[item.stream_id] = max(highest.get(item.stream_id, 0), item.seq)
-        if self.one_trip is not None and all(
-            i.kind == "telemetry" and not i.dropped for i in batch
-        ):
+        plain = True  # nothing but telemetry (no event, command result or dropped field)
+        for i in batch:
+            if i.seq > highest.get(i.stream_id, 0):  # not the last: a replay may follow the same
+                highest[i.stream_id] = i.seq  # stream's items of a connection that just ended
+            if i.kind == "telemetry":
+                samples.append(Sample(i.asset_id, _ts(i.ts_ms), i.seq, i.payload, i.payload_json))
+                plain = plain and not i.dropped
+            else:
+                plain = False
+        if self.one_trip is not None and plain:
             if self.store.in_database:
                 await self.one_trip.store(samples, highest)
             else:  # InfluxDB: durable when it answers, then the positions

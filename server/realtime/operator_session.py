@@ -50,6 +50,7 @@ class OperatorSession:
         self.services = services
         self.sock = sock
         self.principal = principal
+        self.counters = services.hub.counters
         settings = services.settings
         self.bucket = TokenBucket(settings.ws_operator_rate_per_s, settings.ws_operator_burst)
         self.subscribed: set[uuid.UUID] = set()
@@ -71,12 +72,12 @@ class OperatorSession:
             self.recent.append(mid)
             self.recent_set.add(mid)
         text = message.get("text")
-        if not isinstance(text, str | bytes):
+        if text is None:
             text = json.dumps(message, separators=(",", ":"))
         if self.sock.send_text(text):
-            self.services.hub.counters.sent_to_operators += 1
+            self.counters.sent_to_operators += 1
         else:
-            self.services.hub.counters.operator_dropped += 1
+            self.counters.operator_dropped += 1
 
     async def serve(self) -> None:
         """Read subscribe/unsubscribe requests until the socket closes (or is closed for us)."""
