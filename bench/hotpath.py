@@ -109,7 +109,7 @@ async def run(args: argparse.Namespace) -> dict[str, Any]:
     from server.kit.principal import Principal, Role
     from server.organizations.models import Organization
     from server.realtime.asset_session import AssetSession
-    from server.realtime.native import Limits, NativeSocket
+    from server.realtime.native_socket import Limits, NativeSocket
     from server.realtime.operator_session import OperatorSession
 
     folder = tempfile.mkdtemp(prefix="aerobase-hotpath-")

@@ -1,7 +1,7 @@
 """What a session needs from its WebSocket (`Socket`), whichever server carries it, and the
 errors and close codes of that contract.
 
-Two implementations: `native.NativeSocket` (the hot sockets served straight from the TCP
+Two implementations: `native_socket.NativeSocket` (the hot sockets served straight from the TCP
 transport, how `aerobase server` runs) and `asgi_socket.AsgiSocket` (the same sockets through
 any ASGI server). Both refuse binary frames with 1003 themselves (the sockets carry JSON text);
 a peer silent past a receive's time limit is a `Refused(4408)`, which the session turns into a
