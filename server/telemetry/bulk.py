@@ -46,19 +46,19 @@ _STREAMS = cast(Table, AssetStream.__table__)
 
 _SQLITE_INSERT = (
     "INSERT INTO telemetry (asset_id, ts, seq, fields) VALUES (?, ?, ?, ?) "
-    "ON CONFLICT (asset_id, seq, ts) DO NOTHING"
+    "ON CONFLICT (asset_id, ts, seq) DO NOTHING"
 )
 _SQLITE_ADVANCE = "UPDATE asset_streams SET last_seq = ? WHERE stream_id = ? AND last_seq < ?"
 _PG_INSERT = (
     "INSERT INTO telemetry (asset_id, ts, seq, fields) "
     "SELECT * FROM unnest($1::uuid[], $2::timestamptz[], $3::bigint[], $4::json[]) "
-    "ON CONFLICT (asset_id, seq, ts) DO NOTHING"
+    "ON CONFLICT (asset_id, ts, seq) DO NOTHING"
 )
 _PG_BOTH = (  # one statement: a data-modifying WITH always runs, with the main one, atomically
     "WITH inserted AS ("
     "INSERT INTO telemetry (asset_id, ts, seq, fields) "
     "SELECT * FROM unnest($1::uuid[], $2::timestamptz[], $3::bigint[], $4::json[]) "
-    "ON CONFLICT (asset_id, seq, ts) DO NOTHING) "
+    "ON CONFLICT (asset_id, ts, seq) DO NOTHING) "
     "UPDATE asset_streams AS s SET last_seq = v.seq "
     "FROM unnest($5::uuid[], $6::bigint[]) AS v(sid, seq) "
     "WHERE s.stream_id = v.sid AND s.last_seq < v.seq"

@@ -24,9 +24,9 @@ class TelemetrySample(Base):
 
     __tablename__ = "telemetry"
     __table_args__ = (
-        Index("ix_telemetry_asset_ts", "asset_id", "ts"),
-        # replays of a stream rewrite the same (asset, seq, ts): stored once
-        Index("uq_telemetry_asset_seq_ts", "asset_id", "seq", "ts", unique=True),
+        # one index for both: time-range reads of an asset, and replays of a stream rewriting the
+        # same (asset, ts, seq), stored once (a second index cost a second B-tree insert a row)
+        Index("uq_telemetry_asset_ts_seq", "asset_id", "ts", "seq", unique=True),
     )
 
     id: Mapped[int] = mapped_column(
