@@ -12,12 +12,20 @@ log = logging.getLogger(__name__)
 
 
 class Periodic:
-    """Runs `tick()` every `every_s` seconds from `start()` until `stop()`."""
+    """Runs `tick()` every `every_s` seconds from `start()` until `stop()`; with `idle_s`, a tick
+    that returns False (it found nothing to do) is followed by `idle_s` instead."""
 
-    def __init__(self, name: str, tick: Callable[[], Awaitable[None]], every_s: float) -> None:
+    def __init__(
+        self,
+        name: str,
+        tick: Callable[[], Awaitable[bool | None]],
+        every_s: float,
+        idle_s: float | None = None,
+    ) -> None:
         self.name = name
         self.tick = tick
         self.every_s = every_s
+        self.idle_s = idle_s
         self._task: asyncio.Task[None] | None = None
 
     def start(self) -> None:
@@ -30,10 +38,12 @@ class Periodic:
 
     async def _loop(self) -> None:
         while True:
+            busy: bool | None = True
             try:
-                await self.tick()
+                busy = await self.tick()
             except asyncio.CancelledError:
                 raise
             except Exception:
                 log.exception("%s: tick failed", self.name)
-            await asyncio.sleep(self.every_s)
+            idle = busy is False and self.idle_s is not None
+            await asyncio.sleep(self.idle_s if idle and self.idle_s is not None else self.every_s)
