@@ -29,6 +29,7 @@ from server.realtime.keeper import AssetKeeper
 
 log = logging.getLogger(__name__)
 RECHECK_S = 30.0
+RECHECK_AHEAD_S = 10.0
 
 
 @dataclass
@@ -156,9 +157,12 @@ class Hub:
         Each session with a socket here is read again only once its known deadline has passed,
         so the sweep costs nothing while sessions are fresh."""
         now = utcnow()
-        due = [sid for sid, until in self.deadlines.items() if until is None or until <= now]
-        if not due:
+        if not any(until is None or until <= now for until in self.deadlines.values()):
             return
+        # one read for every session due within RECHECK_AHEAD_S as well: the periodic rechecks
+        # of a thousand sockets fall due a few a second, and each would be a query of its own
+        ahead = now + timedelta(seconds=RECHECK_AHEAD_S)
+        due = [sid for sid, until in self.deadlines.items() if until is None or until <= ahead]
         async with self.sessionmaker() as db:
             until = await alive_until(db, due, now)
         for sid in due:
