@@ -23,15 +23,17 @@ import uuid
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import httpx
 import msgspec
 import orjson
-from websockets.asyncio.client import ClientConnection, connect
 
 from assetlink.configfile import decrypt_config
+from bench import _lean as lean
+from bench._lean import LeanSocket
 from bench._load import Payloads, Recorder, drain, figures, mark, pace, process_cpu
-from protocol.codec import MAX_MESSAGE_BYTES, encode
+from protocol.codec import encode
 from protocol.messages import HelloPayload, envelope
 
 
@@ -244,57 +246,100 @@ def _ws(url: str) -> str:
     return url.replace("http://", "ws://", 1).replace("https://", "wss://", 1)
 
 
-async def _operator(url: str, token: str, asset_ids: list[str]) -> ClientConnection:
-    """Connect a viewer to /ws/operator and subscribe to every asset; returns once subscribed."""
-    ws = await connect(
-        f"{_ws(url)}/ws/operator?token={token}",
-        max_size=MAX_MESSAGE_BYTES,
-        ping_interval=None,
-        max_queue=None,
-    )
-    subscribe = {
-        "v": 1,
-        "type": "subscribe",
-        "id": str(uuid.uuid4()),
-        "seq": 0,
-        "ts": 0,
-        "payload": {"asset_ids": asset_ids},
-    }
-    await ws.send(json.dumps(subscribe))
-    # The server handles an operator's messages in order: the error for an unknown asset id,
-    # asked for next, proves the first subscription is in place.
+async def _operator(
+    url: str, token: str, asset_ids: list[str], on_text: Callable[[bytes], None]
+) -> LeanSocket:
+    """Connect a viewer to /ws/operator and subscribe to every asset; returns once subscribed.
+    From then on `on_text` hears every message."""
     probe = str(uuid.uuid4())
-    await ws.send(
-        json.dumps({**subscribe, "id": str(uuid.uuid4()), "payload": {"asset_ids": [probe]}})
-    )
-    while True:
-        msg = json.loads(await asyncio.wait_for(ws.recv(), 120))
-        if msg["type"] == "error" and probe in msg["payload"].get("message", ""):
-            return ws
-        if msg["type"] == "error":
-            raise RuntimeError(f"subscribe failed: {msg['payload']}")
+    subscribed: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+
+    def during_subscribe(raw: bytes) -> None:
+        # The server handles an operator's messages in order: the error for an unknown asset
+        # id, asked for next, proves the first subscription is in place.
+        if b'"type":"error"' in raw and not subscribed.done():
+            if probe.encode() in raw:
+                subscribed.set_result(None)
+            else:
+                subscribed.set_exception(RuntimeError(f"subscribe failed: {raw[:300]!r}"))
+        elif subscribed.done():
+            on_text(raw)
+
+    ws = await lean.connect(url, f"/ws/operator?token={token}", during_subscribe)
+    subscribe = {"v": 1, "type": "subscribe", "id": str(uuid.uuid4()), "seq": 0, "ts": 0}
+    ws.send(json.dumps({**subscribe, "payload": {"asset_ids": asset_ids}}))
+    ws.send(json.dumps({**subscribe, "id": str(uuid.uuid4()), "payload": {"asset_ids": [probe]}}))
+    await asyncio.wait_for(subscribed, 120)
+    ws.on_text = on_text
+    return ws
 
 
-async def _asset(url: str, name: str, secret: str, api: httpx.AsyncClient) -> ClientConnection:
-    """Log an asset in and open its /ws/asset session (hello, welcome)."""
+async def _asset(
+    url: str, name: str, secret: str, api: httpx.AsyncClient, on_text: Callable[[bytes], None]
+) -> LeanSocket:
+    """Log an asset in and open its /ws/asset session (hello, welcome); `on_text` then hears
+    its acks and errors."""
     token = _ok(
         await api.post("/api/v1/assets/login", json={"name": name, "secret": secret, "force": True})
     )
-    ws = await connect(
-        f"{_ws(url)}/ws/asset",
-        additional_headers={"Authorization": f"Bearer {token['access_token']}"},
-        max_size=MAX_MESSAGE_BYTES,
-        ping_interval=None,
-        open_timeout=60,
-        close_timeout=2,
+    welcome: asyncio.Future[bytes] = asyncio.get_running_loop().create_future()
+
+    def first(raw: bytes) -> None:
+        if not welcome.done():
+            welcome.set_result(raw)
+
+    ws = await lean.connect(
+        url, "/ws/asset", first, {"Authorization": f"Bearer {token['access_token']}"}
     )
-    await ws.send(
+    ws.send(
         encode(envelope(HelloPayload(stream=uuid.uuid4(), agent="asset_agent", version="0.1.0")))
     )
-    welcome = json.loads(await asyncio.wait_for(ws.recv(), 60))
-    if welcome.get("type") != "welcome" or welcome["payload"]["last_acked_seq"] != 0:
-        raise RuntimeError(f"expected welcome with last_acked_seq 0, got {welcome}")
+    answer = orjson.loads(await asyncio.wait_for(welcome, 60))
+    if answer.get("type") != "welcome" or answer["payload"]["last_acked_seq"] != 0:
+        ws.close()
+        raise RuntimeError(f"expected welcome with last_acked_seq 0, got {answer}")
+    ws.on_text = on_text
     return ws
+
+
+class _Ack(msgspec.Struct):
+    seq: int = 0
+
+
+class _Reply(msgspec.Struct):
+    """What an asset's reader needs of the server's messages (acks, errors)."""
+
+    type: str
+    payload: _Ack | None = None
+
+
+_REPLY = msgspec.json.Decoder(_Reply)
+
+
+def ack_reader(acked: Any, index: int, errors: list[int]) -> Callable[[bytes], None]:
+    """`on_text` of asset `index`: its highest ack into `acked[index]`, errors counted."""
+
+    def on_text(raw: bytes) -> None:
+        reply = _REPLY.decode(raw)
+        if reply.type == "ack" and reply.payload is not None:
+            if reply.payload.seq > acked[index]:
+                acked[index] = reply.payload.seq
+        elif reply.type == "error":
+            errors[0] += 1
+
+    return on_text
+
+
+def delivery_reader(rec: Recorder, operator: int, index: dict[str, int]) -> Callable[[bytes], None]:
+    """`on_text` of an operator: each telemetry delivery timed on arrival."""
+
+    def on_text(raw: bytes) -> None:
+        t = time.perf_counter()
+        msg = _DELIVERED.decode(raw)
+        if msg.type == "telemetry" and msg.payload is not None:
+            rec.on_delivered(operator, index[msg.payload.asset_id], msg.seq, t)
+
+    return on_text
 
 
 async def run_ours(
@@ -316,9 +361,13 @@ async def run_ours(
     n, m = len(fleet.asset_ids), len(fleet.viewer_tokens)
     index = {a: i for i, a in enumerate(fleet.asset_ids)}
     rec = Recorder(n, m)
-    ops = [await _operator(url, token, fleet.asset_ids) for token in fleet.viewer_tokens]
+    ops = [
+        await _operator(url, token, fleet.asset_ids, delivery_reader(rec, k, index))
+        for k, token in enumerate(fleet.viewer_tokens)
+    ]
     progress(f"{m} operator(s) subscribed to {n} assets")
-    sockets: list[ClientConnection | None] = [None] * n
+    sockets: list[LeanSocket | None] = [None] * n
+    errors = [0]
     async with httpx.AsyncClient(base_url=url, timeout=120) as api:
         sem = asyncio.Semaphore(32)
         connected = 0
@@ -326,7 +375,9 @@ async def run_ours(
         async def open_one(i: int) -> None:
             nonlocal connected
             async with sem:
-                sockets[i] = await _asset(url, fleet.names[i], fleet.secrets[i], api)
+                sockets[i] = await _asset(
+                    url, fleet.names[i], fleet.secrets[i], api, ack_reader(rec.acked, i, errors)
+                )
             connected += 1
             if connected % 100 == 0 or connected == n:
                 progress(f"connected {connected}/{n} assets")
@@ -337,51 +388,32 @@ async def run_ours(
     progress(
         f"server CPU with {n} assets and {m} operator(s) connected, no telemetry: {idle:.1f} % of a core"
     )
-    closed: dict[str, int] = {}
-    stopping = False
 
-    def on_closed(ws: ClientConnection) -> None:
-        if not stopping:
-            key = str(ws.close_code)
-            closed[key] = closed.get(key, 0) + 1
-
-    async def read_acks(i: int, ws: ClientConnection) -> None:
-        with contextlib.suppress(Exception):
-            async for raw in ws:
-                if '"type":"ack"' in raw:
-                    rec.acked[i] = max(rec.acked[i], orjson.loads(raw)["payload"]["seq"])
-                elif '"type":"error"' in raw:
-                    rec.errors += 1
-        on_closed(ws)
-
-    async def read_operator(k: int, ws: ClientConnection) -> None:
-        with contextlib.suppress(Exception):
-            async for raw in ws:
-                t = time.perf_counter()
-                msg = _DELIVERED.decode(raw)
-                if msg.type == "telemetry" and msg.payload is not None:
-                    rec.on_delivered(k, index[msg.payload.asset_id], msg.seq, t)
-        on_closed(ws)
-
-    readers = [asyncio.create_task(read_acks(i, ws)) for i, ws in enumerate(ws_all)]
-    readers += [asyncio.create_task(read_operator(k, ws)) for k, ws in enumerate(ops)]
-
-    def send(i: int, seq: int):  # type: ignore[no-untyped-def]
-        return ws_all[i].send(payloads.text(i, seq))
+    def send(i: int, seq: int) -> None:
+        ws_all[i].send(payloads.text(i, seq))
 
     try:
         marks = await pace(n, rate, warmup, seconds, rec, send, progress, pid)
         drained = await drain(rec, 15.0)
         marks["end"] = mark(rec, pid)
     finally:
-        stopping = True
-        for task in readers:
-            task.cancel()
-        await asyncio.gather(*(ws.close() for ws in [*ws_all, *ops]), return_exceptions=True)
+        closed = closed_codes([*ws_all, *ops])
+        for ws in [*ws_all, *ops]:
+            ws.close()
+    rec.errors += errors[0]
     result = figures(rec, marks, drained)
     result["idle_cpu_pct_of_core"] = round(idle, 1)
     result["sockets_closed_by_server"] = closed
     return result
+
+
+def closed_codes(sockets: list[LeanSocket]) -> dict[str, int]:
+    """How many of these sockets the server closed, by close code (before we closed any)."""
+    codes: dict[str, int] = {}
+    for ws in sockets:
+        if ws.close_code is not None:
+            codes[str(ws.close_code)] = codes.get(str(ws.close_code), 0) + 1
+    return codes
 
 
 async def idle_cpu(pid: int, seconds: float) -> float:
@@ -410,10 +442,12 @@ async def _run_ours_helpers(
     shared = Shared.create(n, slots_for(rate, warmup, seconds))
     rec = SharedRecorder(n, m, shared)
     helpers = None
-    ops: list[ClientConnection] = []
-    readers: list[asyncio.Task[None]] = []
+    ops: list[LeanSocket] = []
     try:
-        ops = [await _operator(url, token, fleet.asset_ids) for token in fleet.viewer_tokens]
+        ops = [
+            await _operator(url, token, fleet.asset_ids, delivery_reader(rec, k, index))
+            for k, token in enumerate(fleet.viewer_tokens)
+        ]
         progress(f"{m} operator(s) subscribed to {n} assets")
         helpers = start_helpers(
             procs, url, fleet.names, fleet.secrets, shared, rate, warmup, seconds
@@ -426,35 +460,19 @@ async def _run_ours_helpers(
             f"server CPU with {n} assets and {m} operator(s) connected, no telemetry: "
             f"{idle:.1f} % of a core"
         )
-        closed: dict[str, int] = {}
-
-        async def read_operator(k: int, ws: ClientConnection) -> None:
-            with contextlib.suppress(Exception):
-                async for raw in ws:
-                    t = time.perf_counter()
-                    msg = _DELIVERED.decode(raw)
-                    if msg.type == "telemetry" and msg.payload is not None:
-                        rec.on_delivered(k, index[msg.payload.asset_id], msg.seq, t)
-            key = str(ws.close_code)
-            closed[key] = closed.get(key, 0) + 1
-
-        readers = [asyncio.create_task(read_operator(k, ws)) for k, ws in enumerate(ops)]
         start = time.perf_counter() + 1.0
         helpers.broadcast(start)
         marks = await pace(0, rate, warmup, seconds, rec, lambda i, s: None, progress, pid, start)
         drained = await drain(rec, 15.0)
         marks["end"] = mark(rec, pid)
         helpers.broadcast("stop")
+        closed = closed_codes(ops)
         for code, count in merge_reports(await asyncio.to_thread(helpers.gather), rec).items():
             closed[code] = closed.get(code, 0) + count
-        for task in readers:
-            task.cancel()
-        readers = []
-        await asyncio.gather(*(ws.close() for ws in ops), return_exceptions=True)
         result = figures(rec, marks, drained)
     finally:
-        for task in readers:
-            task.cancel()
+        for ws in ops:
+            ws.close()
         if helpers is not None:
             await asyncio.to_thread(helpers.stop)
         rec.release()

@@ -21,9 +21,6 @@ from multiprocessing.connection import Connection
 from multiprocessing.shared_memory import SharedMemory
 from typing import Any
 
-import orjson
-import websockets
-
 from bench._load import Payloads, Recorder, pace
 
 
@@ -152,13 +149,14 @@ async def _helper_main(
 ) -> None:
     import httpx
 
-    from bench._aerobase import _asset
+    from bench._aerobase import _asset, ack_reader, closed_codes
 
     shared = Shared.attach(total, slots, shm)
     sent_at, sent, acked = shared.sent_at, shared.sent, shared.acked
     n = len(names)
     payloads = Payloads(n)
     rec = Recorder(n, 0)
+    errors = [0]
     async with httpx.AsyncClient(base_url=url, timeout=120) as api:
         sem = asyncio.Semaphore(8)
 
@@ -166,53 +164,33 @@ async def _helper_main(
             async with sem:
                 for attempt in range(5):  # a server busy with 1,000 logins may ask for a retry
                     try:
-                        return await _asset(url, names[i], secrets[i], api)
-                    except (OSError, RuntimeError, websockets.WebSocketException):
+                        return await _asset(
+                            url, names[i], secrets[i], api, ack_reader(acked, first + i, errors)
+                        )
+                    except (OSError, RuntimeError, TimeoutError, httpx.HTTPError):
                         if attempt == 4:
                             raise
                         await asyncio.sleep(1 + attempt)
             return None
 
         sockets = await asyncio.gather(*(open_one(i) for i in range(n)))
-    closed: dict[str, int] = {}
-    errors = 0
-    stopping = False
-
-    async def read_acks(i: int) -> None:
-        nonlocal errors
-        ws = sockets[i]
-        with contextlib.suppress(Exception):
-            async for raw in ws:
-                if '"type":"ack"' in raw:
-                    seq = orjson.loads(raw)["payload"]["seq"]
-                    if seq > acked[first + i]:
-                        acked[first + i] = seq
-                elif '"type":"error"' in raw:
-                    errors += 1
-        if not stopping:
-            key = str(ws.close_code)
-            closed[key] = closed.get(key, 0) + 1
-
-    readers = [asyncio.create_task(read_acks(i)) for i in range(n)]
     loop = asyncio.get_running_loop()
     conn.send(("connected", n))
     start = await loop.run_in_executor(None, conn.recv)
 
-    async def send(i: int, seq: int) -> None:
+    def send(i: int, seq: int) -> None:
         g = first + i
         sent_at[g * slots + seq % slots] = rec.sent[i][seq - 1]
         sent[g] = seq
         # a socket the server closed stays counted as sent: its messages show up as lost
-        with contextlib.suppress(websockets.ConnectionClosed):
-            await sockets[i].send(payloads.text(i, seq))
+        sockets[i].send(payloads.text(i, seq))
 
     await pace(n, rate, warmup, seconds, rec, send, lambda _t: None, None, start, (first, total))
     await loop.run_in_executor(None, conn.recv)  # "stop", once the main process has drained
-    stopping = True
-    for task in readers:
-        task.cancel()
-    await asyncio.gather(*(ws.close() for ws in sockets), return_exceptions=True)
-    conn.send(("done", list(rec.lags), errors, closed))
+    closed = closed_codes(sockets)
+    for ws in sockets:
+        ws.close()
+    conn.send(("done", list(rec.lags), errors[0], closed))
     for view in (sent_at, sent, acked):
         view.release()
     shared.close()

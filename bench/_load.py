@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import math
 import os
+import random
 import time
 import uuid
 from array import array
@@ -31,6 +32,14 @@ from protocol.telemetry_payloads import (
 _SEQ, _TS = 987_654_321_987, 1_111_111_111_111
 _ID = uuid.UUID("0badc0de-0000-4000-8000-00000000beef")
 RING = 20  # distinct samples per asset, cycled: a UAV circling its waypoint
+_IDS = random.Random()
+
+
+def message_id() -> str:
+    """A fresh random (version 4) UUID without uuid4's system call per id: the generator makes
+    10,000 a second at 1,000 UAVs."""
+    h = f"{(_IDS.getrandbits(128) & ~(0xF000 << 64) & ~(0xC000 << 48)) | (0x4000 << 64) | (0x8000 << 48):032x}"
+    return f"{h[:8]}-{h[8:12]}-{h[12:16]}-{h[16:20]}-{h[20:]}"
 
 
 def sample(asset: int, k: int) -> UavTelemetry:
@@ -81,7 +90,7 @@ class Payloads:
         return (
             t.replace("\x00", str(seq), 1)
             .replace("\x01", str(int(time.time() * 1000)), 1)
-            .replace("\x02", str(uuid.uuid4()), 1)
+            .replace("\x02", message_id(), 1)
         )
 
     def size(self) -> int:
@@ -162,18 +171,27 @@ async def pace(
     rec.window = (t_open, t_close)
     marks: dict = {"start": mark(rec, pid)}
 
-    async def asset_loop(i: int) -> None:
-        next_t = start + period * (first + i) / total
-        while next_t < t_close:
-            delay = next_t - time.perf_counter()
-            if delay > 0:
-                await asyncio.sleep(delay)
-            t = time.perf_counter()
-            seq = rec.on_sent(i, t, next_t)
-            sent = send(i, seq)
-            if sent is not None:
-                await sent
-            next_t += period
+    async def sender() -> None:
+        # one loop over the common schedule, not a task and a timer per asset (10,000 wake-ups a
+        # second at 1,000 UAVs): what is due within the next millisecond goes out together
+        offsets = [period * (first + i) / total for i in range(n)]
+        k = 0
+        while n and start + k * period < t_close:
+            base = start + k * period
+            for i in range(n):
+                due = base + offsets[i]
+                if due >= t_close:
+                    return
+                delay = due - time.perf_counter()
+                if delay > 0.001:
+                    await asyncio.sleep(delay)
+                elif i % 64 == 63:
+                    await asyncio.sleep(0)  # behind schedule: let the readers in now and then
+                seq = rec.on_sent(i, time.perf_counter(), due)
+                sent = send(i, seq)
+                if sent is not None:
+                    await sent
+            k += 1
 
     async def marker() -> None:
         await asyncio.sleep(max(0.0, t_open - time.perf_counter()))
@@ -189,7 +207,7 @@ async def pace(
                 )
         marks["close"] = mark(rec, pid)
 
-    await asyncio.gather(marker(), *(asset_loop(i) for i in range(n)))
+    await asyncio.gather(marker(), sender())
     return marks
 
 
