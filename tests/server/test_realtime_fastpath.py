@@ -129,6 +129,11 @@ def test_the_mirror_takes_valid_telemetry_and_leaves_the_rest_to_decode() -> Non
     data = fast_data(text)
     assert data is not None and data["seq"] == 3 and data["payload"]["gnss"]["fix"] == "rtk_fixed"
     assert "re" not in data  # an empty `re` is left out, as the models leave it
+    answer = uuid.uuid4()
+    with_re = json.loads(text)
+    with_re["re"] = str(answer).upper()  # valid in any case; the canonical form goes out
+    replied = fast_data(json.dumps(with_re))
+    assert replied is not None and replied["re"] == str(answer)
     sparse = encode(envelope(UavTelemetry(), seq=4))
     assert fast_data(sparse) is not None
     upper = text.replace(json.loads(text)["id"], json.loads(text)["id"].upper())
