@@ -7,6 +7,8 @@ how `aerobase server` serves it (straight from the transport), and as a FastAPI 
 
 from __future__ import annotations
 
+from collections.abc import Awaitable, Callable
+
 from fastapi import APIRouter, WebSocket
 
 from server.deps import ServicesDep, principal_of
@@ -79,27 +81,27 @@ def _token(ws: WebSocket) -> str | None:
     return bearer_token(ws.headers.get("authorization", ""), ws.query_params.get("token"))
 
 
-def _over_asgi(ws: WebSocket, services: Services, queue: int) -> AsgiSocket:
-    return AsgiSocket(ws, max_queue=queue, timeout_s=services.settings.ws_send_timeout_s)
+async def _over_asgi(
+    ws: WebSocket,
+    services: Services,
+    queue: int,
+    serve: Callable[[Socket, str | None, Services], Awaitable[None]],
+) -> None:
+    sock = AsgiSocket(ws, max_queue=queue, timeout_s=services.settings.ws_send_timeout_s)
+    try:
+        await serve(sock, _token(ws), services)
+    finally:
+        sock.close(1000)
+        await sock.wait_closed()
 
 
 @router.websocket("/ws/asset")
 async def asset_socket(ws: WebSocket, services: ServicesDep) -> None:
     """`/ws/asset` under an ASGI server."""
-    sock = _over_asgi(ws, services, ASSET_QUEUE)
-    try:
-        await serve_asset(sock, _token(ws), services)
-    finally:
-        sock.close(1000)
-        await sock.wait_closed()
+    await _over_asgi(ws, services, ASSET_QUEUE, serve_asset)
 
 
 @router.websocket("/ws/operator")
 async def operator_socket(ws: WebSocket, services: ServicesDep) -> None:
     """`/ws/operator` under an ASGI server."""
-    sock = _over_asgi(ws, services, OPERATOR_QUEUE)
-    try:
-        await serve_operator(sock, _token(ws), services)
-    finally:
-        sock.close(1000)
-        await sock.wait_closed()
+    await _over_asgi(ws, services, OPERATOR_QUEUE, serve_operator)

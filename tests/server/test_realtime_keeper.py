@@ -13,7 +13,7 @@ from collections.abc import Awaitable, Callable
 from datetime import timedelta
 from typing import Any
 
-from sqlalchemy import update
+from sqlalchemy import insert, update
 
 from server.auth.models import AuthSession
 from server.commands.models import AssetCommand
@@ -48,6 +48,12 @@ async def _connected(live: LiveServer, asset: dict[str, Any]) -> Any:
     ws = await cm.__aenter__()  # past hello/welcome
     await eventually(lambda: set(keeper.sessions) - before, 10, "the keeper keeps the socket")
     return cm, ws
+
+
+def _columns(row: Any) -> dict[str, Any]:
+    return {
+        c.key: getattr(row, c.key) for c in row.__table__.columns if getattr(row, c.key) is not None
+    }
 
 
 async def _db(database_url: str, statement: Any) -> None:
@@ -95,13 +101,7 @@ async def test_a_command_queued_without_a_nudge_is_delivered_by_the_sweep(
             deadline=utcnow() + timedelta(minutes=5),
             created_by="test",
         )
-        engine = make_engine(database_url)
-        try:
-            async with make_sessionmaker(engine)() as db:
-                db.add(command)
-                await db.commit()
-        finally:
-            await engine.dispose()
+        await _db(database_url, insert(AssetCommand).values(**_columns(command)))
         await _in_server(live_server, lambda k: k.sweep_commands())
         delivered = await next_of(ws, "command")
         assert delivered["id"] == str(command.id)
