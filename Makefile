@@ -21,14 +21,18 @@ lint: $(STAMP)
 	$(BIN)/lint-imports
 	$(BIN)/mypy
 
+# two pytest-xdist workers, a test file each at a time (a file's fixtures stay in one worker; each
+# worker has a PostgreSQL database of its own: tests/conftest.py); the slowest tests are listed
+PARALLEL ?= -n 2 --dist loadfile
+
 test: $(STAMP) lint
-	$(BIN)/python -m pytest $(PYTEST_ARGS)
+	$(BIN)/python -m pytest $(PARALLEL) --durations=25 $(PYTEST_ARGS)
 
 # the inner loop: ruff and the import contracts, then every test not marked slow (under 2 min)
 test-fast: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
-	$(BIN)/python -m pytest -m "not slow" -q $(PYTEST_ARGS)
+	$(BIN)/python -m pytest $(PARALLEL) -m "not slow" -q $(PYTEST_ARGS)
 
 bench: $(STAMP)
 	$(BIN)/python bench/telemetry.py

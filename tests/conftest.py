@@ -64,6 +64,33 @@ def _reset_postgres(url: str) -> None:
     asyncio.run(reset())
 
 
+def _worker_database(url: str) -> str:
+    """Under pytest-xdist each worker has a PostgreSQL database of its own (`test_gw0`, ...):
+    the session's reset drops the whole schema, which must not pull it from under another worker.
+    Created when missing; without xdist the URL is unchanged."""
+    import asyncio
+
+    import asyncpg
+
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    if not worker:
+        return url
+    base, name = url.rsplit("/", 1)
+    own = f"{name}_{worker}"
+
+    async def create() -> None:
+        dsn = base.replace("postgresql+asyncpg", "postgresql") + f"/{name}"
+        conn = await asyncpg.connect(dsn)
+        try:
+            if not await conn.fetchval("SELECT 1 FROM pg_database WHERE datname = $1", own):
+                await conn.execute(f'CREATE DATABASE "{own}"')
+        finally:
+            await conn.close()
+
+    asyncio.run(create())
+    return f"{base}/{own}"
+
+
 @pytest.fixture(scope="session")
 def database_url() -> Iterator[str]:
     """DATABASE_URL when set (PostgreSQL in CI), else a fresh SQLite file; migrated to head."""
@@ -72,6 +99,7 @@ def database_url() -> Iterator[str]:
     url = os.environ.get("DATABASE_URL")
     if url and url.startswith("postgresql"):
         need_service("PostgreSQL", "127.0.0.1", 5432)
+        url = _worker_database(url)
         _reset_postgres(url)
         migrate.upgrade(url)
         yield url
