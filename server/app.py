@@ -22,7 +22,7 @@ from server.config import Settings
 from server.console.endpoints import console_router
 from server.deps import services_of, set_services
 from server.health import router as health_router
-from server.kit import metrics, openapi
+from server.kit import gctune, metrics, openapi
 from server.kit.bodylimit import LimitBody
 from server.kit.db import make_engine, make_sessionmaker
 from server.kit.errors import RejectNulBytes, install_error_handlers
@@ -134,7 +134,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             "server started", extra={"database": engine.url.render_as_string(hide_password=True)}
         )
         try:
-            yield
+            with gctune.tuned(settings.gc_tuned):
+                yield
         finally:
             retention.cancel()
             await video.close()

@@ -70,6 +70,9 @@ class Settings(BaseSettings):
     ws_flush_interval_s: float = Field(default=0.01, ge=0, le=0.1)
     # an asset's cumulative ack (of what is stored) is sent at most once per ws_ack_interval_s
     ws_ack_interval_s: float = Field(default=0.5, ge=0, le=5)
+    # once started, freeze what start-up made and collect cyclic garbage less often
+    # (server/kit/gctune.py: full collections over everything imported stopped the loop 0.2-0.4 s)
+    gc_tuned: bool = True
     # operator WebSocket: sockets per login session (across replicas), assets followed per socket,
     # messages per second per socket (beyond the burst: error rate_limited and close 4429)
     ws_max_sockets_per_session: int = Field(default=8, ge=1)
