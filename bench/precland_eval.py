@@ -277,16 +277,19 @@ SCENARIOS: dict[str, Scenario] = {
         # the search (issue 19 item 2): the pad 4 m from where it was surveyed, out of the
         # camera's view from 5 m; and the fallback when it is never seen (IR failing above 3 m)
         *(
-            Scenario(
+            Scenario(  # cautious, as the agent's configuration is by default
                 name,
                 sensors,
+                cautious=True,
                 start_height=5.0,
                 survey_error_m=4.0,
                 start_over_survey=True,
             )
             for name, sensors in (("search-4m", ("marker", "ir")), ("search-4m-ir", ("ir",)))
         ),
-        Scenario("fallback-ir-above3-float", ("ir",), {"ir": ABOVE3}, gnss="rtk_float"),
+        Scenario(
+            "fallback-ir-above3-float", ("ir",), {"ir": ABOVE3}, cautious=True, gnss="rtk_float"
+        ),
         Scenario("ir-random", ("ir",), {"ir": RANDOM}),
         Scenario("fused-random", ("marker", "ir"), {**_marker(RANDOM), "ir": RANDOM}),
         Scenario("fused-marker-below3", ("marker", "ir"), _marker(BELOW3)),
