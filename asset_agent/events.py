@@ -1,7 +1,8 @@
 """Pure derivation of the agent's events from successive UavState values and notifications.
 
 Kinds: armed, took_off, waypoint_reached, mission_finished, landing, landed, disarmed,
-failsafe, low_battery, fence_breach, autopilot_lost, autopilot_recovered.
+failsafe, low_battery, fence_breach, autopilot_lost, autopilot_recovered; precision landing
+adds landing_aborted (precland/supervisor.py).
 
     tracker = EventTracker(EventLimits(low_battery_pct=30))
     events = tracker.update(autopilot.state)          # on every telemetry tick
@@ -20,7 +21,7 @@ from asset_agent.autopilot.state import Notification, UavState
 EVENT_KINDS = (
     "armed", "took_off", "waypoint_reached", "mission_finished", "landing", "landed",
     "disarmed", "failsafe", "low_battery", "fence_breach", "autopilot_lost",
-    "autopilot_recovered",
+    "autopilot_recovered", "landing_aborted",
 )  # fmt: skip
 
 

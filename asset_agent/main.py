@@ -104,6 +104,8 @@ async def _report(agent: Agent, stop: asyncio.Event) -> None:
                 events = agent.tracker.update(state)
                 while not notes.empty():
                     events += agent.tracker.notification(notes.get_nowait())
+                if agent.lander is not None:
+                    events += agent.lander.drain_events()
                 for event in events:
                     if event.kind == "landed" and agent.lander is not None:
                         event = agent.lander.with_touchdown(event)

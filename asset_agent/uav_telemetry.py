@@ -44,6 +44,7 @@ SEVERITY: dict[str, Severity] = {
     "failsafe": "critical",
     "autopilot_lost": "critical",
     "fence_breach": "critical",
+    "landing_aborted": "critical",
     "low_battery": "warning",
 }
 MESSAGES = {
@@ -58,6 +59,8 @@ MESSAGES = {
     "fence_breach": "geofence breached: the autopilot is returning to the base",
     "autopilot_lost": "no HEARTBEAT from the autopilot",
     "autopilot_recovered": "autopilot link back",
+    "landing_aborted": "landing abandoned: the pad was not found and the GNSS has no RTK fixed "
+    "fix; holding at a safe height",
 }
 
 

@@ -8,8 +8,11 @@ limits, attitude from the acceleration it demands plus the wind it leans into (m
 part of the wind its velocity loop has not yet integrated away (gusts) leaking into ground speed,
 and a seat at camera height 0.25 m.
 Start 10 m (or 6 m) high and 2 m off; the surveyed pad position carries a setup error of up to
-1 m; GNSS without RTK adds a Gauss-Markov error (0.5 m, 120 s) to the positions the agent sees,
-and the velocities it sees (the autopilot EKF's, GNSS Doppler + IMU) carry `EkfVelocityError`.
+1 m on a plain fix, 2 cm with RTK (`RTK_SURVEY_SCALE`); the positions the agent sees carry the GNSS error of the scenario's fix type (RTK fixed by
+default, RTK float or a plain 3D fix: bench/precland_gnss.py), reported to the agent as
+GPS_RAW_INT's fix_type would be, and the velocities it sees (the autopilot EKF's, GNSS Doppler +
+IMU) carry `EkfVelocityError`. A pad not in view is searched for, then the fallback (RTK fixed:
+land on GNSS; otherwise climb and hold: the trial ends "aborted-climb", not landed).
 Two landing paths (`--path`, default both): the agent steers the descent (the above), or the
 simulated autopilot (sim.vehicle.copter, ArduPilot 4 habits) flies LAND with ArduPilot's precision
 landing (sim/vehicle/plnd.py) fed our detections by LANDING_TARGET (`run_autopilot_trial`), rows
@@ -46,6 +49,7 @@ from asset_agent.precland.control import VelocitySetpoint
 from asset_agent.precland.detect import PadDetector
 from asset_agent.precland.geometry import wrap_angle
 from asset_agent.precland.pipeline import LandingPipeline, VehicleState
+from bench.precland_gnss import MODELS, GnssError
 from bench.precland_report import Trace, write_report
 from bench.precland_wind import trial_weather
 from sim.camera.render import CameraEffects, PadRenderer
@@ -215,12 +219,25 @@ class Scenario:
     """One evaluation scenario: the sensors used, their faults, the approach, the start."""
 
     name: str
-    sensors: tuple[str, ...]  # "marker" (pattern + ArUco) and/or "ir"
+    sensors: tuple[str, ...]  # "marker" (pattern + ArUco), "pattern" (alone) and/or "ir"
     faults: dict[str, FaultConfig] = field(default_factory=dict)
     cautious: bool = False
     start_height: float = 10.0
     wind: float = 2.0  # mean wind 20 ft above the ground, m/s (bench/precland_wind.py)
     gust: float = 1.0  # the peak of one discrete 1 - cosine gust on top, m/s
+    gnss: str = "rtk_fixed"  # the fix type of the autopilot's GNSS (bench/precland_gnss.py)
+    survey_error_m: float | None = None  # the surveyed pad this far off (default: up to 1 m)
+    start_over_survey: bool = False  # start over the surveyed pad (as RTL returns), not 2 m off
+
+    @property
+    def sources(self) -> set[str]:
+        """The fusion's sources the sensors give."""
+        out = {"ir"} if "ir" in self.sensors else set()
+        if "marker" in self.sensors:
+            out |= {"pattern", "aruco"}
+        if "pattern" in self.sensors:
+            out.add("pattern")
+        return out
 
 
 def _marker(f: FaultConfig) -> dict[str, FaultConfig]:
@@ -231,6 +248,21 @@ RANDOM = FaultConfig(r_drop=0.5)
 BELOW3 = FaultConfig(fail_below_m=3.0)
 ABOVE3 = FaultConfig(fail_above_m=3.0)
 
+
+def _single_source_failures() -> list[Scenario]:
+    """Issue 19 item 1: each source alone, failing below or above 3 m, cautious retries; and the
+    marker failing below 3 m on an RTK float and a plain 3D fix."""
+    out = []
+    for source in ("marker", "pattern", "ir"):
+        for fault, side in ((BELOW3, "below3"), (ABOVE3, "above3")):
+            faults = _marker(fault) if source == "marker" else {source: fault}
+            out.append(Scenario(f"{source}-{side}-cautious", (source,), faults, cautious=True))
+    for gnss in ("rtk_float", "3d"):
+        name = f"marker-below3-cautious-{gnss.replace('_', '-')}"
+        out.append(Scenario(name, ("marker",), _marker(BELOW3), cautious=True, gnss=gnss))
+    return out
+
+
 SCENARIOS: dict[str, Scenario] = {
     s.name: s
     for s in (
@@ -240,8 +272,24 @@ SCENARIOS: dict[str, Scenario] = {
         Scenario("fused", ("marker", "ir")),
         Scenario("marker-random", ("marker",), _marker(RANDOM)),
         Scenario("marker-below3", ("marker",), _marker(BELOW3)),
-        Scenario("marker-below3-cautious", ("marker",), _marker(BELOW3), cautious=True),
         Scenario("marker-above3", ("marker",), _marker(ABOVE3)),
+        *_single_source_failures(),
+        # the search (issue 19 item 2): the pad 4 m from where it was surveyed, out of the
+        # camera's view from 5 m; and the fallback when it is never seen (IR failing above 3 m)
+        *(
+            Scenario(  # cautious, as the agent's configuration is by default
+                name,
+                sensors,
+                cautious=True,
+                start_height=5.0,
+                survey_error_m=4.0,
+                start_over_survey=True,
+            )
+            for name, sensors in (("search-4m", ("marker", "ir")), ("search-4m-ir", ("ir",)))
+        ),
+        Scenario(
+            "fallback-ir-above3-float", ("ir",), {"ir": ABOVE3}, cautious=True, gnss="rtk_float"
+        ),
         Scenario("ir-random", ("ir",), {"ir": RANDOM}),
         Scenario("fused-random", ("marker", "ir"), {**_marker(RANDOM), "ir": RANDOM}),
         Scenario("fused-marker-below3", ("marker", "ir"), _marker(BELOW3)),
@@ -285,19 +333,27 @@ PUBLISHED = {  # thesis field results (cm, mean / max) where a scenario matches 
 
 
 CAMERA_HZ = 100 / 3  # a frame every third 10 ms step, with each control step
+# The surveyed pad's error in the frame the UAV navigates in. On a plain fix the pad was surveyed
+# independently of the UAV's GNSS: up to 1 m off (0.2 m in height). With RTK (fixed or float) the
+# UAV's positions are relative to the base's receiver, and the pad is a lever arm measured from
+# the base's antenna at installation: up to 2 cm (2 cm in height), whatever the base's own
+# absolute error — the same draws scaled by this.
+RTK_SURVEY_SCALE = 0.02
 RETURNED_M = 0.5  # RTL's return is over this close to home (sim.vehicle.guidance)
 
 
 @dataclass(frozen=True)
 class Trial:
     """One landing: horizontal error (m), heading error (deg), duration (s), whether it landed,
-    and where it touched down (north, east of the pad centre, m)."""
+    where it touched down (north, east of the pad centre, m), and the landing's path (the
+    agent's `LandingSequence.path`; "autopilot" for the autopilot's own)."""
 
     error_m: float
     heading_deg: float
     time_s: float
     landed: bool
     touchdown: tuple[float, float] = (0.0, 0.0)
+    path: str = "precision"
 
 
 def _config(
@@ -325,28 +381,36 @@ def run_trial(
     motion: Literal["position", "velocity"] | None = None,
     camera_hz: float = CAMERA_HZ,
     trace: Trace | None = None,
+    gnss_fix: str | None = None,
 ) -> Trial:
     """Fly one closed-loop landing of scenario `sc` with the chosen vehicle model (and what
     predicts the agent's filter, when not its configured default), the camera at `camera_hz`
-    (the control loop stays at 33 Hz)."""
+    (the control loop stays at 33 Hz), the GNSS at the scenario's fix type unless `gnss_fix`
+    names another. Ends at touchdown, or when an aborted landing holds its safe height."""
     rng = np.random.default_rng(seed)
     a0, yaw0 = rng.uniform(0, 2 * math.pi), rng.uniform(-math.pi, math.pi)
-    vehicle = VEHICLES[vehicle_model](
-        2.0 * math.cos(a0), 2.0 * math.sin(a0), sc.start_height, yaw0, seed=seed
-    )
-    camera = "marker" in sc.sensors
-    sources = {"ir"} if "ir" in sc.sensors else set()
-    if camera:
-        sources |= {"pattern", "aruco"}
+    sources = sc.sources
+    camera = bool(sources & {"pattern", "aruco"})
     cfg = _config(sc, sources, motion)
     pipeline = LandingPipeline(cfg, seed=seed)
     renderer = PadRenderer(effects=CameraEffects(noise_sigma=2.0), seed=seed) if camera else None
-    detector = PadDetector(cfg.pad, cfg.camera, DetectorConfig(use_frame=True)) if camera else None
+    det_cfg = DetectorConfig(use_frame=True, use_aruco="aruco" in sources)
+    detector = PadDetector(cfg.pad, cfg.camera, det_cfg) if camera else None
     ir_cfg = IrSensorConfig()
-    sigma, tau = 0.5, 120.0  # GNSS without RTK: Gauss-Markov error of the EKF's position
-    gnss = rng.normal(0, sigma, 3) * np.array([1, 1, 0.5])
     survey = rng.uniform(0, 1.0) * np.array([math.cos(a := rng.uniform(0, 6.3)), math.sin(a), 0.0])
     survey[2] = rng.normal(0, 0.2)
+    gnss_model = MODELS[gnss_fix or sc.gnss]
+    if gnss_model.fix != "3d":  # with RTK the pad is known in the base's own frame
+        survey *= RTK_SURVEY_SCALE
+    if sc.survey_error_m is not None:  # the surveyed pad this far off, in the drawn direction
+        survey[:2] *= sc.survey_error_m / max(float(np.hypot(*survey[:2])), 1e-9)
+    start = (2.0 * math.cos(a0), 2.0 * math.sin(a0))
+    if sc.start_over_survey:
+        start = (float(survey[0]), float(survey[1]))
+    vehicle = VEHICLES[vehicle_model](*start, sc.start_height, yaw0, seed=seed)
+    # its own generator, so that the other random streams do not depend on the model
+    gnss_error = GnssError(gnss_model, np.random.default_rng((seed, 2)))
+    gnss = gnss_error.value
     dt, t, sp = 0.01, 0.0, VelocitySetpoint(0.0, 0.0, 0.0)
     weather = trial_weather(sc.wind, sc.gust, seed)  # the world's wind model (precland_wind.py)
 
@@ -360,17 +424,20 @@ def run_trial(
         p = true_position() + gnss
         return (float(p[0]), float(p[1]), float(p[2]))
 
+    def holding() -> bool:  # an aborted landing at its safe height: the trial is over
+        return pipeline.sequence.holding_safe
+
     # prior: surveyed pad position (true + setup error) minus the GNSS position
     pipeline.set_pad_prior(
         survey - np.array(gnss_position()) + np.array([0, 0, -SEAT_HEIGHT * 0]), 1.0
     )
     k, next_frame = 0, dt  # the first frame with the first control step
-    while t < max_time and not vehicle.landed:
+    while t < max_time and not vehicle.landed and not holding():
         before = true_position()
         vehicle.step(dt, sp, weather.flow_ne(t))
         # the ground velocity over the step (wind leak included), as the EKF would estimate it
         vel = (true_position() - before) / dt + vel_error.step(dt)
-        gnss = gauss_markov(gnss, sigma, tau, dt, rng, scale=np.array([1, 1, 0.5]))
+        gnss = gnss_error.step(dt)
         t += dt
         pose = vehicle.pose()
         pipeline.vehicle(
@@ -379,6 +446,7 @@ def run_trial(
                 gnss_position(),
                 (pose[3], pose[4], pose[5]),
                 (float(vel[0]), float(vel[1]), float(vel[2])),
+                gnss_model.fix_type,
             )
         )
         if "ir" in sc.sensors and k % 2 == 0:
@@ -401,6 +469,7 @@ def run_trial(
         t,
         vehicle.landed,
         (float(vehicle.n), float(vehicle.e)),
+        pipeline.path,
     )
 
 
@@ -438,14 +507,13 @@ def run_autopilot_trial(
     c.armed = c.dyn.motors_on = True
     c._was_landed = False
     c.mode = GUIDED
-    camera = "marker" in sc.sensors
-    sources = {"ir"} if "ir" in sc.sensors else set()
-    if camera:
-        sources |= {"pattern", "aruco"}
+    sources = sc.sources
+    camera = bool(sources & {"pattern", "aruco"})
     cfg = _config(sc, sources, None, mode="landing_target", steering="autopilot")
     pipeline = LandingPipeline(cfg, seed=seed)
     renderer = PadRenderer(effects=CameraEffects(noise_sigma=2.0), seed=seed) if camera else None
-    detector = PadDetector(cfg.pad, cfg.camera, DetectorConfig(use_frame=True)) if camera else None
+    det_cfg = DetectorConfig(use_frame=True, use_aruco="aruco" in sources)
+    detector = PadDetector(cfg.pad, cfg.camera, det_cfg) if camera else None
     ir_cfg = IrSensorConfig()
     survey = rng.uniform(0, 1.0) * np.array([math.cos(a := rng.uniform(0, 6.3)), math.sin(a), 0.0])
     survey[2] = rng.normal(0, 0.2)
@@ -499,6 +567,7 @@ def run_autopilot_trial(
         t,
         st.landed,
         (float(st.position[0]), float(st.position[1])),
+        "autopilot",
     )
 
 
@@ -551,13 +620,21 @@ def per_source_errors(heights: Sequence[float], n: int, seed: int = 0) -> list[d
 
 
 def _row(trials: list[Trial], name: str) -> dict:
-    errs = [100 * tr.error_m for tr in trials]
+    """A row's figures: errors over the trials that landed (None when none did), and how many
+    trials took each landing path."""
+    landed = [tr for tr in trials if tr.landed] or trials
+    errs = [100 * tr.error_m for tr in landed]
+    paths: dict[str, int] = {}
+    for tr in trials:
+        paths[tr.path] = paths.get(tr.path, 0) + 1
+    some = any(tr.landed for tr in trials)
     return {
         "landed": sum(tr.landed for tr in trials),
-        "mean_cm": round(statistics.fmean(errs), 2),
-        "max_cm": round(max(errs), 2),
-        "heading_deg": round(statistics.fmean(tr.heading_deg for tr in trials), 2),
+        "mean_cm": round(statistics.fmean(errs), 2) if some else None,
+        "max_cm": round(max(errs), 2) if some else None,
+        "heading_deg": round(statistics.fmean(tr.heading_deg for tr in landed), 2),
         "time_s": round(statistics.fmean(tr.time_s for tr in trials), 1),
+        "paths": paths,
         "published": PUBLISHED.get(name),
     }
 
@@ -606,6 +683,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="the scenario whose first trial the report follows through time (default: the "
         "first one run)",
     )
+    ap.add_argument(
+        "--gnss",
+        choices=list(MODELS),
+        help="the GNSS fix type of every agent row (default: each scenario's, RTK fixed unless "
+        "its name says float or 3d)",
+    )
     ap.add_argument("--json", action="store_true")
     argv = list(sys.argv[1:] if argv is None else argv)
     args = ap.parse_args(argv)
@@ -618,6 +701,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "vehicle_model": args.vehicle,
         "motion": motion,
         "camera_hz": round(args.camera_hz, 2),
+        "gnss": args.gnss,
         "seed": args.seed,
         "seeds": [args.seed * 1000 + i for i in range(args.trials)],  # the same for every row
         "command": " ".join(["aerobase sim precland-eval", *argv]),
@@ -656,13 +740,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                         motion=motion,
                         camera_hz=args.camera_hz,
                         trace=trace,
+                        gnss_fix=args.gnss,
                     )
                 else:
                     tr = run_autopilot_trial(sc, seed, camera_hz=args.camera_hz, trace=trace)
                 trials.append(tr)
                 print(  # live progress, on stderr: the table on stdout stays parseable
                     f"  {label}: trial {i + 1}/{args.trials} (seed {seed}) "
-                    f"{100 * tr.error_m:.1f} cm in {tr.time_s:.0f} s"
+                    f"{100 * tr.error_m:.1f} cm in {tr.time_s:.0f} s, {tr.path}"
                     + ("" if tr.landed else ", not landed"),
                     file=sys.stderr,
                     flush=True,
@@ -676,9 +761,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
             touchdowns[label] = trials
             results["scenarios" if path == "agent" else "autopilot"][name] = row
+            mean = "-" if row["mean_cm"] is None else f"{row['mean_cm']:.1f}"
+            worst = "-" if row["max_cm"] is None else f"{row['max_cm']:.1f}"
             print(
-                f"{label:<32}{row['landed']:>5}/{len(trials):<2}{row['mean_cm']:>9.1f}"
-                f"{row['max_cm']:>8.1f}{row['heading_deg']:>7.1f}{row['time_s']:>8.1f}   "
+                f"{label:<32}{row['landed']:>5}/{len(trials):<2}{mean:>9}"
+                f"{worst:>8}{row['heading_deg']:>7.1f}{row['time_s']:>8.1f}   "
                 f"{row['published'] or ''}",
                 flush=True,
             )

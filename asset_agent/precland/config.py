@@ -88,6 +88,11 @@ class DetectorConfig(_Model):
     max_residual: float = 0.05  # of |P1P5|: RMS residual of the six-point fit
     aruco_max_residual: float = 0.05  # of the marker side
     aruco_min_side_px: float = 24.0  # smaller markers give centimetre-poor heights: ignore them
+    # the reported uncertainty of a detection (1-sigma of the pad centre, per axis, metres):
+    # height x sqrt(attitude_sigma² + (pixel_sigma² + fit residual²) / points), the attitude
+    # used to level the points being the error that does not average over the points
+    pixel_sigma_px: float = Field(default=1.0, gt=0.0)  # one detected point (centroid, corner)
+    attitude_sigma_rad: float = Field(default=0.004, ge=0.0)  # the autopilot's roll and pitch
 
 
 class SourceConfig(_Model):
@@ -141,8 +146,16 @@ class KalmanConfig(_Model):
     # GNSS drift) or, once it has had a measurement, its velocity (LOCAL_POSITION_NED vx, vy:
     # GNSS Doppler + IMU) integrated; position deltas when the states carry no velocity
     motion: Literal["position", "velocity"] = "position"
-    # position-delta random walk: GNSS drift per sqrt(second) and error per sqrt(metre moved)
-    # (the effective values of the former per-update tuning at the evaluation's 100 Hz states)
+    # position-delta random walk: the GNSS drift per sqrt(second), by the fix type the
+    # autopilot reports (GPS_RAW_INT fix_type: 6 RTK fixed, 5 RTK float, else a plain fix),
+    # and the error per sqrt(metre moved). RTK fixed: ~1 cm of receiver noise smoothed over
+    # ~1 s plus mm/sqrt(s) of slow multipath drift, ~0.8 cm over a 2.4 s blind descent; float:
+    # 0.25 m wandering over 60 s; a plain fix: 0.5 m over 120 s (bench/precland_gnss.py)
+    gnss_drift_rtk_fixed_m_per_sqrt_s: float = Field(default=0.005, ge=0.0)
+    gnss_drift_rtk_float_m_per_sqrt_s: float = Field(default=0.046, ge=0.0)
+    gnss_drift_3d_m_per_sqrt_s: float = Field(default=0.065, ge=0.0)
+    # the drift when the fix type is unknown (the former per-update tuning's effect at the
+    # evaluation's 100 Hz states)
     position_noise_m_per_sqrt_s: float = Field(default=0.005, ge=0.0)
     position_noise_m_per_sqrt_m: float = Field(default=0.002, ge=0.0)
     velocity_noise_m_per_sqrt_s: float = Field(default=0.03, ge=0.0)  # integrated velocity
@@ -209,6 +222,28 @@ class RetryConfig(_Model):
     recentre_timeout_s: float = 10.0  # then descend anyway
 
 
+class SearchConfig(_Model):
+    """When the pad is not in view at the approach altitude: hover `acquire_s`, then fly an
+    expanding square around the base's surveyed position at that altitude (legs growing by
+    `footprint_fraction` of the camera's footprint there, the pad wholly in view), bounded by
+    `max_radius_m` and `max_time_s`. Then the fallback: on an RTK fixed GNSS, descend on it over
+    the surveyed pad (its accuracy is the survey's in the base's RTK frame) and take the pad
+    when it comes into view; on a float or plain fix climb to `abort_height_m` and hold there,
+    reporting "aborted-climb" — never a blind landing on them."""
+
+    enabled: bool = True
+    acquire_s: float = Field(default=2.0, ge=0.0)
+    footprint_fraction: float = Field(default=0.8, gt=0.0, le=1.0)
+    pad_half_size_m: float = 0.55  # the masking frame's half side: all of it must be in view
+    min_leg_m: float = Field(default=1.0, gt=0.0)
+    max_radius_m: float = Field(default=10.0, gt=0.0)
+    max_time_s: float = Field(default=60.0, gt=0.0)
+    speed: float = Field(default=2.0, gt=0.0)
+    reached_tolerance_m: float = 0.5
+    rtk_fallback: bool = True  # False: climb and report on any fix
+    abort_height_m: float = 15.0  # above the pad
+
+
 class PrecisionLandingConfig(_Model):
     """The whole precision-landing configuration of the agent."""
 
@@ -226,3 +261,4 @@ class PrecisionLandingConfig(_Model):
     kalman: KalmanConfig = KalmanConfig()
     control: ControlConfig = ControlConfig()
     retry: RetryConfig = RetryConfig()
+    search: SearchConfig = SearchConfig()

@@ -10,6 +10,11 @@ saturation); the pattern is matched geometrically: each ordered white pair is ta
 which fixes a similarity that predicts P2, P3, P4, P6 among the red set; the best full six-point
 fit wins. ArUco runs on the (masked) Value image with OpenCV's ArucoDetector.
 
+Each pose reports its uncertainty: the centre's angular 1-sigma is the attitude's error (the
+levelling uses the autopilot's roll and pitch, wrong by the same angle for every point) and the
+points' own error (the configured pixel sigma and the fit's residual, averaged over the points),
+times the height.
+
 Lens distortion is removed from the detected points rather than from the whole image: the same
 geometry for a fraction of the cost (`geometry.level_normalised`), which also corrects attitude.
 """
@@ -27,6 +32,7 @@ import numpy as np
 from asset_agent.precland.config import CameraModel, DetectorConfig, PadGeometry
 from asset_agent.precland.geometry import (
     ElementPose,
+    Similarity,
     apply_similarity,
     fit_similarity,
     level_normalised,
@@ -259,7 +265,9 @@ class PadDetector:
         if best is None:
             return None
         rel, sim = best
-        return pose_from_similarity("pattern", sim, 1.0 - rel / cfg.max_residual, heading=True)
+        return pose_from_similarity(
+            "pattern", sim, 1.0 - rel / cfg.max_residual, True, self._sigma_rad(sim, 6)
+        )
 
     # -- ArUco ---------------------------------------------------------------------------------
 
@@ -280,9 +288,20 @@ class PadDetector:
             if rel > self.config.aruco_max_residual:
                 continue
             return pose_from_similarity(
-                "aruco", sim, 1.0 - rel / self.config.aruco_max_residual, heading=True
+                "aruco",
+                sim,
+                1.0 - rel / self.config.aruco_max_residual,
+                True,
+                self._sigma_rad(sim, 4),
             )
         return None
+
+    def _sigma_rad(self, sim: Similarity, points: int) -> float:
+        """The centre's angular 1-sigma per axis: attitude error, and the points' pixel error and
+        fit residual (level camera, focal length 1) averaged over `points`."""
+        cfg = self.config
+        pixel = cfg.pixel_sigma_px / self.camera.fx
+        return math.sqrt(cfg.attitude_sigma_rad**2 + (pixel**2 + sim.rms**2) / points)
 
 
 def _square(contour: np.ndarray, min_side: float) -> np.ndarray | None:

@@ -7,6 +7,9 @@ At each step:
 - exactly one did: that value;
 - none did: the last output while it is younger than `hold_s` (1 s), marked "held";
 - otherwise: no target (None).
+
+A fused value's 1-sigma is that of the weighted average of independent readings,
+sqrt(sum(w² sigma²)) / sum(w), when every reading reports one (else None: the filter's model).
 """
 
 from __future__ import annotations
@@ -24,13 +27,15 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class FusedTarget:
-    """The fused pad position relative to the vehicle (NED), its heading, and how it was made."""
+    """The fused pad position relative to the vehicle (NED), its heading, how it was made, and
+    its 1-sigma per axis (m, None when a reading reported none)."""
 
     t: float
     rel_ned: tuple[float, float, float]
     heading: float | None
     sources: tuple[str, ...]
     kind: Literal["fused", "single", "held"]
+    sigma_m: float | None = None
 
 
 class Fusion:
@@ -61,11 +66,13 @@ class Fusion:
             return self._last
         if len(fresh) == 1:
             m = fresh[0]
-            self._last = FusedTarget(m.t, m.rel_ned, m.heading, (m.source,), "single")
+            self._last = FusedTarget(m.t, m.rel_ned, m.heading, (m.source,), "single", m.sigma_m)
             return self._last
         if self._last is not None and now - self._last.t < self.config.hold_s:
             last = self._last
-            return FusedTarget(last.t, last.rel_ned, last.heading, last.sources, "held")
+            return FusedTarget(
+                last.t, last.rel_ned, last.heading, last.sources, "held", last.sigma_m
+            )
         return None
 
     def _average(self, ms: list[Measurement]) -> FusedTarget:
@@ -81,7 +88,11 @@ class Fusion:
             heading = math.atan2(
                 sum(w * math.sin(h) for w, h in hs), sum(w * math.cos(h) for w, h in hs)
             )
+        sigmas = [m.sigma_m for m in ms]
+        sigma = None
+        if all(s is not None for s in sigmas):
+            var = sum(w * w * s * s for w, s in zip(weights, sigmas, strict=True) if s is not None)
+            sigma = math.sqrt(var) / total
         t = max(m.t for m in ms)
-        return FusedTarget(
-            t, (rel[0], rel[1], rel[2]), heading, tuple(sorted(m.source for m in ms)), "fused"
-        )
+        sources = tuple(sorted(m.source for m in ms))
+        return FusedTarget(t, (rel[0], rel[1], rel[2]), heading, sources, "fused", sigma)

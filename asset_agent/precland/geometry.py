@@ -91,7 +91,7 @@ def apply_similarity(sim: Similarity, points: np.ndarray) -> np.ndarray:
 class ElementPose:
     """Pad centre relative to the camera in the heading frame (x fwd, y right, z down = height),
     the pad's heading relative to the vehicle's (None when the element cannot tell), a quality in
-    [0, 1], and the image points used."""
+    [0, 1], and the detector's 1-sigma of the centre per axis (m; None: not reported)."""
 
     source: str
     x: float
@@ -99,13 +99,25 @@ class ElementPose:
     z: float
     heading: float | None
     quality: float
+    sigma_m: float | None = None
 
 
 def pose_from_similarity(
-    source: str, sim: Similarity, quality: float, heading: bool
+    source: str,
+    sim: Similarity,
+    quality: float,
+    heading: bool,
+    sigma_rad: float | None = None,
 ) -> ElementPose:
-    """Paper eq. 1 and 2 in the level camera: height = 1 / scale, offset = t / scale."""
+    """Paper eq. 1 and 2 in the level camera: height = 1 / scale, offset = t / scale; the
+    centre's angular 1-sigma `sigma_rad` becomes metres at that height."""
     z = 1.0 / sim.scale
     return ElementPose(
-        source, sim.tx * z, sim.ty * z, z, wrap_angle(sim.angle) if heading else None, quality
+        source,
+        sim.tx * z,
+        sim.ty * z,
+        z,
+        wrap_angle(sim.angle) if heading else None,
+        quality,
+        None if sigma_rad is None else sigma_rad * z,
     )

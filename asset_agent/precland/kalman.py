@@ -6,10 +6,13 @@ Predict with the vehicle's displacement — the autopilot's position *deltas*, o
 velocity integrated (so a wrong surveyed pad position, a constant offset, never enters the motion
 model): rel ← rel − Δvehicle, with noise growing with distance moved and time — a random walk
 whose variance per second and per metre is configured, so the filter behaves the same whatever
-the rate it is predicted at. Update with vision (or IR): the reading's own sigma where the
-detector reports one, else growing with height (pixel error), inflated when readings come faster
-than their errors decorrelate (so the camera's frame rate does not change how much the filter
-trusts it). Until the first vision update the estimate is the GNSS one, with a large uncertainty.
+the rate it is predicted at. The GNSS part of that walk follows the fix type the autopilot
+reports: an RTK fixed position drifts millimetres a second, a float or plain one centimetres, and
+it is the drift that a blind descent flies on. Update with vision (or IR): the reading's own
+sigma where the detector reports one, else growing with height (pixel error), inflated when
+readings come faster than their errors decorrelate (so the camera's frame rate does not change
+how much the filter trusts it). Until the first vision update the estimate is the GNSS one, with
+a large uncertainty.
 """
 
 from __future__ import annotations
@@ -21,6 +24,20 @@ import numpy as np
 
 from asset_agent.precland.config import KalmanConfig
 from asset_agent.precland.geometry import wrap_angle
+
+# GPS_RAW_INT fix_type (MAVLink GPS_FIX_TYPE)
+FIX_3D, FIX_DGPS, FIX_RTK_FLOAT, FIX_RTK_FIXED = 3, 4, 5, 6
+
+
+def gnss_drift(config: KalmanConfig, fix_type: int | None) -> float:
+    """The GNSS position drift (m per sqrt(s)) the filter assumes for a fix type (None: unknown)."""
+    if fix_type is None:
+        return config.position_noise_m_per_sqrt_s
+    if fix_type >= FIX_RTK_FIXED:
+        return config.gnss_drift_rtk_fixed_m_per_sqrt_s
+    if fix_type == FIX_RTK_FLOAT:
+        return config.gnss_drift_rtk_float_m_per_sqrt_s
+    return config.gnss_drift_3d_m_per_sqrt_s
 
 
 @dataclass(frozen=True)
@@ -68,10 +85,16 @@ class TargetKalman:
         self.heading = heading
         self.heading_var = c.initial_heading_sigma**2
 
-    def predict(self, delta_vehicle_ned, dt: float, by_velocity: bool = False) -> None:
+    def predict(
+        self,
+        delta_vehicle_ned,
+        dt: float,
+        by_velocity: bool = False,
+        fix_type: int | None = None,
+    ) -> None:
         """The vehicle moved by `delta_vehicle_ned` over `dt` seconds: an autopilot position
-        delta, or (`by_velocity`) horizontally its velocity integrated over dt, less the
-        estimated bias."""
+        delta (its GNSS drifting as `fix_type` says), or (`by_velocity`) horizontally its
+        velocity integrated over dt, less the estimated bias."""
         c = self.config
         d = np.asarray(delta_vehicle_ned, dtype=np.float64)
         dt = max(dt, 0.0)
@@ -79,7 +102,7 @@ class TargetKalman:
         q = np.zeros(5)
         # random walks: the variance adds up per second and per metre, whatever the rate
         moved = float(np.linalg.norm(d))
-        q[:3] = c.position_noise_m_per_sqrt_s**2 * dt + c.position_noise_m_per_sqrt_m**2 * moved
+        q[:3] = gnss_drift(c, fix_type) ** 2 * dt + c.position_noise_m_per_sqrt_m**2 * moved
         if by_velocity:  # the integrated velocity's random walk, plus the slow bias
             q[:2] = c.velocity_noise_m_per_sqrt_s**2 * dt
             if c.velocity_bias_tau_s > 0:
@@ -100,13 +123,13 @@ class TargetKalman:
         t: float | None = None,
     ) -> None:
         """Fuse a measurement taken at time `t`; sigma (per reading) defaults to the vision model
-        at the measured height. Given t, readings closer together than the configured error
-        correlation time are trusted less, in proportion: n frames in that time count as one."""
+        at the measured height, and is never below its floor. Given t, readings closer together
+        than the configured error correlation time are trusted less, in proportion: n frames in
+        that time count as one."""
         z = np.asarray(rel_ned, dtype=np.float64)
         if sigma_m is None:
-            sigma_m = max(
-                self.config.vision_sigma_floor, self.config.vision_sigma_per_metre * abs(z[2])
-            )
+            sigma_m = self.config.vision_sigma_per_metre * abs(z[2])
+        sigma_m = max(self.config.vision_sigma_floor, sigma_m)
         inflate = self._correlation_inflation(t)
         if not self.initialised:
             self.reset(z, sigma_m)

@@ -27,13 +27,15 @@ Attitude = tuple[float, float, float]
 
 @dataclass(frozen=True)
 class Measurement:
-    """One source's reading: pad centre minus vehicle (NED, m), pad yaw (rad) if known, quality."""
+    """One source's reading: pad centre minus vehicle (NED, m), pad yaw (rad) if known, quality,
+    and its 1-sigma per axis (m) when the source reports one."""
 
     source: str
     t: float
     rel_ned: tuple[float, float, float]
     heading: float | None
     quality: float = 1.0
+    sigma_m: float | None = None
 
     @property
     def height(self) -> float:
@@ -55,7 +57,12 @@ def from_element(
     rel += _camera_offset_ned(camera, attitude)
     heading = None if element.heading is None else wrap_angle(element.heading + yaw)
     return Measurement(
-        element.source, t, (float(rel[0]), float(rel[1]), float(rel[2])), heading, element.quality
+        element.source,
+        t,
+        (float(rel[0]), float(rel[1]), float(rel[2])),
+        heading,
+        element.quality,
+        element.sigma_m,
     )
 
 
@@ -68,8 +75,10 @@ def from_ir(
     camera: CameraModel,
     pad: PadGeometry | None = None,
     pad_yaw: float | None = None,
+    sigma_m: float | None = None,
 ) -> Measurement:
-    """An IR direction as a measurement, scaled to `height` (the camera's height above the pad)."""
+    """An IR direction as a measurement, scaled to `height` (the camera's height above the pad),
+    with the 1-sigma `sigma_m` the caller gives it."""
     ray_cam = np.array([math.tan(angle_x), math.tan(angle_y), 1.0])
     ray = rotation_world_from_body(*attitude) @ BODY_FROM_CAM @ ray_cam
     rel = ray * (height / max(ray[2], 1e-6)) + _camera_offset_ned(camera, attitude)
@@ -77,4 +86,4 @@ def from_ir(
     if (bx or by) and pad_yaw is not None:  # the beacon is off-centre: move to the pad centre
         c, s = math.cos(pad_yaw), math.sin(pad_yaw)
         rel -= np.array([c * bx - s * by, s * bx + c * by, 0.0])
-    return Measurement("ir", t, (float(rel[0]), float(rel[1]), float(rel[2])), None, 1.0)
+    return Measurement("ir", t, (float(rel[0]), float(rel[1]), float(rel[2])), None, 1.0, sigma_m)

@@ -31,12 +31,14 @@ log = logging.getLogger(__name__)
 @dataclass(frozen=True)
 class VehicleState:
     """The autopilot's view at time t: local NED position (m), attitude (rad) and, when known,
-    local NED velocity (m/s)."""
+    local NED velocity (m/s) and its GNSS fix type (GPS_RAW_INT fix_type: 6 RTK fixed, 5 RTK
+    float, 3 a plain 3D fix)."""
 
     t: float
     position_ned: tuple[float, float, float]
     attitude: Attitude
     velocity_ned: tuple[float, float, float] | None = None
+    gnss_fix: int | None = None
 
 
 @dataclass(frozen=True)
@@ -62,7 +64,9 @@ class LandingPipeline:
         self.faults = FaultInjector(self.config.faults, seed=seed)
         self.fusion = Fusion(self.config.fusion)
         self.kalman = TargetKalman(self.config.kalman)
-        self.sequence = LandingSequence(self.config.control, self.config.retry)
+        self.sequence = LandingSequence(
+            self.config.control, self.config.retry, self.config.search, self.config.camera
+        )
         # recent vehicle states, each with its odometry: the displacement the filter was
         # predicted with, summed (where the vehicle is "now" against where a late frame saw
         # the pad from)
@@ -88,7 +92,7 @@ class LandingPipeline:
                 log.warning("vehicle state out of order dropped")
                 return
             delta, by_velocity = self._displacement(prev, state)
-            self.kalman.predict(delta, state.t - prev.t, by_velocity)
+            self.kalman.predict(delta, state.t - prev.t, by_velocity, state.gnss_fix)
             odometry = prev_odometry + delta
         self._track.append((state, odometry))
         while state.t - self._track[0][0].t > self.HISTORY_S:
@@ -153,6 +157,7 @@ class LandingPipeline:
         # the camera is never lower than its seat on the pad: a height estimate below that (a
         # surveyed pad altitude off by decimetres) would shrink or drop the last readings
         height = max(self.kalman.estimate().rel_ned[2], self.config.control.touchdown_height)
+        k = self.config.kalman  # the sensor reports no uncertainty: the vision model's
         m = from_ir(
             angle_x,
             angle_y,
@@ -162,6 +167,7 @@ class LandingPipeline:
             self.config.camera,
             self.config.pad,
             self.kalman.heading,
+            max(k.vision_sigma_floor, k.vision_sigma_per_metre * height),
         )
         return self._admit(m)
 
@@ -171,6 +177,11 @@ class LandingPipeline:
         self.fusion.submit(m)
         return [m]
 
+    @property
+    def path(self) -> str:
+        """Which way this landing went (companion mode: the sequence's; see `LandingSequence.path`)."""
+        return self.sequence.path
+
     # -- one control step ----------------------------------------------------------------------
 
     def tick(self, now: float) -> Tick:
@@ -178,7 +189,7 @@ class LandingPipeline:
         target = self.fusion.step(now)
         if target is not None and target.kind != "held":
             rel = np.asarray(target.rel_ned) - self._moved_since(target.t)
-            self.kalman.update(rel, heading=target.heading, t=target.t)
+            self.kalman.update(rel, target.sigma_m, heading=target.heading, t=target.t)
         est = self.kalman.estimate()
         state = self._track[-1][0] if self._track else None
         cmd = lt = None
@@ -192,6 +203,7 @@ class LandingPipeline:
                     state.position_ned,
                     state.attitude[2],
                     fresh=target is not None and target.kind != "held",
+                    gnss_fix=state.gnss_fix,
                 )
             elif target is not None and self.config.steering == "autopilot":
                 lt = self._detection_target(target)

@@ -4,7 +4,15 @@ approach ─lost→ pause (cautious, attempts left) or blind  pause ─target→
 pause ─timeout→ climb (attempts left) or blind             climb ─target→ recentre
 climb ─reached→ pause                                      blind ─target→ approach
 recentre ─centred→ approach                                recentre ─lost→ pause or blind
-any ─touchdown→ landed
+approach ─unseen→ acquire (never seen yet)                 acquire ─target→ recentre
+acquire ─timeout→ search                                   search ─target→ recentre
+search ─over→ fallback (RTK fixed) or abort                fallback ─target→ approach
+fallback ─fix lost→ abort                                  any ─touchdown→ landed
+
+A pad never seen is searched for (search.py) at the approach altitude; when the search is over
+without it, the fallback lands on the GNSS over the surveyed pad only on an RTK fixed fix and
+otherwise climbs to a safe height and holds there ("abort"), never landing blind on a float or
+plain fix. `path` says which way the landing went.
 
 Climbing goes back to where the target was last *measured* (its horizontal position, and its
 height plus a margin, since whatever lost it at that height may lose it there again; a value the
@@ -22,8 +30,10 @@ import logging
 import math
 from dataclasses import dataclass
 
-from asset_agent.precland.config import ControlConfig, RetryConfig
+from asset_agent.precland.config import CameraModel, ControlConfig, RetryConfig, SearchConfig
 from asset_agent.precland.control import HOVER, VelocitySetpoint, clip_xy, cone_setpoint
+from asset_agent.precland.kalman import FIX_RTK_FIXED
+from asset_agent.precland.search import ExpandingSquare
 
 log = logging.getLogger(__name__)
 
@@ -44,7 +54,19 @@ TRANSITIONS: dict[tuple[str, str], str] = {
     ("pause", "touchdown"): "landed",
     ("climb", "touchdown"): "landed",
     ("recentre", "touchdown"): "landed",
+    ("approach", "unseen"): "acquire",
+    ("acquire", "target"): "recentre",
+    ("acquire", "search"): "search",
+    ("search", "target"): "recentre",
+    ("search", "rtk_fallback"): "fallback",
+    ("search", "abort"): "abort",
+    ("fallback", "target"): "approach",
+    ("fallback", "abort"): "abort",
+    ("acquire", "touchdown"): "landed",
+    ("search", "touchdown"): "landed",
+    ("fallback", "touchdown"): "landed",
 }
+PATHS = ("precision", "search-then-precision", "rtk-fallback", "aborted-climb", "gnss")
 
 
 @dataclass(frozen=True)
@@ -71,17 +93,46 @@ class LandingSequence:
     """Feeds on (target seen?, estimate, vehicle position) and returns velocity setpoints."""
 
     def __init__(
-        self, control: ControlConfig | None = None, retry: RetryConfig | None = None
+        self,
+        control: ControlConfig | None = None,
+        retry: RetryConfig | None = None,
+        search: SearchConfig | None = None,
+        camera: CameraModel | None = None,
     ) -> None:
         self.control = control or ControlConfig()
         self.retry = retry or RetryConfig()
+        self.search = search or SearchConfig()
+        self.camera = camera or CameraModel()
         self.state = "approach"
+        self._square: ExpandingSquare | None = None  # the search, once started
+        self._fallback = False
+        self._height = 0.0
         self.attempts = 0
         self._since = 0.0
         self._last_seen: tuple[float, float, float] | None = None  # vehicle n, e, height
         self._goal: tuple[float, float, float] | None = None
         self._integral = (0.0, 0.0)  # integral of the horizontal error (m·s) while approaching
         self._last_t: float | None = None
+
+    @property
+    def path(self) -> str:
+        """Which way the landing went: "precision" (the pad in view on the approach),
+        "search-then-precision", "rtk-fallback" (searched in vain, descended on RTK fixed GNSS),
+        "aborted-climb" (searched in vain without RTK fixed: climbing or holding), or "gnss"
+        (never saw the pad, search off)."""
+        if self.state == "abort":
+            return "aborted-climb"
+        if self._fallback:
+            return "rtk-fallback"
+        if self._last_seen is None:
+            return "gnss"
+        return "search-then-precision" if self._square is not None else "precision"
+
+    @property
+    def holding_safe(self) -> bool:
+        """Aborted and up at the safe height: the landing is over, for the operator to decide."""
+        tol = self.retry.reached_tolerance_m
+        return self.state == "abort" and self._height >= self.search.abort_height_m - tol
 
     def _fire(self, event: str, now: float) -> None:
         nxt = TRANSITIONS.get((self.state, event))
@@ -99,17 +150,20 @@ class LandingSequence:
         vehicle_ned,
         yaw: float,
         fresh: bool | None = None,
+        gnss_fix: int | None = None,
     ) -> Command:
         """One control step. `rel_ned` is the filter's estimate (pad minus vehicle, NED),
         `vehicle_ned` the autopilot's local position; `fresh` says the target is a new
-        measurement, not one the fusion holds (default: `target_seen`)."""
+        measurement, not one the fusion holds (default: `target_seen`); `gnss_fix` is the
+        autopilot's GNSS fix type (GPS_RAW_INT; None: unknown, not RTK fixed)."""
         a = float(rel_ned[2])
+        self._height = a
         fresh = target_seen if fresh is None else fresh
         dt = 0.0 if self._last_t is None else max(0.0, min(now - self._last_t, 0.5))
         self._last_t = now
         if self.state == "landed":
             return Command("landed", VelocitySetpoint(0, 0, 0, land=True), self.attempts)
-        if a <= self.control.touchdown_height + self.control.land_margin:
+        if a <= self.control.touchdown_height + self.control.land_margin and self.state != "abort":
             self._fire("touchdown", now)
             return Command(
                 self.state,
@@ -122,11 +176,23 @@ class LandingSequence:
             self._fire("target", now)  # from pause, climb, blind; elsewhere no transition
             if self.state == "recentre" and self._centred(now, fresh, rel_ned):
                 self._fire("centred", now)
+        elif self.state == "approach" and self._last_seen is None and self.search.enabled:
+            self._fire("unseen", now)  # never seen: hover at the approach altitude, then search
         elif self.state in ("approach", "recentre"):
             # cautious: pause and retry while attempts remain; the last loss goes blind at once
             # (another pause would only let the GNSS drift grow before the same blind descent)
             retry = self.retry.cautious and self.attempts < self.retry.max_attempts
             self._fire("lost" if retry else "lost_default", now)
+        elif self.state == "acquire" and now - self._since >= self.search.acquire_s:
+            centre = (float(vehicle_ned[0] + rel_ned[0]), float(vehicle_ned[1] + rel_ned[1]))
+            self._square = ExpandingSquare.start(now, centre, a, self.camera, self.search)
+            self._fire("search", now)
+        elif self.state == "search" and self._waypoint(now, vehicle_ned) is None:
+            rtk = gnss_fix is not None and gnss_fix >= FIX_RTK_FIXED and self.search.rtk_fallback
+            self._fallback = rtk
+            self._fire("rtk_fallback" if rtk else "abort", now)
+        elif self.state == "fallback" and (gnss_fix is None or gnss_fix < FIX_RTK_FIXED):
+            self._fire("abort", now)  # the fix degraded on the way down: not blind on it
         elif self.state == "pause" and now - self._since >= self.retry.pause_s:
             if self.attempts < self.retry.max_attempts:
                 self.attempts += 1
@@ -139,6 +205,10 @@ class LandingSequence:
         return Command(
             self.state, self._setpoint(rel_ned, pad_heading, vehicle_ned, yaw, dt), self.attempts
         )
+
+    def _waypoint(self, now: float, vehicle_ned) -> tuple[float, float] | None:
+        assert self._square is not None
+        return self._square.target(now, (float(vehicle_ned[0]), float(vehicle_ned[1])))
 
     def _centred(self, now: float, fresh: bool, rel_ned) -> bool:
         """Re-centring is done: vision fresh and the vehicle over the pad after settling, or
@@ -182,8 +252,26 @@ class LandingSequence:
             sp = cone_setpoint(rel_ned, pad_heading, yaw, c)
             sp = self._integrate(sp, rel_ned, dt)
             return VelocitySetpoint(sp.vn, sp.ve, 0.0, sp.yaw_rate)
-        if self.state == "pause":
+        if self.state in ("pause", "acquire"):
             return HOVER
+        if self.state == "search":
+            assert self._square is not None
+            wp = self._waypoint(self._last_t or 0.0, vehicle_ned) or self._square.waypoints[-1]
+            vn, ve = clip_xy(
+                c.kp_xy * (wp[0] - vehicle_ned[0]),
+                c.kp_xy * (wp[1] - vehicle_ned[1]),
+                self.search.speed,
+            )
+            vd = c.kp_z * (float(rel_ned[2]) - self._square.height)  # hold the search height
+            return VelocitySetpoint(vn, ve, max(-c.max_climb, min(c.max_descent, vd)))
+        if self.state == "fallback":  # down the RTK fixed GNSS to the surveyed pad
+            return cone_setpoint(rel_ned, None, yaw, c)
+        if self.state == "abort":  # up to the safe height over the surveyed pad, and hold there
+            climb = self.search.abort_height_m - float(rel_ned[2])
+            vd = -min(self.retry.climb_speed, max(c.kp_z * climb, 0.0))
+            n, e = float(rel_ned[0]), float(rel_ned[1])
+            vn, ve = clip_xy(c.kp_xy * n, c.kp_xy * e, self.search.speed)
+            return VelocitySetpoint(vn, ve, vd)
         if self.state == "climb":
             assert self._goal is not None
             n, e, h = self._goal

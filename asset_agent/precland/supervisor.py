@@ -1,8 +1,9 @@
 """Precision landing in the daemon: the supervisor that starts and stops the landing loop.
 
 While the autopilot lands, the camera's frames, the IR beacon's readings and the autopilot's state
-feed a `PrecisionLandingLoop` (loop.py), whose LANDING_TARGET fields go to the autopilot
-(ArduPilot PLND_TYPE=1 style, MAV_FRAME_BODY_FRD) at the configured rate.
+(with its GNSS fix type, which sets the filter's GNSS drift) feed a `PrecisionLandingLoop`
+(loop.py), whose LANDING_TARGET fields go to the autopilot (ArduPilot PLND_TYPE=1 style,
+MAV_FRAME_BODY_FRD) at the configured rate.
 
 Active while the autopilot is landing (landed_state LANDING — LAND mode, RTL's or a mission's final
 descent — or mode LAND) below `activation_height_m`. landed_state is the autopilot's own
@@ -11,7 +12,10 @@ it (autopilot/flight_state.py): a descent in LAND mode or on a mission's NAV_LAN
 RTL descent within 5 m of home — never a climb, and never a descent on the way home. The camera is
 streamed only then (a frame server renders only for subscribers); the IR sensor is subscribed all
 along. Every source is optional and may be unreachable: then nothing is sent and the autopilot
-lands on GNSS alone. The autopilot's states are stamped with the `SensorClock` (clock.py), so the
+lands on GNSS alone. When the sources run but none has seen the pad within `[precland.search]
+acquire_s`, the agent takes the vehicle to search for it and applies the fallback rule before it
+hands the descent back (takeover.py); an abandoned landing is reported as a `landing_aborted`
+event. The autopilot's states are stamped with the `SensorClock` (clock.py), so the
 loop runs in the sensors' seconds.
 """
 
@@ -34,6 +38,7 @@ from asset_agent.precland.clock import SensorClock
 from asset_agent.precland.config import SOURCES, FaultConfig
 from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import Tick, VehicleState
+from asset_agent.precland.takeover import Takeover
 from asset_agent.precland.transport import IrReceiver, frames_forever
 from assetlink.dispatch import CommandRequest, result
 from asynckit.tasks import cancel_and_wait
@@ -123,6 +128,10 @@ class PrecisionLander:
         self._velocity: tuple[float, float, float] | None = None
         self._attitude: tuple[float, float, float] | None = None
         self.last_fix: PadFix | None = None  # of the current (or last) landing
+        self.takeover: Takeover | None = None  # the current (or last) landing's search
+        self._takeover_task: asyncio.Task[None] | None = None
+        self._armed = False
+        self.events: list[Event] = []  # for the daemon's event stream (drained by the reporter)
         if self.config.mode != "landing_target":
             log.warning(
                 "precland: only mode landing_target is wired in the daemon; nothing is sent"
@@ -199,18 +208,24 @@ class PrecisionLander:
 
     def _supervise(self) -> None:
         state = self.autopilot.state
-        lands = descending(state)
+        taken = self.takeover is not None and self.takeover.active  # the agent searches
+        if state.armed and not self._armed:
+            self.takeover = None  # a new flight searches afresh
+        self._armed = bool(state.armed)
+        lands = descending(state) or taken
         if lands and self.section.camera_port is not None and self._camera_task is None:
             self._camera_task = asyncio.create_task(self._camera(), name="precland-camera")
         elif not lands and self._camera_task is not None:
             self._camera_task.cancel()
             self._camera_task = None
-        active = landing_now(state, self.section.activation_height_m)
+        active = landing_now(state, self.section.activation_height_m) or taken
         if active and self._loop_task is None and self.clock.ready and self._position is not None:
             self._start_loop(state)
         elif not active and self._loop_task is not None:
             self._loop_task.cancel()
-            self._loop_task = self.loop = None
+            if self._takeover_task is not None:
+                self._takeover_task.cancel()
+            self._loop_task = self.loop = self._takeover_task = None
             log.info("precland: inactive (%d LANDING_TARGET sent)", self.stats.targets_sent)
 
     def _start_loop(self, state: Any) -> None:
@@ -227,10 +242,32 @@ class PrecisionLander:
         self.loop = loop
         self.last_fix = None
         self._loop_task = asyncio.create_task(loop.run(), name="precland-loop")
+        decided = self.takeover is not None and self.takeover.path not in (None, "aborted-climb")
+        if config.search.enabled and not decided:  # once per flight, unless it was abandoned
+            self.takeover = Takeover(
+                self.autopilot, loop.pipeline, config, self.clock.now, self.clock.sleep
+            )
+            self._takeover_task = asyncio.create_task(self._search(self.takeover))
         self.stats.landings += 1
         log.info("precland: active at %.1f m (pad prior %s)", state.alt_rel or 0.0, prior)
 
+    async def _search(self, takeover: Takeover) -> None:
+        try:
+            await takeover.run()
+        except Exception:  # a refused mode change: the autopilot keeps its own landing
+            log.exception("precland: the search failed")
+            return
+        if takeover.path == "aborted-climb":
+            detail = {"landing_path": "aborted-climb", "reason": "pad not found, no RTK fix"}
+            self.events.append(Event("landing_aborted", MappingProxyType(detail)))
+
+    def drain_events(self) -> list[Event]:
+        """The events precision landing raised since the last call."""
+        out, self.events = self.events, []
+        return out
+
     async def _stop_loop(self) -> None:
+        await cancel_and_wait([self._takeover_task])
         task, self._loop_task, self.loop = self._loop_task, None, None
         if task is not None:
             await cancel_and_wait([task])
@@ -251,10 +288,17 @@ class PrecisionLander:
         return dn, de, state.alt_rel + self.config.control.touchdown_height
 
     def touchdown_offset(self) -> dict[str, Any]:
-        """What the agent knows of where it touched down: its last measured fix of the pad."""
-        if self.last_fix is None:
-            return {"offset_source": "none"}  # landed on GNSS alone: nothing was measured
-        return {"offset_source": "precland", **self.last_fix.touchdown(self.clock.now())}
+        """What the agent knows of where it touched down: its last measured fix of the pad, and
+        the landing's path: "search-then-precision" or "rtk-fallback" after a search (takeover.py),
+        else "precision" with a fix, "gnss" without (the sources never ran: the autopilot landed
+        on GNSS alone)."""
+        path = self.takeover.path if self.takeover is not None else None
+        if path not in ("search-then-precision", "rtk-fallback"):
+            path = "precision" if self.last_fix is not None else "gnss"
+        if self.last_fix is None:  # landed on GNSS alone: nothing was measured
+            return {"offset_source": "none", "landing_path": path}
+        fix = self.last_fix.touchdown(self.clock.now())
+        return {"offset_source": "precland", "landing_path": path, **fix}
 
     def with_touchdown(self, event: Event) -> Event:
         """The `landed` event with the measured touchdown offset in its data."""
@@ -305,8 +349,10 @@ class PrecisionLander:
                         self._velocity = (msg.vx, msg.vy, msg.vz)
                     if self.loop is not None and self._attitude and self._position:
                         t = self.clock.now()
+                        # GPS_RAW_INT's fix type (0 before one arrives: unknown)
+                        fix = getattr(self.autopilot.state, "fix_type", 0) or None
                         self.loop.vehicle(
-                            VehicleState(t, self._position, self._attitude, self._velocity)
+                            VehicleState(t, self._position, self._attitude, self._velocity, fix)
                         )
                 except Exception:
                     log.exception("precland: bad autopilot state skipped")

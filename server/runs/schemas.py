@@ -85,6 +85,12 @@ class LandingReport(BaseModel):
     agent_fix_height_m: float | None = Field(description="the fix's height above the pad")
     agent_fix_age_s: float | None = Field(description="how old that fix was at touchdown")
     agent_fix_sources: str | None = Field(description='e.g. "pattern+aruco+ir"')
+    agent_landing_path: str | None = Field(
+        description='which way the landing went: "precision" (the pad in view), '
+        '"search-then-precision", "rtk-fallback" (searched in vain, landed on RTK fixed GNSS over '
+        'the surveyed pad), "aborted-climb" (searched in vain without RTK fixed: climbed, did not '
+        'land), "gnss" (landed without a measurement of the pad); null when not reported'
+    )
     landed_at: Timestamp | None = Field(description="when the agent reported the touchdown")
     base_confirmed: bool = Field(description="the base weighed the UAV, stable, in its window")
     base_confirmed_at: Timestamp | None

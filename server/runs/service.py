@@ -224,6 +224,7 @@ def landing_report(landed: AssetEvent | None, confirmed: AssetEvent | None) -> L
     agent = landed.data if landed is not None and isinstance(landed.data, dict) else {}
     base = confirmed.data if confirmed is not None and isinstance(confirmed.data, dict) else {}
     sources = agent.get("fix_sources")
+    path = agent.get("landing_path")
     return LandingReport(
         agent_offset_m=_number(agent, "offset_m"),
         agent_offset_north_m=_number(agent, "offset_north_m"),
@@ -231,6 +232,7 @@ def landing_report(landed: AssetEvent | None, confirmed: AssetEvent | None) -> L
         agent_fix_height_m=_number(agent, "fix_height_m"),
         agent_fix_age_s=_number(agent, "fix_age_s"),
         agent_fix_sources=sources if isinstance(sources, str) and sources else None,
+        agent_landing_path=path if isinstance(path, str) and path else None,
         landed_at=landed.ts if landed is not None else None,
         base_confirmed=confirmed is not None,
         base_confirmed_at=confirmed.ts if confirmed is not None else None,

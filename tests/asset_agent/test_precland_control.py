@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from asset_agent.precland.config import ControlConfig, RetryConfig
+from asset_agent.precland.config import ControlConfig, RetryConfig, SearchConfig
 from asset_agent.precland.control import (
     MAV_FRAME_BODY_FRD,
     allowed_pos_error,
@@ -150,7 +150,9 @@ def test_blind_after_a_sighting_descends_fast_and_flares_to_the_touchdown_speed(
     cmd = run(seq, 0.1, False, (0.0, 0.0, 2.9))
     assert cmd.state == "blind" and cmd.setpoint.vd == pytest.approx(1.5)
     assert run(seq, 0.2, False, (0.0, 0.0, C.touchdown_height + 0.1)).setpoint.vd < 1.0
-    never = LandingSequence(C, RetryConfig(cautious=False, blind_fast_descent=1.5))
+    never = LandingSequence(  # the search off: a pad never seen is landed on blind, slowly
+        C, RetryConfig(cautious=False, blind_fast_descent=1.5), SearchConfig(enabled=False)
+    )
     assert run(never, 0.0, False, (0.0, 0.0, 8.0)).setpoint.vd == pytest.approx(0.5)
 
 
@@ -184,12 +186,14 @@ def test_a_retry_recentres_over_the_pad_before_descending_again():
     assert run(seq, 7.5, True, (0.2, 0.0, 3.2)).state == "approach"
     # before any retry (or with re-centring off) a re-acquired target is followed at once
     seq = LandingSequence(C, r)
-    assert run(seq, 0.0, False, (0.0, 0.0, 8.0)).state == "pause"
+    assert run(seq, 0.0, False, (0.0, 0.0, 8.0)).state == "acquire"  # never seen yet
     assert run(seq, 0.5, True, (0.3, 0.0, 8.0)).state == "approach"
 
 
-def test_never_seen_climbs_to_the_default_height():
-    seq = LandingSequence(C, RetryConfig(pause_s=1.0, default_height=5.0))
+def test_never_seen_with_the_search_off_climbs_to_the_default_height():
+    seq = LandingSequence(
+        C, RetryConfig(pause_s=1.0, default_height=5.0), SearchConfig(enabled=False)
+    )
     run(seq, 0.0, False, (0.0, 0.0, 3.0))
     cmd = run(seq, 1.0, False, (0.0, 0.0, 3.0))
     assert cmd.state == "climb" and cmd.setpoint.vd < 0

@@ -4,17 +4,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from types import SimpleNamespace
+from types import MappingProxyType, SimpleNamespace
 
 import pytest
 
 from asset_agent.autopilot.flight_state import infer_landed_state
 from asset_agent.autopilot.state import UavState
 from asset_agent.config import PreclandSection
+from asset_agent.events import Event
 from asset_agent.precland.supervisor import (
     ATTITUDE,
     EXTENDED_SYS_STATE,
     LOCAL_POSITION_NED,
+    PadFix,
+    PrecisionLander,
     descending,
     landing_now,
     pad_offset_ned,
@@ -85,3 +88,14 @@ def test_an_autopilot_without_extended_state_activates_it_by_the_inferred_landin
         landed = infer_landed_state(landed, s)
         s = replace(s, landed_state=landed)
         assert landing_now(s, 8.0) is active, (mode, north_m, height, vd, landed)
+
+
+def test_the_landed_event_says_which_way_the_landing_went() -> None:
+    lander = PrecisionLander(SimpleNamespace(), PreclandSection())
+    landed = Event("landed", MappingProxyType({"lat": 41.0, "lon": -8.0}))
+    detail = lander.with_touchdown(landed).detail
+    assert detail == {"lat": 41.0, "lon": -8.0, "offset_source": "none", "landing_path": "gnss"}
+    lander.last_fix = PadFix(0.0, (0.012, -0.005, 0.4), ("aruco", "ir"))
+    detail = lander.with_touchdown(landed).detail
+    assert detail["landing_path"] == "precision" and detail["offset_source"] == "precland"
+    assert detail["offset_m"] == 0.013 and detail["fix_sources"] == "aruco+ir"

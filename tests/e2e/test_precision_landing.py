@@ -69,6 +69,7 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         assert report["landing_error_m"] == landing["agent_offset_m"], report
         assert abs(landing["agent_offset_m"] - error_m) < 0.05, (landing, error_m)
         assert landing["agent_fix_sources"] and landing["agent_fix_age_s"] < 5, landing
+        assert landing["agent_landing_path"] == "precision", landing
         assert landing["base_confirmed"] and landing["base_mass_g"] > 0, landing
         # the autopilot steered its descent with the agent's LANDING_TARGETs (its PLND took them)
         assert lander.stats.landings >= 1 and lander.stats.targets_sent > 20, seen
