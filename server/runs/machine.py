@@ -216,6 +216,11 @@ def uav_landed(seen: Seen) -> bool:
     return seen.obs.uav_landed or "landed" in seen.obs.uav_events
 
 
+def landing_abandoned(seen: Seen) -> bool:
+    """The UAV gave its landing up (no pad found, no RTK fixed GNSS to land on): it holds up."""
+    return "landing_aborted" in seen.obs.uav_events
+
+
 def airspace_refused(seen: Seen) -> bool:
     """The mission's path breaks a zone active now (checked again at the start: zones change)."""
     return bool(seen.obs.airspace)
@@ -397,7 +402,13 @@ STEPS: dict[State, Step] = {
         Step(
             State.landing, 5, "Returning to the base and landing on the pad",
             (Action("uav", ReturnToBase),), 900,
-            done=(Exit(State.confirming, "the UAV reports it has landed", when=uav_landed),),
+            done=(
+                Exit(State.confirming, "the UAV reports it has landed", when=uav_landed),
+                Exit(State.failed, "the UAV gave up its landing: the pad was not found and its "
+                     "GNSS has no RTK fix to land on, so it climbed and holds there; the base "
+                     "stays open — land it by hand", "landing_aborted", alert=True,
+                     when=landing_abandoned),
+            ),
             timeout=(
                 Exit(State.failed, "the UAV has not landed within {timeout} s of heading home; "
                      "the base stays open", "landing_timeout", alert=True),

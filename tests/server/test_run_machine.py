@@ -138,6 +138,13 @@ def test_unconfirmed_landing_fails_and_leaves_the_panels_open():
     assert not any(a.name in ("close", "close_panels") for a in t.extra_actions)
 
 
+def test_a_landing_the_uav_gave_up_fails_at_once_with_an_alert_and_the_base_open():
+    t = advance(State.landing, obs(uav_events=["landing_aborted"]))
+    assert t is not None and t.to is State.failed and t.alert and t.cause == "landing_aborted"
+    assert "land it by hand" in t.reason and "stays open" in t.reason
+    assert not any(a.name in ("close", "close_panels") for a in t.extra_actions)
+
+
 @pytest.mark.parametrize("state", [State.flying, State.landing, State.confirming])
 def test_no_failure_after_take_off_closes_the_panels(state):
     for o in (
