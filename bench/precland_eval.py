@@ -16,7 +16,8 @@ land on GNSS; otherwise climb and hold: the trial ends "aborted-climb", not land
 Two landing paths (`--path`, default both): the agent steers the descent (the above), or the
 simulated autopilot (sim.vehicle.copter, ArduPilot 4 habits) flies LAND with ArduPilot's precision
 landing (sim/vehicle/plnd.py) fed our detections by LANDING_TARGET (`run_autopilot_trial`), rows
-marked "[autopilot PLND]". `--camera-hz` sets the camera's frame rate (the control loop stays at
+marked "[autopilot PLND]"; its EKF position drifts with the same GNSS error (the same model and
+draws per seed, `CopterGnss`) and its surveyed pad carries the same error. `--camera-hz` sets the camera's frame rate (the control loop stays at
 33 Hz). Prints a table (scenario, mean / max landing error in cm, heading error, mean landing
 time), one row as each scenario finishes, and, with --json, one JSON object last.
 """
