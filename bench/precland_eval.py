@@ -16,7 +16,8 @@ land on GNSS; otherwise climb and hold: the trial ends "aborted-climb", not land
 Two landing paths (`--path`, default both): the agent steers the descent (the above), or the
 simulated autopilot (sim.vehicle.copter, ArduPilot 4 habits) flies LAND with ArduPilot's precision
 landing (sim/vehicle/plnd.py) fed our detections by LANDING_TARGET (`run_autopilot_trial`), rows
-marked "[autopilot PLND]". `--camera-hz` sets the camera's frame rate (the control loop stays at
+marked "[autopilot PLND]"; its EKF position drifts with the same GNSS error (the same model and
+draws per seed, `CopterGnss`) and its surveyed pad carries the same error. `--camera-hz` sets the camera's frame rate (the control loop stays at
 33 Hz). Prints a table (scenario, mean / max landing error in cm, heading error, mean landing
 time), one row as each scenario finishes, and, with --json, one JSON object last.
 """
@@ -49,7 +50,7 @@ from asset_agent.precland.control import VelocitySetpoint
 from asset_agent.precland.detect import PadDetector
 from asset_agent.precland.geometry import wrap_angle
 from asset_agent.precland.pipeline import LandingPipeline, VehicleState
-from bench.precland_gnss import MODELS, GnssError
+from bench.precland_gnss import MODELS, CopterGnss, GnssError, GnssModel
 from bench.precland_report import Trace, write_report
 from bench.precland_wind import trial_weather
 from sim.camera.render import CameraEffects, PadRenderer
@@ -314,6 +315,7 @@ SCENARIOS: dict[str, Scenario] = {
             },
             wind=6.0,
             gust=3.0,
+            gnss="3d",  # the thesis's field UAV flew without RTK
         ),
     )
 }
@@ -373,6 +375,26 @@ def _config(
     )
 
 
+def _survey_and_start(
+    sc: Scenario, rng: np.random.Generator, a0: float, gnss_model: GnssModel
+) -> tuple[np.ndarray, tuple[float, float]]:
+    """The surveyed pad (NED of the true pad, m) and the start (north, east), drawn from the
+    trial's generator after its start direction `a0` and yaw: up to 1 m off (0.2 m in height) on a
+    plain fix, those draws scaled by `RTK_SURVEY_SCALE` with RTK, or `sc.survey_error_m` off in
+    the drawn direction; the start 2 m off in direction `a0`, or over the survey. Both landing
+    paths draw them so, so that a seed is the same world on either."""
+    survey = rng.uniform(0, 1.0) * np.array([math.cos(a := rng.uniform(0, 6.3)), math.sin(a), 0.0])
+    survey[2] = rng.normal(0, 0.2)
+    if gnss_model.fix != "3d":  # with RTK the pad is known in the base's own frame
+        survey *= RTK_SURVEY_SCALE
+    if sc.survey_error_m is not None:  # the surveyed pad this far off, in the drawn direction
+        survey[:2] *= sc.survey_error_m / max(float(np.hypot(*survey[:2])), 1e-9)
+    start = (2.0 * math.cos(a0), 2.0 * math.sin(a0))
+    if sc.start_over_survey:
+        start = (float(survey[0]), float(survey[1]))
+    return survey, start
+
+
 def run_trial(
     sc: Scenario,
     seed: int,
@@ -397,16 +419,8 @@ def run_trial(
     det_cfg = DetectorConfig(use_frame=True, use_aruco="aruco" in sources)
     detector = PadDetector(cfg.pad, cfg.camera, det_cfg) if camera else None
     ir_cfg = IrSensorConfig()
-    survey = rng.uniform(0, 1.0) * np.array([math.cos(a := rng.uniform(0, 6.3)), math.sin(a), 0.0])
-    survey[2] = rng.normal(0, 0.2)
     gnss_model = MODELS[gnss_fix or sc.gnss]
-    if gnss_model.fix != "3d":  # with RTK the pad is known in the base's own frame
-        survey *= RTK_SURVEY_SCALE
-    if sc.survey_error_m is not None:  # the surveyed pad this far off, in the drawn direction
-        survey[:2] *= sc.survey_error_m / max(float(np.hypot(*survey[:2])), 1e-9)
-    start = (2.0 * math.cos(a0), 2.0 * math.sin(a0))
-    if sc.start_over_survey:
-        start = (float(survey[0]), float(survey[1]))
+    survey, start = _survey_and_start(sc, rng, a0, gnss_model)
     vehicle = VEHICLES[vehicle_model](*start, sc.start_height, yaw0, seed=seed)
     # its own generator, so that the other random streams do not depend on the model
     gnss_error = GnssError(gnss_model, np.random.default_rng((seed, 2)))
@@ -479,12 +493,16 @@ def run_autopilot_trial(
     max_time: float = 150.0,
     camera_hz: float = CAMERA_HZ,
     trace: Trace | None = None,
+    gnss_fix: str | None = None,
 ) -> Trial:
-    """The other landing path: the simulated autopilot (profile ardupilot-4, its own GNSS without
-    RTK, 0.5 m over 120 s as the agent path's) returns as RTL does (to the base's surveyed position, at its height, then RTL_LOIT_TIME)
-    and flies LAND with ArduPilot's precision landing (sim/vehicle/plnd.py); the agent only feeds
-    it LANDING_TARGET while it lands — each new detection once, unfiltered, in the body frame of
-    its capture (`steering="autopilot"`). Same start, wind and sensors as `run_trial`; the heading
+    """The other landing path: the simulated autopilot (profile ardupilot-4) returns as RTL does
+    (to the base's surveyed position, at its height, then RTL_LOIT_TIME) and flies LAND with
+    ArduPilot's precision landing (sim/vehicle/plnd.py); the agent only feeds it LANDING_TARGET
+    while it lands — each new detection once, unfiltered, in the body frame of its capture
+    (`steering="autopilot"`). Same start, wind, sensors and world as `run_trial`: its
+    EKF position drifts with the same GNSS model and draws (`CopterGnss`: the scenario's fix type
+    unless `gnss_fix` names another, RTK fixed by default), and the surveyed pad carries the same
+    error (up to 2 cm with RTK, 1 m on a plain fix: `_survey_and_start`). The heading
     is not the autopilot's to align (PLND steers position only), so it is reported as it lands."""
     from dataclasses import replace
 
@@ -492,17 +510,19 @@ def run_autopilot_trial(
 
     from sim.vehicle.constants import GUIDED, LAND
     from sim.vehicle.copter import Copter, CopterConfig
-    from sim.vehicle.gnss import GnssParams
     from sim.vehicle.guidance import Goal
     from sim.vehicle.habits import profile
     from sim.vehicle.standalone import OpenPad
 
     rng = np.random.default_rng(seed)
     a0, yaw0 = rng.uniform(0, 2 * math.pi), rng.uniform(-math.pi, math.pi)
-    # its GNSS as the agent path's: no RTK, 0.5 m drifting over 120 s
-    gnss = GnssParams(sigma_3d_m=0.5, correlation_s=120.0)
-    c = Copter(OpenPad(), CopterConfig(seed=seed, habits=profile("ardupilot-4"), gnss=gnss))
-    start = (2.0 * math.cos(a0), 2.0 * math.sin(a0), -(sc.start_height - SEAT_HEIGHT))
+    c = Copter(OpenPad(), CopterConfig(seed=seed, habits=profile("ardupilot-4")))
+    # its GNSS as the agent path's: the same model, from the same generator (run_trial)
+    gnss_model = MODELS[gnss_fix or sc.gnss]
+    c.gnss = CopterGnss(GnssError(gnss_model, np.random.default_rng((seed, 2))))
+    c.reading = c.gnss.reading(0.0)
+    survey, start_ne = _survey_and_start(sc, rng, a0, gnss_model)
+    start = (*start_ne, -(sc.start_height - SEAT_HEIGHT))
     c.dyn.state = replace(c.dyn.state, position=start, landed=False, yaw=yaw0)
     c.armed = c.dyn.motors_on = True
     c._was_landed = False
@@ -515,8 +535,6 @@ def run_autopilot_trial(
     det_cfg = DetectorConfig(use_frame=True, use_aruco="aruco" in sources)
     detector = PadDetector(cfg.pad, cfg.camera, det_cfg) if camera else None
     ir_cfg = IrSensorConfig()
-    survey = rng.uniform(0, 1.0) * np.array([math.cos(a := rng.uniform(0, 6.3)), math.sin(a), 0.0])
-    survey[2] = rng.normal(0, 0.2)
     weather = trial_weather(sc.wind, sc.gust, seed)  # the world's wind model (precland_wind.py)
     # RTL's return: to where the base was surveyed (its home), at the start's height
     c.guidance.goal = Goal("goto", float(survey[0]), float(survey[1]), start[2])
@@ -541,7 +559,13 @@ def run_autopilot_trial(
                     raise RuntimeError("the simulated autopilot refused LAND")
         p, st = pose(), c.dyn.state
         pipeline.vehicle(
-            VehicleState(t, c.estimated_position(), (p[3], p[4], p[5]), tuple(st.velocity))
+            VehicleState(
+                t,
+                c.estimated_position(),
+                (p[3], p[4], p[5]),
+                tuple(st.velocity),
+                c.reading.fix_type,
+            )
         )
         if "ir" in sc.sensors and k % 2 == 0:
             ok, ax, ay = ir_reading(p, ir_cfg, rng)
@@ -686,7 +710,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument(
         "--gnss",
         choices=list(MODELS),
-        help="the GNSS fix type of every agent row (default: each scenario's, RTK fixed unless "
+        help="the GNSS fix type of every row, on both paths (default: each scenario's, RTK fixed unless "
         "its name says float or 3d)",
     )
     ap.add_argument("--json", action="store_true")
@@ -743,7 +767,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         gnss_fix=args.gnss,
                     )
                 else:
-                    tr = run_autopilot_trial(sc, seed, camera_hz=args.camera_hz, trace=trace)
+                    tr = run_autopilot_trial(
+                        sc, seed, camera_hz=args.camera_hz, trace=trace, gnss_fix=args.gnss
+                    )
                 trials.append(tr)
                 print(  # live progress, on stderr: the table on stdout stays parseable
                     f"  {label}: trial {i + 1}/{args.trials} (seed {seed}) "

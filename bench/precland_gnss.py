@@ -20,6 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.vehicle.gnss import FIX_NONE, FIX_RTK_FLOAT, GnssReading
+from sim.vehicle.gnss import GnssModel as SimGnssModel
+
 # GPS_RAW_INT fix_type
 FIX_TYPES = {"3d": 3, "rtk_float": 5, "rtk_fixed": 6}
 
@@ -71,3 +74,37 @@ class GnssError:
             drive = self.rng.normal(0, sigma * math.sqrt(1 - decay**2), 3) * self._scale
             self._parts[i] = self._parts[i] * decay + drive
         return self.value
+
+
+class CopterGnss(SimGnssModel):
+    """`GnssError` as the simulated autopilot's receiver (sim.vehicle.gnss.GnssModel's interface),
+    so that the autopilot path's EKF position (`Copter.estimated_position`: truth plus this error)
+    drifts as the agent path's GNSS does: the same model, the same draws for the same generator.
+    The fix type is the model's while `has_fix`; `bias_ne_m` (fault injection) adds on top. The
+    copter's estimated height stays its truth, as `Copter.estimated_position` keeps it."""
+
+    def __init__(self, error: GnssError) -> None:
+        super().__init__()
+        self.error = error
+
+    def fix_type(self, now: float) -> int:
+        """The model's fix type (or no fix under fault injection)."""
+        return self.error.model.fix_type if self.has_fix else FIX_NONE
+
+    def step(self, dt: float, now: float) -> GnssReading:
+        """Advance the error by `dt` seconds; the reading."""
+        if dt > 0:
+            self.error.step(dt)
+        return self.reading(now)
+
+    def reading(self, now: float) -> GnssReading:
+        """The current reading without advancing the error."""
+        fix = self.fix_type(now)
+        e = self.error.value
+        err = (float(e[0]) + self.bias_ne_m[0], float(e[1]) + self.bias_ne_m[1], float(e[2]))
+        rtk = fix >= FIX_RTK_FLOAT
+        sats = (
+            0 if fix == FIX_NONE else self.params.satellites_rtk if rtk else self.params.satellites
+        )
+        hdop = 99.99 if fix == FIX_NONE else 0.6 if rtk else 0.9
+        return GnssReading(fix, err, sats, hdop, self.error.model.sigma)

@@ -176,3 +176,29 @@ def test_searched_in_vain_on_a_float_fix_it_climbs_and_reports_on_rtk_fixed_it_l
     fixed = run_trial(sc, seed=1000, gnss_fix="rtk_fixed")
     assert fixed.landed and fixed.path == "rtk-fallback", fixed
     assert fixed.error_m < 0.08, fixed
+
+
+def test_the_autopilot_paths_ekf_drifts_with_the_agent_paths_gnss():
+    """Both landing paths fly the same world: the simulated autopilot's receiver (`CopterGnss`)
+    gives the agent path's GNSS error (`GnssError`), draw for draw from the same generator, with
+    the model's fix type, and the copter's EKF position is the truth plus it."""
+    from bench.precland_gnss import MODELS, CopterGnss, GnssError
+    from sim.vehicle.copter import Copter, CopterConfig
+    from sim.vehicle.gnss import FIX_NONE
+    from sim.vehicle.standalone import OpenPad
+
+    for fix in MODELS:
+        agent = GnssError(MODELS[fix], np.random.default_rng((1000, 2)))
+        receiver = CopterGnss(GnssError(MODELS[fix], np.random.default_rng((1000, 2))))
+        c = Copter(OpenPad(), CopterConfig(seed=1000))
+        c.gnss = receiver
+        for _ in range(300):
+            c.tick(0.01, c.t + 0.01)
+            err = agent.step(0.01)
+            assert c.reading.error_ned == pytest.approx(tuple(err), abs=1e-12)
+        assert c.reading.fix_type == MODELS[fix].fix_type
+        n, e, _ = c.dyn.state.position
+        est = c.estimated_position()
+        assert (est[0] - n, est[1] - e) == pytest.approx(tuple(err[:2]), abs=1e-12)
+    receiver.has_fix = False
+    assert receiver.reading(0.0).fix_type == FIX_NONE
