@@ -93,7 +93,7 @@ def test_fusion_carries_the_sigma_of_a_weighted_average():
     assert f.step(0.12).sigma_m is None  # a reading without one: the filter's own model
 
 
-def test_the_filter_trusts_a_detection_as_much_as_its_reported_sigma():
+def test_the_filter_trusts_a_detection_as_much_as_its_reported_sigma_never_more_than_the_model():
     moved = {}
     for sigma in (0.005, 0.05):
         p = LandingPipeline(PrecisionLandingConfig())
@@ -103,7 +103,8 @@ def test_the_filter_trusts_a_detection_as_much_as_its_reported_sigma():
         p.detections(0.0, Detections(None, None, el))
         p.tick(0.0)
         moved[sigma] = float(p.kalman.x[0])
-    # K = P / (P + R): 0.05² / (0.05² + 0.005²) against one half
-    assert moved[0.005] == pytest.approx(0.1 * 0.05**2 / (0.05**2 + 0.005**2), rel=1e-3)
+    # K = P / (P + R): a reported 0.05 gives one half; a reported 0.005 is below the vision model
+    # at 3 m (0.4 cm per metre: 1.2 cm), which it gets instead: 0.05² / (0.05² + 0.012²)
+    assert moved[0.005] == pytest.approx(0.1 * 0.05**2 / (0.05**2 + 0.012**2), rel=1e-3)
     assert moved[0.05] == pytest.approx(0.05, rel=1e-3)
     assert np.isfinite(list(moved.values())).all()
