@@ -193,7 +193,9 @@ class LandingPipeline:
             # trusted below the model, it let the estimate follow each frame's error in gusts
             # (fused-wind5, 5 seeds: 2.6 / 6.1 cm against 1.4 / 3.3)
             model = self.kalman.config.vision_sigma_per_metre * abs(float(rel[2]))
-            sigma = target.sigma_m if target.sigma_m is not None and target.sigma_m > model else None
+            sigma = (
+                target.sigma_m if target.sigma_m is not None and target.sigma_m > model else None
+            )
             self.kalman.update(rel, sigma, heading=target.heading, t=target.t)
         est = self.kalman.estimate()
         state = self._track[-1][0] if self._track else None
