@@ -290,11 +290,8 @@ class NativeSocket:
         self._wake()
 
     def _fail(self, code: int, reason: str) -> None:
-        """Fail the connection (RFC 6455 §7.1.7): the close frame, then the TCP connection closed
-        once it is written — a peer that broke the protocol is not waited for."""
         log.info("closing a WebSocket: %d %s", code, reason)
         self.close(code, reason)
-        self.transport.close()
 
     def _peer_closed(self, code: int) -> None:
         if self.state == "open":  # the peer started the closing handshake: answer it
