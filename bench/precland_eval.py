@@ -494,12 +494,15 @@ def run_autopilot_trial(
     camera_hz: float = CAMERA_HZ,
     trace: Trace | None = None,
     gnss_fix: str | None = None,
+    xy_dist_max: float | None = None,
 ) -> Trial:
     """The other landing path: the simulated autopilot (profile ardupilot-4) returns as RTL does
     (to the base's surveyed position, at its height, then RTL_LOIT_TIME) and flies LAND with
     ArduPilot's precision landing (sim/vehicle/plnd.py); the agent only feeds it LANDING_TARGET
     while it lands — each new detection once, unfiltered, in the body frame of its capture
-    (`steering="autopilot"`). Same start, wind, sensors and world as `run_trial`: its
+    (`steering="autopilot"`), and sets its PLND_XY_DIST_MAX as the daemon does when LAND
+    begins (`[precland.autopilot]`: 3 cm, relaxed after 180 s; `xy_dist_max` another radius, 2.5
+    ArduPilot's default). Same start, wind, sensors and world as `run_trial`: its
     EKF position drifts with the same GNSS model and draws (`CopterGnss`: the scenario's fix type
     unless `gnss_fix` names another, RTK fixed by default), and the surveyed pad carries the same
     error (up to 2 cm with RTK, 1 m on a plain fix: `_survey_and_start`). The heading
@@ -539,6 +542,10 @@ def run_autopilot_trial(
     # RTL's return: to where the base was surveyed (its home), at the start's height
     c.guidance.goal = Goal("goto", float(survey[0]), float(survey[1]), start[2])
     returned_t: float | None = None
+    landing_t: float | None = None  # when LAND began: the agent's PLND_XY_DIST_MAX gate's clock
+    gate = cfg.autopilot
+    if xy_dist_max is not None:
+        gate = gate.model_copy(update={"xy_dist_max_m": xy_dist_max})
 
     def pose() -> tuple[float, float, float, float, float, float]:
         st = c.dyn.state
@@ -557,6 +564,11 @@ def run_autopilot_trial(
             if returned_t is not None and t - returned_t >= c.config.rtl_loiter_s:
                 if not c.set_mode(LAND):
                     raise RuntimeError("the simulated autopilot refused LAND")
+                landing_t = t
+        if landing_t is not None:  # as the daemon sets it when its landing loop starts
+            radius = gate.xy_dist_max_at(t - landing_t)
+            if radius is not None and radius != c.param("PLND_XY_DIST_MAX"):
+                c.set_param("PLND_XY_DIST_MAX", radius)
         p, st = pose(), c.dyn.state
         pipeline.vehicle(
             VehicleState(
@@ -713,6 +725,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="the GNSS fix type of every row, on both paths (default: each scenario's, RTK fixed unless "
         "its name says float or 3d)",
     )
+    ap.add_argument(
+        "--plnd-xy-dist-max",
+        type=float,
+        metavar="M",
+        help="the autopilot path's PLND_XY_DIST_MAX while it lands (default: the agent's "
+        "[precland.autopilot], 0.03 m; 2.5 is ArduPilot's default, as before the agent set it)",
+    )
     ap.add_argument("--json", action="store_true")
     argv = list(sys.argv[1:] if argv is None else argv)
     args = ap.parse_args(argv)
@@ -726,6 +745,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "motion": motion,
         "camera_hz": round(args.camera_hz, 2),
         "gnss": args.gnss,
+        "plnd_xy_dist_max": args.plnd_xy_dist_max,
         "seed": args.seed,
         "seeds": [args.seed * 1000 + i for i in range(args.trials)],  # the same for every row
         "command": " ".join(["aerobase sim precland-eval", *argv]),
@@ -768,7 +788,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                     )
                 else:
                     tr = run_autopilot_trial(
-                        sc, seed, camera_hz=args.camera_hz, trace=trace, gnss_fix=args.gnss
+                        sc,
+                        seed,
+                        camera_hz=args.camera_hz,
+                        trace=trace,
+                        gnss_fix=args.gnss,
+                        xy_dist_max=args.plnd_xy_dist_max,
                     )
                 trials.append(tr)
                 print(  # live progress, on stderr: the table on stdout stays parseable

@@ -32,10 +32,12 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from asset_agent.autopilot.errors import AutopilotError
+from asset_agent.autopilot.params import set_param
 from asset_agent.config import PreclandSection
 from asset_agent.events import Event
 from asset_agent.precland.clock import SensorClock
-from asset_agent.precland.config import SOURCES, FaultConfig
+from asset_agent.precland.config import SOURCES, AutopilotDescentConfig, FaultConfig
 from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import Tick, VehicleState
 from asset_agent.precland.takeover import Takeover
@@ -130,6 +132,8 @@ class PrecisionLander:
         self.last_fix: PadFix | None = None  # of the current (or last) landing
         self.takeover: Takeover | None = None  # the current (or last) landing's search
         self._takeover_task: asyncio.Task[None] | None = None
+        self._gate_task: asyncio.Task[None] | None = None  # PLND_XY_DIST_MAX for this landing
+        self.xy_dist_max: float | None = None  # the value the autopilot last confirmed
         self._armed = False
         self.events: list[Event] = []  # for the daemon's event stream (drained by the reporter)
         if self.config.mode != "landing_target":
@@ -223,9 +227,10 @@ class PrecisionLander:
             self._start_loop(state)
         elif not active and self._loop_task is not None:
             self._loop_task.cancel()
-            if self._takeover_task is not None:
-                self._takeover_task.cancel()
-            self._loop_task = self.loop = self._takeover_task = None
+            for task in (self._takeover_task, self._gate_task):
+                if task is not None:
+                    task.cancel()
+            self._loop_task = self.loop = self._takeover_task = self._gate_task = None
             log.info("precland: inactive (%d LANDING_TARGET sent)", self.stats.targets_sent)
 
     def _start_loop(self, state: Any) -> None:
@@ -248,6 +253,8 @@ class PrecisionLander:
                 self.autopilot, loop.pipeline, config, self.clock.now, self.clock.sleep
             )
             self._takeover_task = asyncio.create_task(self._search(self.takeover))
+        if config.mode == "landing_target" and config.autopilot.xy_dist_max_m is not None:
+            self._gate_task = asyncio.create_task(self._descent_gate(config.autopilot))
         self.stats.landings += 1
         log.info("precland: active at %.1f m (pad prior %s)", state.alt_rel or 0.0, prior)
 
@@ -261,13 +268,27 @@ class PrecisionLander:
             detail = {"landing_path": "aborted-climb", "reason": "pad not found, no RTK fix"}
             self.events.append(Event("landing_aborted", MappingProxyType(detail)))
 
+    async def _descent_gate(self, cfg: AutopilotDescentConfig) -> None:
+        """PLND_XY_DIST_MAX for this landing: the configured radius (LAND descends only while
+        its target estimate is that close), relaxed once the landing is `relax_after_s` old."""
+        start = self.clock.now()
+        try:
+            for wait in (0.0, cfg.relax_after_s):
+                await self.clock.sleep(wait)
+                value = cfg.xy_dist_max_at(self.clock.now() - start)
+                if value is not None:
+                    self.xy_dist_max = await set_param(self.autopilot, "PLND_XY_DIST_MAX", value)
+                    log.info("precland: the autopilot holds PLND_XY_DIST_MAX %.2f m", value)
+        except AutopilotError as exc:  # PX4, ArduPilot 3.x, or the link went: its own default
+            log.warning("precland: PLND_XY_DIST_MAX not set, LAND descends as it will: %s", exc)
+
     def drain_events(self) -> list[Event]:
         """The events precision landing raised since the last call."""
         out, self.events = self.events, []
         return out
 
     async def _stop_loop(self) -> None:
-        await cancel_and_wait([self._takeover_task])
+        await cancel_and_wait([self._takeover_task, self._gate_task])
         task, self._loop_task, self.loop = self._loop_task, None, None
         if task is not None:
             await cancel_and_wait([task])

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -38,6 +38,7 @@ from sim.vehicle.constants import (
     WARNING,
 )  # fmt: skip
 from sim.vehicle.dynamics import Dynamics, DynamicsParams
+from sim.vehicle.fence import PARAM_REAL32
 from sim.vehicle.geo import GeoOrigin
 from sim.vehicle.gnss import FIX_3D, GnssModel, GnssParams, GnssReading
 from sim.vehicle.guidance import Guidance
@@ -126,6 +127,8 @@ class Copter(MissionProtocolMixin, BootMixin):
         self.gnss = GnssModel(cfg.gnss, seed=cfg.seed)
         self.precland = PrecisionLanding()  # the simulator's own, when no PLND habit
         self.plnd = ArduPrecLand(cfg.habits.plnd) if cfg.habits.plnd is not None else None
+        if self.plnd is not None and self.plnd.p.has_xy_dist_max:  # a companion may set it
+            self.fence.params["PLND_XY_DIST_MAX"] = (self.plnd.p.xy_dist_max, PARAM_REAL32)
         self.guidance = Guidance(self)
         self.faults = Faults()
         self.t = 0.0  # simulated seconds since the simulation started
@@ -170,6 +173,11 @@ class Copter(MissionProtocolMixin, BootMixin):
             n, e, _ = self.origin.to_ned(item.lat, item.lon, self.origin.alt)
         rel = item.z if item.frame in ms.RELATIVE_FRAMES else item.z - self.origin.alt
         return n, e, -rel
+
+    def param_changed(self, name: str, value: float) -> None:
+        """PLND_XY_DIST_MAX goes to the precision landing (the rest is read where it is used)."""
+        if name == "PLND_XY_DIST_MAX" and self.plnd is not None:
+            self.plnd.p = replace(self.plnd.p, xy_dist_max=value)
 
     def pad_distance(self) -> float:
         """True horizontal distance from the pad centre, metres."""

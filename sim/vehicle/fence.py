@@ -342,14 +342,22 @@ class FenceMixin:
             link,
         )
 
-    def _on_param_set(self, msg: Any, link: Any) -> None:
-        name = _param_name(msg.param_id)
-        if name not in self.fence.params or not math.isfinite(msg.param_value):
-            return  # ArduPilot answers nothing for a name it does not have
+    def set_param(self, name: str, value: float) -> bool:
+        """Set a parameter this autopilot has (False: it has none of that name) and apply it."""
+        if name not in self.fence.params or not math.isfinite(value):
+            return False
         kind = self.fence.params[name][1]
-        value = float(int(msg.param_value)) if kind == PARAM_INT8 else float(msg.param_value)
-        self.fence.params[name] = (value, kind)
-        self._param_value(name)  # to every link, as ArduPilot announces a change
+        self.fence.params[name] = (float(int(value)) if kind == PARAM_INT8 else float(value), kind)
+        self.param_changed(name, self.fence.params[name][0])
+        return True
+
+    def param_changed(self, name: str, value: float) -> None:
+        """A parameter took a new value (the copter applies those that live elsewhere)."""
+
+    def _on_param_set(self, msg: Any, link: Any) -> None:
+        if not self.set_param(_param_name(msg.param_id), float(msg.param_value)):
+            return  # ArduPilot answers nothing for a name it does not have
+        self._param_value(_param_name(msg.param_id))  # to every link, as ArduPilot announces it
 
     def _on_param_request_read(self, msg: Any, link: Any) -> None:
         name = _param_name(msg.param_id)

@@ -74,7 +74,8 @@ PROFILES: dict[str, Habits] = {
         streams_at_boot="heartbeat",
         boot_s=40.0,
         prearm_texts=("EKF attitude is bad", "Need 3D Fix", "Need Position Estimate"),
-        plnd=PlndParams(position_fields=False),  # 3.x read the angle fields only
+        # 3.x read the angle fields only, and LAND never held its descent for the target
+        plnd=PlndParams(position_fields=False, xy_dist_max=0.0, has_xy_dist_max=False),
     ),
 }
 

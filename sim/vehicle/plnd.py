@@ -59,6 +59,7 @@ class PlndParams:
     acc_p_nse: float = 2.5  # PLND_ACC_P_NSE
     lag_s: float = 0.02  # PLND_LAG (0.02-0.25)
     xy_dist_max: float = 2.5  # PLND_XY_DIST_MAX: no descent farther than this (0: always)
+    has_xy_dist_max: bool = True  # the parameter exists (ArduPilot 4; 3.x always descended)
     strict: int = 1  # PLND_STRICT: 0 land vertically, 1 retry then land, 2 retry then hover
     ret_max: int = 4  # PLND_RET_MAX
     timeout_s: float = 4.0  # PLND_TIMEOUT: descend this long on a lost target before retrying

@@ -69,6 +69,20 @@ def test_the_autopilots_plnd_fed_our_detections_lands_within_10_cm():
 
 
 @pytest.mark.slow
+def test_in_wind_the_autopilots_land_descends_only_over_the_pad_with_the_agents_radius():
+    """The agent sets PLND_XY_DIST_MAX (3 cm by default) while the autopilot lands: at 8 m/s with
+    its gust, the trial whose touchdown ArduPilot's default (2.5 m) lets the wind put 11.7 cm off
+    comes down on the contacts, later — its LAND held while the vehicle was pushed away."""
+    sc = SCENARIOS["fused-wind8"]
+    gated = run_autopilot_trial(sc, seed=1000)
+    default = run_autopilot_trial(sc, seed=1000, xy_dist_max=2.5)
+    assert gated.landed and default.landed
+    assert default.error_m > 0.08, default  # the wind moved the touchdown
+    assert gated.error_m < 0.05, gated  # on the contacts
+    assert gated.time_s > default.time_s + 10, (gated, default)  # it waited for the gusts
+
+
+@pytest.mark.slow
 def test_the_cli_reports_both_landing_paths(capsys):
     assert main(["--trials", "1", "--scenario", "ir", "--json"]) == 0
     out = capsys.readouterr().out.strip().splitlines()

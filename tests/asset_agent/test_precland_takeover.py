@@ -4,20 +4,18 @@ searched for, then abandoned by a climb on a plain fix, or landed on the RTK fix
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 from collections.abc import AsyncIterator
 
 import pytest
 
 from asset_agent.autopilot import Autopilot
-from asset_agent.autopilot.config import DEFAULT_STREAMS
-from asset_agent.config import PreclandSection
-from asset_agent.precland.config import FaultConfig, SearchConfig
-from asset_agent.precland.supervisor import PrecisionLander, stream_rates
-from sim.ir import IrBeaconSensor
+from asset_agent.precland.config import SearchConfig
 from sim.vehicle.server import VehicleServer, run_vehicle
-from tests.asset_agent.conftest import fast_config
+from tests.asset_agent.blind_landing import (
+    blind_beacon_lander,
+    precland_adapter,
+    take_off_and_land,
+)
 from tests.asset_agent.test_autopilot_flight import corrections
 from tests.polling import eventually
 
@@ -34,52 +32,13 @@ async def vehicle() -> AsyncIterator[VehicleServer]:
 
 @pytest.fixture
 async def autopilot(vehicle: VehicleServer) -> AsyncIterator[Autopilot]:
-    """An adapter streaming what precision landing needs, as the daemon asks for it."""
-    streams = {**DEFAULT_STREAMS, **stream_rates(PreclandSection())}
-    ap = Autopilot(fast_config(f"udpout:127.0.0.1:{vehicle.udp_port}", streams=streams))
-    await ap.start()
-    try:
-        await ap.wait_link(10)
-        await asyncio.wait_for(ap.streams_requested.wait(), 10)
-        await eventually(lambda: ap.state.lat is not None and ap.state.home_lat is not None, 10)
+    async with precland_adapter(vehicle) as ap:
         yield ap
-    finally:
-        await ap.close()
 
 
-@contextlib.asynccontextmanager
-async def lander_with_a_blind_beacon(autopilot: Autopilot, vehicle: VehicleServer):
-    """The daemon's precision landing fed by an IR beacon whose every reading is dropped (the
-    sensor runs, so the landing loop does; it never sees the pad)."""
-    copter = vehicle.copter
-
-    def pose():
-        st = copter.dyn.state
-        n, e, d = st.position
-        return (n, e, 0.25 - d, st.roll, st.pitch, st.yaw)
-
-    beacon = IrBeaconSensor(pose, vehicle.clock)
-    port = await beacon.start()
-    section = PreclandSection(
-        ir_port=port, search=SEARCH, faults={"ir": FaultConfig(r_drop=1.0)}, pad_sigma_m=0.5
-    )
-    lander = PrecisionLander(autopilot, section)
-    stop = asyncio.Event()
-    task = asyncio.create_task(lander.run(stop))
-    try:
-        yield lander
-    finally:
-        stop.set()
-        await task
-        await beacon.stop()
-
-
-async def take_off_and_land(autopilot: Autopilot, vehicle: VehicleServer) -> None:
-    await autopilot.set_mode("GUIDED")
-    await autopilot.arm()
-    await autopilot.takeoff(11)
-    await eventually(lambda: vehicle.copter.dyn.state.altitude > 10.5, 20, "takeoff")
-    await autopilot.land()
+def lander_with_a_blind_beacon(autopilot: Autopilot, vehicle: VehicleServer):
+    """The daemon's precision landing searching with SEARCH, its beacon blind."""
+    return blind_beacon_lander(autopilot, vehicle, search=SEARCH, pad_sigma_m=0.5)
 
 
 async def test_no_pad_found_on_a_plain_fix_climbs_to_a_safe_height_and_reports(

@@ -18,7 +18,11 @@ from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
-SPEED = 4.0  # slow enough for the detector to see the descent frame by frame
+# slow enough for the detector to see the descent frame by frame, and for the agent's latency in
+# world seconds (its wall latency times SPEED) to stay small on a loaded machine: at 4x, with two
+# evaluations running beside it, the windy landing came down 1-10 cm off, and 57 and 165 cm once
+# each in ~15 runs without the descent gate (below); at 2x it takes ~100 s
+SPEED = 2.0
 SEED = 21
 # the autopilot as ArduPilot 4.x lands with LANDING_TARGET (its PLND), without the boot wait
 PLND = replace(profile("ardupilot-4"), streams_at_boot="all", boot_s=0.0)
@@ -30,9 +34,15 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
     async with platform(
         live_server.url, tenant, tmp_path, speed=SPEED, seed=SEED, precland={}, habits=PLND
     ) as p:
-        # steady 5 m/s gusting 2.5, the evaluation's fused-wind5 (1.4 / 3.3 cm over 5 seeds); at
-        # 6 m/s gusting 8 it landed 5.6-6.5 cm off, beside the contacts, in 3 of 8 runs after the
-        # issue-19 changes of 2026-11-26 (it had passed before them): a known regression
+        # steady 5 m/s gusting 2.5, the evaluation's fused-wind5. The daemon sets the autopilot's
+        # PLND_XY_DIST_MAX to 3 cm while it lands ([precland.autopilot]): its LAND descends only
+        # that close to the pad (at 2x under load: 2.0-2.8 cm in 3 runs; at 5 cm, 4.1-5.3 in 5).
+        # At 6 m/s gusting 8 this path misses the 5 cm contacts in a fraction of runs, before
+        # issue 19's agent changes too (bd8e607: 2 of 8 runs, 6.0 and 6.9 cm; e8e5557: 5 of 8,
+        # 5.5-7.5 cm; at 4x): sampled through such a run, the autopilot's PLND estimate of the
+        # pad stays within ~4 cm while the gusts swing the vehicle 5-9 cm around it under LAND —
+        # ArduPilot's position hold, not the agent's estimate, sets that error; the gate (at 5
+        # and at 3 cm) did not bring it within 5 cm there (3.8-8.0 cm in 4 runs, 1.9-10.1 in 3)
         p.world.weather.force(wind_mps=5.0, gust_mps=2.5)
         copter = p.copter
         lander = p.agent.lander
@@ -53,7 +63,7 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         # on the scale but beside the contacts
         copter.gnss.bias_ne_m = (0.3, -0.27)
         await p.wait_state(run_id, ("landing",), 90)
-        body = await p.wait_state(run_id, FINAL, 90)
+        body = await p.wait_state(run_id, FINAL, 180)
         error_m = copter.pad_distance()  # ground truth
         seen = (
             f"landing error {error_m * 100:.1f} cm, {lander.stats}, rate {lander.stats.target_rate_hz}"
@@ -74,7 +84,9 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         assert landing["agent_fix_sources"] and landing["agent_fix_age_s"] < 5, landing
         assert landing["agent_landing_path"] == "precision", landing
         assert landing["base_confirmed"] and landing["base_mass_g"] > 0, landing
-        # the autopilot steered its descent with the agent's LANDING_TARGETs (its PLND took them)
+        # the autopilot steered its descent with the agent's LANDING_TARGETs (its PLND took them),
+        # descending only within the radius the daemon set
+        assert copter.param("PLND_XY_DIST_MAX") == pytest.approx(0.03), seen
         assert lander.stats.landings >= 1 and lander.stats.targets_sent > 20, seen
         assert copter.plnd.was_acquired, seen
         assert copter.plnd.accepted > 20 and copter.plnd.rejected == 0, seen
@@ -109,7 +121,7 @@ async def test_the_autopilots_own_precision_landing_fed_our_detections_lands_on_
         )
         copter.gnss.bias_ne_m = (0.3, -0.27)  # 40 cm of multipath: GNSS alone lands beside
         await p.wait_state(run_id, ("landing",), 90)
-        body = await p.wait_state(run_id, FINAL, 120)
+        body = await p.wait_state(run_id, FINAL, 180)
         error_m = copter.pad_distance()  # ground truth
         seen = (
             f"landing error {error_m * 100:.1f} cm, {lander.stats}, accepted by the autopilot "

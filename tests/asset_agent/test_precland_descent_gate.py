@@ -1,0 +1,91 @@
+"""The daemon asks the autopilot's own LAND to descend only while over the contacts: it sets
+ArduPilot's PLND_XY_DIST_MAX over MAVLink when a landing starts (`[precland.autopilot]`), relaxes
+it when the landing has lasted too long, and lands as before on an autopilot without it. Against
+the simulated autopilot (ArduPilot 4 with PLND, which applies the parameter to its LAND)."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import AsyncIterator
+from dataclasses import replace
+
+import pytest
+
+from asset_agent.autopilot import Autopilot
+from asset_agent.precland.config import AutopilotDescentConfig, SearchConfig
+from sim.vehicle.copter import CopterConfig
+from sim.vehicle.habits import profile
+from sim.vehicle.plnd import ArduPrecLand
+from sim.vehicle.server import VehicleServer, run_vehicle
+from tests.asset_agent.blind_landing import (
+    blind_beacon_lander,
+    precland_adapter,
+    take_off_and_land,
+)
+from tests.polling import eventually
+
+SPEED = 4.0  # the landing at 4x: its HEARTBEATs come once a wall second
+PLND = replace(profile("ardupilot-4"), streams_at_boot="all", boot_s=0.0)
+
+
+@contextlib.asynccontextmanager
+async def flying(habits) -> AsyncIterator[tuple[VehicleServer, Autopilot]]:
+    async with (
+        run_vehicle(speed=SPEED, config=CopterConfig(seed=3, habits=habits)) as vehicle,
+        precland_adapter(vehicle) as ap,
+    ):
+        yield vehicle, ap
+
+
+def lander(ap: Autopilot, vehicle: VehicleServer, gate: AutopilotDescentConfig):
+    """The daemon's precision landing, mode landing_target, its beacon blind; no search, so the
+    autopilot keeps LAND."""
+    return blind_beacon_lander(ap, vehicle, search=SearchConfig(enabled=False), autopilot=gate)
+
+
+def test_the_gate_is_the_configured_radius_until_the_landing_is_too_old() -> None:
+    gate = AutopilotDescentConfig(xy_dist_max_m=0.05, relax_after_s=180, relaxed_xy_dist_max_m=2.5)
+    assert gate.xy_dist_max_at(0) == 0.05 and gate.xy_dist_max_at(179.9) == 0.05
+    assert gate.xy_dist_max_at(180) == 2.5
+    assert AutopilotDescentConfig(xy_dist_max_m=None).xy_dist_max_at(0) is None
+
+
+def test_ardupilots_land_holds_its_descent_while_farther_than_plnd_xy_dist_max() -> None:
+    """What the parameter does (mode.cpp land_run_vertical_control): LAND with the target
+    acquired holds its height while the target estimate is farther than the radius."""
+    plnd = ArduPrecLand(replace(PLND.plnd, xy_dist_max=0.05))
+    plnd._acquired, plnd.rel_out, plnd._last_update_t, plnd.state = True, (0.08, 0.0), 0.0, "found"
+    assert plnd.descent(0.1, (0.0, 0.0, -5.0), 0.5).descent == 0.0  # 8 cm off: held
+    plnd.rel_out = (0.03, 0.0)
+    assert plnd.descent(0.1, (0.0, 0.0, -5.0), 0.5).descent is None  # 3 cm off: LAND's speed
+
+
+async def test_a_landing_sets_plnd_xy_dist_max_over_mavlink_and_relaxes_it_late() -> None:
+    gate = AutopilotDescentConfig(xy_dist_max_m=0.05, relax_after_s=6.0, relaxed_xy_dist_max_m=2.5)
+    async with flying(PLND) as (vehicle, ap), lander(ap, vehicle, gate) as daemon:
+        copter = vehicle.copter
+        assert copter.param("PLND_XY_DIST_MAX") == 2.5  # ArduPilot's default
+        await take_off_and_land(ap, vehicle)
+        await eventually(lambda: daemon.xy_dist_max == pytest.approx(0.05), 20, "the gate set")
+        # the autopilot answered with the value it holds (a float32), and its LAND flies by it
+        assert copter.param("PLND_XY_DIST_MAX") == pytest.approx(0.05)
+        assert copter.plnd.p.xy_dist_max == pytest.approx(0.05)
+        assert copter.flying
+        # six sensor seconds later the landing is "too old": ArduPilot's default again
+        await eventually(lambda: daemon.xy_dist_max == 2.5, 20, "the gate relaxed")
+        assert copter.plnd.p.xy_dist_max == 2.5
+        await eventually(lambda: not ap.state.armed, 90, "landed and disarmed")
+
+
+@pytest.mark.slow  # ~10 s: the parameter set is retried on silence before the daemon gives up
+async def test_an_autopilot_without_the_parameter_still_lands() -> None:
+    """ArduPilot 3.7 (no PLND_XY_DIST_MAX: it answers nothing) lands as before."""
+    old = profile("ardupilot-3.7")
+    habits = replace(old, streams_at_boot="all", boot_s=0.0)
+    gate = AutopilotDescentConfig(xy_dist_max_m=0.05)
+    async with flying(habits) as (vehicle, ap), lander(ap, vehicle, gate) as daemon:
+        await take_off_and_land(ap, vehicle)
+        await eventually(lambda: daemon.loop is not None, 30, "the landing loop")
+        await eventually(lambda: not ap.state.armed, 90, "landed and disarmed")
+        assert daemon.xy_dist_max is None
+        assert "PLND_XY_DIST_MAX" not in vehicle.copter.fence.params
