@@ -501,7 +501,7 @@ def run_autopilot_trial(
     ArduPilot's precision landing (sim/vehicle/plnd.py); the agent only feeds it LANDING_TARGET
     while it lands — each new detection once, unfiltered, in the body frame of its capture
     (`steering="autopilot"`), and sets its PLND_XY_DIST_MAX as the daemon does when LAND
-    begins (`[precland.autopilot]`: 3 cm, relaxed after 180 s; `xy_dist_max` another radius, 2.5
+    begins (`[precland.autopilot]`: 5 cm, relaxed after 180 s; `xy_dist_max` another radius, 2.5
     ArduPilot's default). Same start, wind, sensors and world as `run_trial`: its
     EKF position drifts with the same GNSS model and draws (`CopterGnss`: the scenario's fix type
     unless `gnss_fix` names another, RTK fixed by default), and the surveyed pad carries the same
@@ -730,7 +730,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         type=float,
         metavar="M",
         help="the autopilot path's PLND_XY_DIST_MAX while it lands (default: the agent's "
-        "[precland.autopilot], 0.03 m; 2.5 is ArduPilot's default, as before the agent set it)",
+        "[precland.autopilot], 0.05 m; 2.5 is ArduPilot's default, as before the agent set it)",
     )
     ap.add_argument("--json", action="store_true")
     argv = list(sys.argv[1:] if argv is None else argv)

@@ -70,7 +70,7 @@ def test_the_autopilots_plnd_fed_our_detections_lands_within_10_cm():
 
 @pytest.mark.slow
 def test_in_wind_the_autopilots_land_descends_only_over_the_pad_with_the_agents_radius():
-    """The agent sets PLND_XY_DIST_MAX (3 cm by default) while the autopilot lands: at 8 m/s with
+    """The agent sets PLND_XY_DIST_MAX (5 cm by default) while the autopilot lands: at 8 m/s with
     its gust, the trial whose touchdown ArduPilot's default (2.5 m) lets the wind put 11.7 cm off
     comes down on the contacts, later — its LAND held while the vehicle was pushed away."""
     sc = SCENARIOS["fused-wind8"]
