@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -38,14 +38,12 @@ from sim.vehicle.constants import (
     WARNING,
 )  # fmt: skip
 from sim.vehicle.dynamics import Dynamics, DynamicsParams
-from sim.vehicle.fence import PARAM_REAL32
 from sim.vehicle.geo import GeoOrigin
 from sim.vehicle.gnss import FIX_3D, GnssModel, GnssParams, GnssReading
 from sim.vehicle.guidance import Guidance
 from sim.vehicle.habits import Habits
 from sim.vehicle.mission_link import MissionProtocolMixin
-from sim.vehicle.plnd import ArduPrecLand
-from sim.vehicle.plnd_flight import landing_target, plnd_update
+from sim.vehicle.plnd_flight import landing_target, plnd_update, precision_landing_habit
 from sim.vehicle.precland import PrecisionLanding
 from sim.wind import Airflow, AirflowParams
 
@@ -126,9 +124,7 @@ class Copter(MissionProtocolMixin, BootMixin):
         self.airflow = Airflow(cfg.airflow, seed=cfg.seed)  # the air at the vehicle (sim/wind.py)
         self.gnss = GnssModel(cfg.gnss, seed=cfg.seed)
         self.precland = PrecisionLanding()  # the simulator's own, when no PLND habit
-        self.plnd = ArduPrecLand(cfg.habits.plnd) if cfg.habits.plnd is not None else None
-        if self.plnd is not None and self.plnd.p.has_xy_dist_max:  # a companion may set it
-            self.fence.params["PLND_XY_DIST_MAX"] = (self.plnd.p.xy_dist_max, PARAM_REAL32)
+        self.plnd = precision_landing_habit(self)  # ArduPilot's PLND, when the habit says so
         self.guidance = Guidance(self)
         self.faults = Faults()
         self.t = 0.0  # simulated seconds since the simulation started
@@ -173,11 +169,6 @@ class Copter(MissionProtocolMixin, BootMixin):
             n, e, _ = self.origin.to_ned(item.lat, item.lon, self.origin.alt)
         rel = item.z if item.frame in ms.RELATIVE_FRAMES else item.z - self.origin.alt
         return n, e, -rel
-
-    def param_changed(self, name: str, value: float) -> None:
-        """PLND_XY_DIST_MAX goes to the precision landing (the rest is read where it is used)."""
-        if name == "PLND_XY_DIST_MAX" and self.plnd is not None:
-            self.plnd.p = replace(self.plnd.p, xy_dist_max=value)
 
     def pad_distance(self) -> float:
         """True horizontal distance from the pad centre, metres."""

@@ -343,16 +343,12 @@ class FenceMixin:
         )
 
     def set_param(self, name: str, value: float) -> bool:
-        """Set a parameter this autopilot has (False: it has none of that name) and apply it."""
+        """Set a parameter this autopilot has (False: it has none of that name)."""
         if name not in self.fence.params or not math.isfinite(value):
             return False
         kind = self.fence.params[name][1]
         self.fence.params[name] = (float(int(value)) if kind == PARAM_INT8 else float(value), kind)
-        self.param_changed(name, self.fence.params[name][0])
         return True
-
-    def param_changed(self, name: str, value: float) -> None:
-        """A parameter took a new value (the copter applies those that live elsewhere)."""
 
     def _on_param_set(self, msg: Any, link: Any) -> None:
         if not self.set_param(_param_name(msg.param_id), float(msg.param_value)):

@@ -7,6 +7,8 @@ from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 from sim.vehicle.constants import CRITICAL, INFO, WARNING
+from sim.vehicle.fence import PARAM_REAL32
+from sim.vehicle.plnd import ArduPrecLand
 from sim.vehicle.precland import TargetReading
 
 if TYPE_CHECKING:
@@ -32,10 +34,25 @@ def landing_target(c: Copter, msg: Any) -> None:
         c.text(WARNING, reason, throttle_s=2.0)
 
 
+def precision_landing_habit(c: Copter) -> ArduPrecLand | None:
+    """ArduPilot's PLND when the habit has it, with PLND_XY_DIST_MAX in the autopilot's
+    parameters for a companion to set (ArduPilot 4; 3.x had none)."""
+    params = c.config.habits.plnd
+    if params is None:
+        return None
+    if params.has_xy_dist_max:
+        c.fence.params["PLND_XY_DIST_MAX"] = (params.xy_dist_max, PARAM_REAL32)
+    return ArduPrecLand(params)
+
+
 def plnd_update(c: Copter, dt: float) -> None:
-    """ArduPilot's precision landing runs every loop (Copter::update_precland)."""
+    """ArduPilot's precision landing runs every loop (Copter::update_precland), reading its
+    parameters as it goes (a PARAM_SET takes effect at the next loop)."""
     if c.plnd is None:
         return
+    radius = c.fence.params.get("PLND_XY_DIST_MAX")
+    if radius is not None and radius[0] != c.plnd.p.xy_dist_max:
+        c.plnd.p = replace(c.plnd.p, xy_dist_max=radius[0])
     s = c.dyn.state
     est = c.estimated_position()
     c.plnd.update(c.t, dt, (s.roll, s.pitch, s.yaw), s.velocity[:2], est, s.altitude)

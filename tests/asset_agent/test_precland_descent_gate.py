@@ -69,11 +69,13 @@ async def test_a_landing_sets_plnd_xy_dist_max_over_mavlink_and_relaxes_it_late(
         await eventually(lambda: daemon.xy_dist_max == pytest.approx(0.05), 20, "the gate set")
         # the autopilot answered with the value it holds (a float32), and its LAND flies by it
         assert copter.param("PLND_XY_DIST_MAX") == pytest.approx(0.05)
-        assert copter.plnd.p.xy_dist_max == pytest.approx(0.05)
+        await eventually(  # its next loop reads it
+            lambda: copter.plnd.p.xy_dist_max == pytest.approx(0.05), 5, "PLND reads it"
+        )
         assert copter.flying
         # six sensor seconds later the landing is "too old": ArduPilot's default again
         await eventually(lambda: daemon.xy_dist_max == 2.5, 20, "the gate relaxed")
-        assert copter.plnd.p.xy_dist_max == 2.5
+        await eventually(lambda: copter.plnd.p.xy_dist_max == 2.5, 5, "PLND reads it")
         await eventually(lambda: not ap.state.armed, 90, "landed and disarmed")
 
 
