@@ -173,6 +173,10 @@ class KalmanConfig(_Model):
     vision_error_correlation_s: float = Field(default=0.2, ge=0.0)
     heading_sigma: float = math.radians(1.0)  # rad, per reading
 
+    def vision_sigma(self, height_m: float) -> float:
+        """The vision model's 1-sigma of one reading taken `height_m` above the pad."""
+        return max(self.vision_sigma_floor, self.vision_sigma_per_metre * abs(height_m))
+
 
 class ControlConfig(_Model):
     """Companion-mode landing: conical acceptance volume (paper eq. 3, 4), gains and limits."""
@@ -249,11 +253,9 @@ class AutopilotDescentConfig(_Model):
     LANDING_TARGETs. ArduPilot holds LAND's descent while its target estimate is farther than
     PLND_XY_DIST_MAX (default 2.5 m) and otherwise descends wherever the wind has pushed the
     vehicle; at `xy_dist_max_m` (the contacts' 5 cm) it descends only while within that of the
-    pad, so a gust pauses the descent instead of moving the touchdown. The evaluation's autopilot
-    path at 8 m/s: 2.70 / 4.4 cm in 100 s at 5 cm, 6.02 / 11.7 in 33 s at 2.5 m; at 3 cm two of
-    three trials were still holding after 150 s. The vehicle resumes its descent at the edge of
-    the radius, so a tighter one lands nearer where latency moves the target (the windy e2e,
-    agent steering, world at 2x on a loaded machine: 4.1-5.3 cm at 5 cm, 2.0-2.8 at 3 cm). A landing still going after
+    pad, so a gust pauses the descent instead of moving the touchdown — slower, and nearer (the
+    figures: README, *The descent gate*). The vehicle resumes its descent at the edge of the
+    radius, so a tighter one lands nearer and later. A landing still going after
     `relax_after_s` (held by wind it cannot beat) gets `relaxed_xy_dist_max_m` (ArduPilot's
     default) and lands as it can. Set when the landing loop starts, each landing; None leaves the
     autopilot's value alone (an autopilot without the parameter answers nothing: logged)."""

@@ -127,9 +127,10 @@ class TargetKalman:
         than the configured error correlation time are trusted less, in proportion: n frames in
         that time count as one."""
         z = np.asarray(rel_ned, dtype=np.float64)
-        if sigma_m is None:
-            sigma_m = self.config.vision_sigma_per_metre * abs(z[2])
-        sigma_m = max(self.config.vision_sigma_floor, sigma_m)
+        c = self.config
+        sigma_m = (
+            c.vision_sigma(float(z[2])) if sigma_m is None else max(c.vision_sigma_floor, sigma_m)
+        )
         inflate = self._correlation_inflation(t)
         if not self.initialised:
             self.reset(z, sigma_m)

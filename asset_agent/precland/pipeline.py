@@ -157,7 +157,6 @@ class LandingPipeline:
         # the camera is never lower than its seat on the pad: a height estimate below that (a
         # surveyed pad altitude off by decimetres) would shrink or drop the last readings
         height = max(self.kalman.estimate().rel_ned[2], self.config.control.touchdown_height)
-        k = self.config.kalman  # the sensor reports no uncertainty: the vision model's
         m = from_ir(
             angle_x,
             angle_y,
@@ -167,7 +166,7 @@ class LandingPipeline:
             self.config.camera,
             self.config.pad,
             self.kalman.heading,
-            max(k.vision_sigma_floor, k.vision_sigma_per_metre * height),
+            self.config.kalman.vision_sigma(height),  # IR reports no uncertainty: the model's
         )
         return self._admit(m)
 
@@ -192,10 +191,7 @@ class LandingPipeline:
             # the detector's sigma where it says more than the vision model, else the model's:
             # trusted below the model, it let the estimate follow each frame's error in gusts
             # (fused-wind5, 5 seeds: 2.6 / 6.1 cm against 1.4 / 3.3)
-            model = self.kalman.config.vision_sigma_per_metre * abs(float(rel[2]))
-            sigma = (
-                target.sigma_m if target.sigma_m is not None and target.sigma_m > model else None
-            )
+            sigma = max(target.sigma_m or 0.0, self.kalman.config.vision_sigma(float(rel[2])))
             self.kalman.update(rel, sigma, heading=target.heading, t=target.t)
         est = self.kalman.estimate()
         state = self._track[-1][0] if self._track else None

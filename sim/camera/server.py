@@ -103,6 +103,7 @@ class CameraServer:
         self._server: asyncio.Server | None = None
         self._slots: set[_Slot] = set()
         self._task: asyncio.Task | None = None
+        self._connections: set[asyncio.Task] = set()  # one per subscriber, waiting for frames
         self._seq = 0
         self._subscribed = asyncio.Event()  # the capture loop sleeps while nobody watches
 
@@ -115,12 +116,11 @@ class CameraServer:
         return self.port
 
     async def stop(self) -> None:
-        """Stop capturing and close every connection."""
-        await cancel_and_wait([self._task])
+        """Stop capturing and close every connection (closing a writer does not wake a handler
+        waiting for its next frame: each is cancelled, or it would outlive the loop pending)."""
+        await cancel_and_wait([self._task, *self._connections])
         if self._server:
             self._server.close()
-            for slot in list(self._slots):
-                slot.writer.close()
             await self._server.wait_closed()
 
     async def _capture_loop(self) -> None:
@@ -152,6 +152,9 @@ class CameraServer:
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         slot = _Slot(writer)
         self._slots.add(slot)
+        task = asyncio.current_task()
+        assert task is not None  # start_server runs each connection as a task
+        self._connections.add(task)
         self._subscribed.set()
         log.info("camera subscriber %s", writer.get_extra_info("peername"))
         try:
@@ -164,6 +167,7 @@ class CameraServer:
             pass
         finally:
             self._slots.discard(slot)
+            self._connections.discard(task)
             if not self._slots:
                 self._subscribed.clear()
             writer.close()

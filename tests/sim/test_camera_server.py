@@ -118,3 +118,21 @@ async def test_the_client_survives_a_malformed_stream_and_reconnects():
         await server.wait_closed()
     assert (frame.seq, frame.capture_ts, frame.image.shape) == (5, 1.25, (2, 3, 3))
     assert len(served) >= 2
+
+
+async def test_stopping_with_a_subscriber_waiting_leaves_no_connection_task_behind():
+    """A subscriber connected and waiting for its next frame when the camera stops: its
+    connection task ends with the server (left pending it was destroyed with the event loop,
+    "Task was destroyed but it is pending", in whatever test ran next)."""
+    clock = SimClock(speed=1.0)
+    _, pose_fn = scripted_pose(clock)
+    server = CameraServer(pose_fn, clock, PadRenderer(), fps=1.0)  # no frame for a second
+    port = await server.start()
+    _reader, writer = await asyncio.open_connection("127.0.0.1", port)
+    try:
+        await eventually(lambda: server._connections, 5, "the subscriber's connection")
+        (task,) = server._connections
+        await server.stop()
+        assert task.done() and not server._connections
+    finally:
+        writer.close()
