@@ -59,16 +59,22 @@ def prepare(args: argparse.Namespace) -> tuple[Path, dict[str, str], dict[str, s
         "AEROBASE_VIDEO_ICE_LOOPBACK": "true",
     }
     say(f"files, logs and the database go to {folder}")
-    admin = ["admin", "create-superuser", "--email", ROOT_EMAIL, "--password", secrets_["root"]]
+    create_superuser(ROOT_EMAIL, secrets_["root"], env)
+    return folder, env, secrets_
+
+
+def create_superuser(email: str, password: str, env: dict[str, str]) -> None:
+    """`aerobase admin create-superuser` with the password in its environment: off the process
+    list, and never read as an option (a generated one may begin with "-")."""
     r = subprocess.run(
-        [sys.executable, "-m", "aerobase.cli", *admin],
-        env={**os.environ, **env},
+        [sys.executable, "-m", "aerobase.cli", "admin", "create-superuser", "--email", email],
+        env={**os.environ, **env, "AEROBASE_PASSWORD": password},
+        stdin=subprocess.DEVNULL,
         capture_output=True,
         text=True,
     )
     if r.returncode:
         raise RuntimeError(f"create-superuser failed: {r.stderr.strip()}")
-    return folder, env, secrets_
 
 
 async def start_world_and_server(
