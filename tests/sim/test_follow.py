@@ -108,7 +108,9 @@ async def test_the_scale_carries_the_vehicle_when_it_lands_on_the_pad_not_beside
         assert world.base.pad_mass_g == 0.0 and not world.base.contacts_seated
         status = follower.status()
         assert status["landed"] and not status["on_pad"]
-        assert 2.9 < status["pad_distance_m"] < 3.2
+        # where LAND caught it on its way to the 3 m setpoint (sent once the follower saw 2.9 m:
+        # the follower's pose, and so the moment, lag the autopilot's): metres off the pad
+        assert 2.7 < status["pad_distance_m"] < 3.2
 
 
 async def test_the_watch_reconnects_when_the_autopilot_restarts():
