@@ -203,7 +203,7 @@ export function render(main, ctx, args) {
   let missions = [];
   let timer = null;
 
-  async function refresh() {
+  async function draw() {
     const [runs, schedules] = await Promise.all([get("/runs?limit=30"), get("/schedules?limit=100")]);
     if (!selected && runs.length) selected = (runs.find((r) => !FINAL.has(r.state)) || runs[0]).id;
     clear(list,
@@ -217,6 +217,18 @@ export function render(main, ctx, args) {
         clear(right, h("p", { role: "alert" }, "No such run in your organisation."));
       }
     } else clear(right, h("p", { class: "muted" }, "Start a run to see its timeline here."));
+  }
+  // one draw at a time: asked again meanwhile, it draws once more when done. Overlapping draws on
+  // a slow server finished in any order, and an older answer (the run two steps ago) replaced a
+  // newer one
+  let drawing = null;
+  let again = false;
+  function refresh() {
+    if (drawing) { again = true; return drawing; }
+    drawing = (async () => {
+      do { again = false; await draw(); } while (again);
+    })().finally(() => { drawing = null; });
+    return drawing;
   }
   const soon = () => { clearTimeout(timer); timer = setTimeout(() => refresh().catch(() => {}), 150); };
 
