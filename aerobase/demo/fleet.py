@@ -274,6 +274,19 @@ async def report_run(c: httpx.AsyncClient, fleet: Fleet, outcome: str) -> None:
     report = await api(c, "GET", f"/api/v1/runs/{runs[0]['id']}/report", fleet.ops_token)
     ft = report.get("flight_time_s")
     say(f"run {runs[0]['id']}: {outcome}" + (f"; {ft:.0f} s in the air (wall clock)" if ft else ""))
+    landing = report.get("landing") or {}
+    if landing.get("agent_offset_m") is not None:
+        say(
+            f"landed {100 * landing['agent_offset_m']:.1f} cm from the pad's centre "
+            f"({landing.get('agent_landing_path')}, the agent's last fix "
+            f"{landing.get('agent_fix_height_m') or 0:.2f} m above the pad, "
+            f"{landing.get('agent_fix_sources')}); "
+            + (
+                "the base weighed it"
+                if landing.get("base_confirmed")
+                else "the base did not weigh it"
+            )
+        )
     timeline = report["run"]["timeline"]
     say("timeline: " + " -> ".join(f"{t['to_state']} ({t['reason']})" for t in timeline))
     if timeline:

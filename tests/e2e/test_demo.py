@@ -49,4 +49,6 @@ def test_demo_runs_a_scheduled_survey_to_completion(tmp_path):
     assert out.count("[2/8] Opening") == 1  # each step once
     # the agent streams the simulated downward camera through the server (issue 15)
     assert "live video of uav-porto-1 (640x480 VP8" in out, out
+    # the landing as the agent measured it, and the base's scale
+    assert "cm from the pad's centre" in out and "the base weighed it" in out, out
     assert "stopping every process" in out
