@@ -66,7 +66,7 @@ async def events(
     start: Timestamp | None = None,
     end: Timestamp | None = None,
 ) -> list[EventOut]:
-    """Events of an asset in [start, end), oldest first."""
+    """Events of an asset in [start, end), oldest first (one `ts`: in the order received)."""
     found = await samples.events(asset_id, start, end, pages.page)
     pages.respond(found.total)
     return [EventOut.model_validate(e) for e in found.items]

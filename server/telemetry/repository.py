@@ -28,7 +28,7 @@ class EventRepository(ScopedRepository[AssetEvent]):
         stmt = (
             self.select()
             .where(AssetEvent.asset_id == asset_id, AssetEvent.ts >= start, AssetEvent.ts < end)
-            .order_by(AssetEvent.ts, AssetEvent.id)
+            .order_by(AssetEvent.ts, AssetEvent.created_at, AssetEvent.id)  # ties: as received
         )
         return await paginate(self.db, stmt, page)
 

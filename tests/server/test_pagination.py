@@ -218,6 +218,29 @@ def test_commands_and_events_of_an_asset_are_paged(
     assert [e["message"] for e in events] == ["1", "2", "3", "4", "5"]
 
 
+def test_events_of_the_same_millisecond_keep_the_order_they_were_sent(
+    api: httpx.Client, live_server: LiveServer, tenant: Tenant
+):
+    """An agent reports `armed` and `took_off` from one state, stamped alike: the list keeps the
+    order they came in (was: by their random ids, so `took_off, armed` half the time)."""
+    uav = tenant.create_asset("uav")
+    names = ["armed", "took_off", "waypoint_reached", "mission_finished", "landing", "landed"]
+
+    async def send_events() -> None:
+        token = asset_token(live_server.url, uav)
+        ts = now_ms() - 1000
+        async with asset_socket(live_server.url, token) as ws:
+            for seq, name in enumerate(names, start=1):
+                await ws.send(message("event", {"name": name}, seq=seq, ts=ts))
+            while (await next_of(ws, "ack"))["payload"]["seq"] < len(names):
+                pass
+
+    asyncio.run(send_events())
+    events = walk(api, f"/api/v1/assets/{uav['id']}/events", tenant.h("viewer"), limit=4)
+    assert [e["name"] for e in events] == names
+    assert len({e["ts"] for e in events}) == 1
+
+
 @pytest.fixture(scope="module")
 def cors_server(database_url: str) -> Iterator[LiveServer]:
     server = LiveServer(test_settings(database_url, cors_origins=["https://ops.example.com"]))
