@@ -209,6 +209,29 @@ def test_default_mode_descends_blind_at_once_when_the_target_is_lost():
     assert run(seq, 0.2, True, (0.2, 0.0, 2.8)).state == "approach"
 
 
+def test_blind_never_finishes_the_final_stretch_off_centre():
+    """Lost in the final 50 cm with the held estimate 20 cm off (a gust pushed the pad out of
+    view): steer back at this height; descend once inside the cone, as the approach does."""
+    seq = LandingSequence(C, RetryConfig(cautious=False))
+    low = C.touchdown_height + 0.1
+    run(seq, 0.0, True, (0.0, 0.0, low))
+    off = run(seq, 0.1, False, (0.15, 0.12, low))
+    assert off.state == "blind" and off.setpoint.vd == 0.0
+    assert off.setpoint.vn > 0 and off.setpoint.ve > 0  # towards the estimate
+    inside = allowed_pos_error(0.1, C) / 2
+    back = run(seq, 0.2, False, (inside, 0.0, low))
+    assert back.state == "blind" and back.setpoint.vd > 0
+    # higher up the blind descent goes on off-centre (the cone's own rule up there)
+    high = run(seq, 0.3, False, (0.15, 0.12, 2.0))
+    assert high.setpoint.vd > 0
+    # the rule is the approach's switch
+    free = LandingSequence(
+        C.model_copy(update={"final_inside_cone_only": False}), RetryConfig(cautious=False)
+    )
+    run(free, 0.0, True, (0.0, 0.0, low))
+    assert run(free, 0.1, False, (0.15, 0.12, low)).setpoint.vd > 0
+
+
 def test_integral_action_removes_a_steady_offset_and_is_bounded():
     cfg = ControlConfig(ki_xy=0.5, max_integral_speed=0.3)
     seq = LandingSequence(cfg, RetryConfig())
