@@ -116,6 +116,7 @@ class LandingSequence:
         self.attempts = 0
         self._since = 0.0
         self._last_seen: tuple[float, float, float] | None = None  # vehicle n, e, height
+        self._seen_t: float | None = None  # when, on the sensor clock
         self._goal: tuple[float, float, float] | None = None
         self._integral = (0.0, 0.0)  # integral of the horizontal error (m·s) while approaching
         self._last_t: float | None = None
@@ -178,6 +179,7 @@ class LandingSequence:
             )
         if fresh:
             self._last_seen = (float(vehicle_ned[0]), float(vehicle_ned[1]), a)
+            self._seen_t = now
         if target_seen:
             self._fire("target", now)  # from pause, climb, blind; elsewhere no transition
             if self.state == "recentre" and self._centred(now, fresh, rel_ned):
@@ -294,7 +296,11 @@ class LandingSequence:
         a = float(rel_ned[2]) - c.touchdown_height
         if self.retry.blind_slow_final and a < c.slow_height:
             vd = min(vd, c.slow_descent)
-        if c.final_inside_cone_only and a < c.slow_height:
+        recent = (
+            self._seen_t is not None
+            and (self._last_t or 0.0) - self._seen_t <= self.retry.blind_recentre_s
+        )
+        if c.final_inside_cone_only and a < c.slow_height and recent:
             # as the approach: never finish the final stretch off-centre. A gust that pushed the
             # pad out of view this low (fused-wind8, seed 1008: 20 cm) is steered back on the
             # held estimate before the seat, not landed on from where it left the vehicle

@@ -211,7 +211,8 @@ def test_default_mode_descends_blind_at_once_when_the_target_is_lost():
 
 def test_blind_never_finishes_the_final_stretch_off_centre():
     """Lost in the final 50 cm with the held estimate 20 cm off (a gust pushed the pad out of
-    view): steer back at this height; descend once inside the cone, as the approach does."""
+    view): steer back at this height; descend once inside the cone, as the approach does —
+    while the last sighting is recent (`blind_recentre_s`)."""
     seq = LandingSequence(C, RetryConfig(cautious=False))
     low = C.touchdown_height + 0.1
     run(seq, 0.0, True, (0.0, 0.0, low))
@@ -224,6 +225,10 @@ def test_blind_never_finishes_the_final_stretch_off_centre():
     # higher up the blind descent goes on off-centre (the cone's own rule up there)
     high = run(seq, 0.3, False, (0.15, 0.12, 2.0))
     assert high.setpoint.vd > 0
+    # long after the last sighting the held estimate has drifted with the fix: holding would
+    # only add drift, so it descends as it is
+    late = run(seq, 0.1 + RetryConfig().blind_recentre_s + 0.1, False, (0.15, 0.12, low))
+    assert late.state == "blind" and late.setpoint.vd > 0
     # the rule is the approach's switch
     free = LandingSequence(
         C.model_copy(update={"final_inside_cone_only": False}), RetryConfig(cautious=False)
