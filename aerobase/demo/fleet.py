@@ -276,16 +276,13 @@ async def report_run(c: httpx.AsyncClient, fleet: Fleet, outcome: str) -> None:
     say(f"run {runs[0]['id']}: {outcome}" + (f"; {ft:.0f} s in the air (wall clock)" if ft else ""))
     landing = report.get("landing") or {}
     if landing.get("agent_offset_m") is not None:
+        fix = landing.get("agent_fix_height_m")
+        seen = f", the agent's last fix {fix:.2f} m above the pad" if fix is not None else ""
+        weighed = "weighed" if landing.get("base_confirmed") else "did not weigh"
         say(
             f"landed {100 * landing['agent_offset_m']:.1f} cm from the pad's centre "
-            f"({landing.get('agent_landing_path')}, the agent's last fix "
-            f"{landing.get('agent_fix_height_m') or 0:.2f} m above the pad, "
-            f"{landing.get('agent_fix_sources')}); "
-            + (
-                "the base weighed it"
-                if landing.get("base_confirmed")
-                else "the base did not weigh it"
-            )
+            f"({landing.get('agent_landing_path')}{seen}, {landing.get('agent_fix_sources')}); "
+            f"the base {weighed} it"
         )
     timeline = report["run"]["timeline"]
     say("timeline: " + " -> ".join(f"{t['to_state']} ({t['reason']})" for t in timeline))

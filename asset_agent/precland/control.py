@@ -110,6 +110,16 @@ def heading_error(pad_heading: float | None, yaw: float, cfg: ControlConfig) -> 
     return wrap_angle(pad_heading + math.radians(cfg.heading_offset_deg) - yaw)
 
 
+def held_off_centre(n: float, e: float, a: float, cfg: ControlConfig) -> bool:
+    """The final stretch is never finished off-centre (`final_inside_cone_only`): `a` metres
+    above touchdown, outside the cone at that altitude, the descent waits."""
+    return (
+        cfg.final_inside_cone_only
+        and a < cfg.slow_height
+        and math.hypot(n, e) > allowed_pos_error(a, cfg)
+    )
+
+
 def cone_setpoint(
     rel_ned, pad_heading: float | None, yaw: float, cfg: ControlConfig
 ) -> VelocitySetpoint:
@@ -131,7 +141,7 @@ def cone_setpoint(
         vd = 0.0
     elif math.hypot(n, e) <= allowed:
         vd = cfg.kp_z * a  # setpoint on the pad: altitude 0
-    elif a < cfg.slow_height and cfg.final_inside_cone_only:
+    elif held_off_centre(n, e, a, cfg):
         vd = 0.0  # never finish the slow final stretch off-centre: wait to be inside the cone
     else:
         vd = cfg.kp_z * min(allowed, a)  # setpoint a - AllowedPosError(a)

@@ -34,9 +34,9 @@ from asset_agent.precland.config import CameraModel, ControlConfig, RetryConfig,
 from asset_agent.precland.control import (
     HOVER,
     VelocitySetpoint,
-    allowed_pos_error,
     clip_xy,
     cone_setpoint,
+    held_off_centre,
 )
 from asset_agent.precland.kalman import FIX_RTK_FIXED
 from asset_agent.precland.search import ExpandingSquare
@@ -115,8 +115,8 @@ class LandingSequence:
         self._height = 0.0
         self.attempts = 0
         self._since = 0.0
-        self._last_seen: tuple[float, float, float] | None = None  # vehicle n, e, height
-        self._seen_t: float | None = None  # when, on the sensor clock
+        # the last fresh sighting: vehicle n, e, height, and when (sensor clock)
+        self._last_seen: tuple[float, float, float, float] | None = None
         self._goal: tuple[float, float, float] | None = None
         self._integral = (0.0, 0.0)  # integral of the horizontal error (m·s) while approaching
         self._last_t: float | None = None
@@ -178,8 +178,7 @@ class LandingSequence:
                 self.attempts,
             )
         if fresh:
-            self._last_seen = (float(vehicle_ned[0]), float(vehicle_ned[1]), a)
-            self._seen_t = now
+            self._last_seen = (float(vehicle_ned[0]), float(vehicle_ned[1]), a, now)
         if target_seen:
             self._fire("target", now)  # from pause, climb, blind; elsewhere no transition
             if self.state == "recentre" and self._centred(now, fresh, rel_ned):
@@ -211,7 +210,9 @@ class LandingSequence:
         elif self.state == "climb" and self._reached(vehicle_ned, a):
             self._fire("reached", now)
         return Command(
-            self.state, self._setpoint(rel_ned, pad_heading, vehicle_ned, yaw, dt), self.attempts
+            self.state,
+            self._setpoint(now, rel_ned, pad_heading, vehicle_ned, yaw, dt),
+            self.attempts,
         )
 
     def _waypoint(self, now: float, vehicle_ned) -> tuple[float, float] | None:
@@ -229,7 +230,7 @@ class LandingSequence:
 
     def _climb_goal(self, vehicle_ned, a: float) -> tuple[float, float, float]:
         if self._last_seen is not None:
-            n, e, h = self._last_seen
+            n, e, h, _ = self._last_seen
             return n, e, max(h + self.retry.climb_margin_m, a)
         return float(vehicle_ned[0]), float(vehicle_ned[1]), max(self.retry.default_height, a)
 
@@ -251,7 +252,9 @@ class LandingSequence:
         vn, ve = clip_xy(sp.vn + c.ki_xy * i_n, sp.ve + c.ki_xy * i_e, c.max_speed_xy)
         return VelocitySetpoint(vn, ve, sp.vd, sp.yaw_rate, sp.land)
 
-    def _setpoint(self, rel_ned, pad_heading, vehicle_ned, yaw, dt: float) -> VelocitySetpoint:
+    def _setpoint(
+        self, now: float, rel_ned, pad_heading, vehicle_ned, yaw, dt: float
+    ) -> VelocitySetpoint:
         c = self.control
         if self.state == "approach":
             sp = cone_setpoint(rel_ned, pad_heading, yaw, c)
@@ -296,14 +299,10 @@ class LandingSequence:
         a = float(rel_ned[2]) - c.touchdown_height
         if self.retry.blind_slow_final and a < c.slow_height:
             vd = min(vd, c.slow_descent)
-        recent = (
-            self._seen_t is not None
-            and (self._last_t or 0.0) - self._seen_t <= self.retry.blind_recentre_s
-        )
-        if c.final_inside_cone_only and a < c.slow_height and recent:
-            # as the approach: never finish the final stretch off-centre. A gust that pushed the
-            # pad out of view this low (fused-wind8, seed 1008: 20 cm) is steered back on the
-            # held estimate before the seat, not landed on from where it left the vehicle
-            if math.hypot(float(rel_ned[0]), float(rel_ned[1])) > allowed_pos_error(a, c):
-                vd = 0.0
+        # as the approach, while the held estimate is recent: a gust that pushed the pad out of
+        # view this low (fused-wind8, seed 1008: 20 cm) is steered back before the seat
+        seen = self._last_seen
+        recent = seen is not None and now - seen[3] <= self.retry.blind_recentre_s
+        if recent and held_off_centre(float(rel_ned[0]), float(rel_ned[1]), a, c):
+            vd = 0.0
         return VelocitySetpoint(vn, ve, vd)

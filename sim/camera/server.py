@@ -103,7 +103,6 @@ class CameraServer:
         self._server: asyncio.Server | None = None
         self._slots: set[_Slot] = set()
         self._task: asyncio.Task | None = None
-        self._connections: set[asyncio.Task] = set()  # one per subscriber, waiting for frames
         self._seq = 0
         self._subscribed = asyncio.Event()  # the capture loop sleeps while nobody watches
 
@@ -118,7 +117,7 @@ class CameraServer:
     async def stop(self) -> None:
         """Stop capturing and close every connection (closing a writer does not wake a handler
         waiting for its next frame: each is cancelled, or it would outlive the loop pending)."""
-        await cancel_and_wait([self._task, *self._connections])
+        await cancel_and_wait([self._task, *(slot.task for slot in self._slots)])
         if self._server:
             self._server.close()
             await self._server.wait_closed()
@@ -150,11 +149,10 @@ class CameraServer:
                 slot.offer(data)
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        slot = _Slot(writer)
-        self._slots.add(slot)
         task = asyncio.current_task()
         assert task is not None  # start_server runs each connection as a task
-        self._connections.add(task)
+        slot = _Slot(task)
+        self._slots.add(slot)
         self._subscribed.set()
         log.info("camera subscriber %s", writer.get_extra_info("peername"))
         try:
@@ -167,17 +165,16 @@ class CameraServer:
             pass
         finally:
             self._slots.discard(slot)
-            self._connections.discard(task)
             if not self._slots:
                 self._subscribed.clear()
             writer.close()
 
 
 class _Slot:
-    """Holds the newest unsent frame for one subscriber."""
+    """Holds the newest unsent frame for one subscriber, served by `task`."""
 
-    def __init__(self, writer: asyncio.StreamWriter) -> None:
-        self.writer = writer
+    def __init__(self, task: asyncio.Task) -> None:
+        self.task = task
         self._data: bytes | None = None
         self._ready = asyncio.Event()
 

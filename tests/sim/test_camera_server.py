@@ -130,9 +130,9 @@ async def test_stopping_with_a_subscriber_waiting_leaves_no_connection_task_behi
     port = await server.start()
     _reader, writer = await asyncio.open_connection("127.0.0.1", port)
     try:
-        await eventually(lambda: server._connections, 5, "the subscriber's connection")
-        (task,) = server._connections
+        await eventually(lambda: server._slots, 5, "the subscriber's connection")
+        (slot,) = server._slots
         await server.stop()
-        assert task.done() and not server._connections
+        assert slot.task.done() and not server._slots
     finally:
         writer.close()
