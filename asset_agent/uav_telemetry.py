@@ -59,8 +59,8 @@ MESSAGES = {
     "fence_breach": "geofence breached: the autopilot is returning to the base",
     "autopilot_lost": "no HEARTBEAT from the autopilot",
     "autopilot_recovered": "autopilot link back",
-    "landing_aborted": "landing abandoned: the pad was not found and the GNSS has no RTK fixed "
-    "fix; holding at a safe height",
+    "landing_aborted": "landing abandoned: the pad was not found (or lost with no retry left) "
+    "and the GNSS has no RTK fixed fix; holding at a safe height",
 }
 
 

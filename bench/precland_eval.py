@@ -49,6 +49,7 @@ from asset_agent.precland.config import (
 from asset_agent.precland.control import VelocitySetpoint
 from asset_agent.precland.detect import PadDetector
 from asset_agent.precland.geometry import wrap_angle
+from asset_agent.precland.guard import LossGuard
 from asset_agent.precland.pipeline import LandingPipeline, VehicleState
 from bench.precland_gnss import MODELS, CopterGnss, GnssError, GnssModel
 from bench.precland_report import Trace, write_report
@@ -342,6 +343,7 @@ CAMERA_HZ = 100 / 3  # a frame every third 10 ms step, with each control step
 # absolute error — the same draws scaled by this.
 RTK_SURVEY_SCALE = 0.02
 RETURNED_M = 0.5  # RTL's return is over this close to home (sim.vehicle.guidance)
+VELOCITY_ONLY = 0b0000_1101_1100_0111  # SET_POSITION_TARGET type_mask: the daemon's (setpoints.py)
 
 
 @dataclass(frozen=True)
@@ -505,7 +507,10 @@ def run_autopilot_trial(
     ArduPilot's default). Same start, wind, sensors and world as `run_trial`: its
     EKF position drifts with the same GNSS model and draws (`CopterGnss`: the scenario's fix type
     unless `gnss_fix` names another, RTK fixed by default), and the surveyed pad carries the same
-    error (up to 2 cm with RTK, 1 m on a plain fix: `_survey_and_start`). The heading
+    error (up to 2 cm with RTK, 1 m on a plain fix: `_survey_and_start`). The daemon's guard
+    (asset_agent/precland/guard.py) flies too: on a fix short of RTK fixed a pad lost above the
+    final stretch is retried by the agent in GUIDED and then abandoned ("aborted-climb", not
+    landed), never left to the autopilot's blind descent. The heading
     is not the autopilot's to align (PLND steers position only), so it is reported as it lands."""
     from dataclasses import replace
 
@@ -553,11 +558,14 @@ def run_autopilot_trial(
         return (n, e, SEAT_HEIGHT - d, st.roll, st.pitch, st.yaw)
 
     pipeline.set_pad_prior(survey - np.asarray(c.estimated_position()), 1.0)
+    # as the daemon's, with its default cautious retry: a pad lost high on a poor fix is not
+    # left to the autopilot's blind descent
+    guard = LossGuard(cfg.model_copy(update={"retry": RetryConfig()}))
     dt, t, k, next_frame = 0.01, 0.0, 0, 0.01
-    while t < max_time and not c.dyn.state.landed:
+    while t < max_time and not c.dyn.state.landed and not guard.held:
         c.tick(dt, t + dt, weather.flow_ne(t))  # the copter's Airflow adds shear, turbulence
         t += dt
-        if c.mode != LAND:
+        if landing_t is None:  # RTL's return, then LAND (after it, the guard's modes)
             est = c.estimated_position()
             if returned_t is None and math.dist(est[:2], survey[:2]) < RETURNED_M:
                 returned_t = t
@@ -592,6 +600,8 @@ def run_autopilot_trial(
                 lt.size_x, lt.size_y, lt.x, lt.y, lt.z, list(lt.q), lt.type, lt.position_valid,
             )  # fmt: skip
             c.handle(msg, None, t)
+        if landing_t is not None and k % 10 == 0:  # the daemon's guard, at its 10 Hz
+            _guard_step(c, guard, pipeline, t)
         if trace is not None:  # the PLND estimator's target minus vehicle while it has one
             found = c.plnd is not None and c.plnd.state == "found"
             trace.record(t, st.position[:2], p[2], c.plnd.rel_out if found else None)  # type: ignore[union-attr]
@@ -603,8 +613,32 @@ def run_autopilot_trial(
         t,
         st.landed,
         (float(st.position[0]), float(st.position[1])),
-        "autopilot",
+        "aborted-climb" if guard.held else "autopilot",
     )
+
+
+def _guard_step(c: Any, guard: LossGuard, pipeline: LandingPipeline, t: float) -> None:
+    """One step of the daemon's guard (asset_agent/precland/guard.py) on the simulated
+    autopilot: GUIDED and velocity setpoints (SET_POSITION_TARGET_LOCAL_NED) while the agent
+    flies its retry or abort, LAND again when the pad is back in view."""
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    from sim.vehicle.constants import GUIDED, LAND
+
+    state = pipeline.state_at(t)
+    if state is None:
+        return
+    act = guard.step(t, pipeline.kalman.updates, pipeline.kalman.estimate(), state)
+    if act.kind == "take" and not c.set_mode(GUIDED):
+        raise RuntimeError("the simulated autopilot refused GUIDED")
+    if act.kind == "land" and not c.set_mode(LAND):
+        raise RuntimeError("the simulated autopilot refused LAND")
+    if act.setpoint is not None:
+        sp = act.setpoint
+        msg = mavlink.MAVLink_set_position_target_local_ned_message(
+            int(t * 1000), 1, 1, 1, VELOCITY_ONLY, 0, 0, 0, sp.vn, sp.ve, sp.vd, 0, 0, 0, 0, 0
+        )
+        c.handle(msg, None, t)
 
 
 def per_source_errors(heights: Sequence[float], n: int, seed: int = 0) -> list[dict]:

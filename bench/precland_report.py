@@ -2,8 +2,8 @@
 
 - `report.md`: the settings, the seeds every row flew, each scenario's sensors, faults and wind,
   the table (both landing paths), and the plots;
-- `touchdown.png`: where each trial touched down, one panel per scenario and landing path, the
-  5 cm circle of the charging contacts drawn;
+- `touchdown.png`: where each trial touched down (hollow grey: aborted, where it held aloft), one
+  panel per scenario and landing path, the 5 cm circle of the charging contacts drawn;
 - `error_vs_time.png`: one trial followed through time (the first seed of the traced scenario, each
   path that flew it): the vehicle's true horizontal distance from the pad, the landing system's
   own estimate's error (the agent's filter, or the autopilot's PLND estimator while it has the
@@ -65,7 +65,18 @@ def _plot_touchdowns(folder: Path, touchdowns: dict[str, list[Any]]) -> None:
         cm = np.array([[100 * tr.touchdown[1], 100 * tr.touchdown[0]] for tr in trials])
         lim = max(10.0, float(np.abs(cm).max()) * 1.2)
         ax.add_patch(plt.Circle((0, 0), 100 * CONTACTS_M, fill=False, color="green"))
-        ax.scatter(cm[:, 0], cm[:, 1], s=14, color="tab:red")
+        down = np.array([tr.landed for tr in trials], dtype=bool)
+        ax.scatter(cm[down, 0], cm[down, 1], s=14, color="tab:red")
+        if not down.all():  # aborted: where it held at the safe height, not a touchdown
+            ax.scatter(cm[~down, 0], cm[~down, 1], s=16, facecolors="none", edgecolors="grey")
+            ax.text(
+                0.02,
+                0.02,
+                f"○ {int((~down).sum())} held aloft, not landed",
+                transform=ax.transAxes,
+                fontsize=7,
+                color="grey",
+            )
         ax.plot(0, 0, "k+")
         ax.set(xlim=(-lim, lim), ylim=(-lim, lim), aspect="equal", title=label)
         ax.set_xlabel("east, cm", fontsize=8)
@@ -155,7 +166,7 @@ def write_report(
         for name, row in results[key].items():
             lines.append(
                 f"| {name} | {path} | {row['landed']}/{n} | {_cm(row['mean_cm'])} "
-                f"| {_cm(row['max_cm'])} | {row['heading_deg']} | {row['time_s']} "
+                f"| {_cm(row['max_cm'])} | {row['heading_deg'] if row['landed'] else '—'} | {row['time_s']} "
                 f"| {row['published'] or ''} "
                 f"| {', '.join(f'{k} {v}' for k, v in row.get('paths', {}).items())} |"
             )

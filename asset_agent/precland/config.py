@@ -225,6 +225,12 @@ class RetryConfig(_Model):
     # and holding only adds drift: descend as it is (marker failing below 3 m on a 3D fix, held:
     # 13.3 / 29.3 cm against 11.65 / 26.01)
     blind_recentre_s: float = Field(default=2.0, ge=0.0)
+    # a target lost with no retry left on a fix short of RTK fixed (float, plain, unknown):
+    # descend blind only from this close to touchdown (the final stretch: well under a second
+    # blind), else climb to `search.abort_height_m` and hold ("aborted-climb"), never landing
+    # blind on its drift (issue 19: the marker failing below 3 m landed 8.0 / 14.7 cm on RTK
+    # float, 11.7 / 26.0 on a 3D fix). None: blind from any height on any fix (the thesis)
+    blind_max_height_unfixed_m: float | None = Field(default=0.5, ge=0.0)
     recentre: bool = True  # after a retry, centre over the target before descending again
     recentre_tolerance_m: float = 0.03
     recentre_settle_s: float = 1.0  # vision fresh this long first: the filter has converged

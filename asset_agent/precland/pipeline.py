@@ -198,16 +198,8 @@ class LandingPipeline:
         cmd = lt = None
         if state is not None and self.kalman.initialised:
             if self.config.mode == "companion":
-                cmd = self.sequence.step(
-                    now,
-                    target is not None,
-                    est.rel_ned,
-                    est.heading,
-                    state.position_ned,
-                    state.attitude[2],
-                    fresh=target is not None and target.kind != "held",
-                    gnss_fix=state.gnss_fix,
-                )
+                fresh = target is not None and target.kind != "held"
+                cmd = self.sequence.follow(now, target is not None, est, state, fresh)
             elif target is not None and self.config.steering == "autopilot":
                 lt = self._detection_target(target)
             elif target is not None:

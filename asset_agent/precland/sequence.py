@@ -2,6 +2,7 @@
 
 approach ─lost→ pause (cautious, attempts left) or blind  pause ─target→ recentre
 pause ─timeout→ climb (attempts left) or blind             climb ─target→ recentre
+  (blind: on RTK fixed, or low enough; else abort)
 climb ─reached→ pause                                      blind ─target→ approach
 recentre ─centred→ approach                                recentre ─lost→ pause or blind
 approach ─unseen→ acquire (never seen yet)                 acquire ─target→ recentre
@@ -12,7 +13,11 @@ fallback ─fix lost→ abort                                  any ─touchdown�
 A pad never seen is searched for (search.py) at the approach altitude; when the search is over
 without it, the fallback lands on the GNSS over the surveyed pad only on an RTK fixed fix and
 otherwise climbs to a safe height and holds there ("abort"), never landing blind on a float or
-plain fix. `path` says which way the landing went.
+plain fix. The same rule ends the cautious retries: a target lost for the last time (no retry
+left) is descended on blind only on an RTK fixed fix or from the final stretch
+(`retry.blind_max_height_unfixed_m`); higher up on a float or plain fix the blind seconds would
+be flown on its drift (4.6 and 6.5 cm/√s: a loss at 3 m landed 8 and 12 cm off), so it aborts.
+`path` says which way the landing went.
 
 Climbing goes back to where the target was last *measured* (its horizontal position, and its
 height plus a margin, since whatever lost it at that height may lose it there again; a value the
@@ -29,6 +34,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from asset_agent.precland.config import CameraModel, ControlConfig, RetryConfig, SearchConfig
 from asset_agent.precland.control import (
@@ -38,8 +44,11 @@ from asset_agent.precland.control import (
     cone_setpoint,
     held_off_centre,
 )
-from asset_agent.precland.kalman import FIX_RTK_FIXED
+from asset_agent.precland.kalman import FIX_RTK_FIXED, Estimate
 from asset_agent.precland.search import ExpandingSquare
+
+if TYPE_CHECKING:
+    from asset_agent.precland.pipeline import VehicleState
 
 log = logging.getLogger(__name__)
 
@@ -54,6 +63,9 @@ TRANSITIONS: dict[tuple[str, str], str] = {
     ("recentre", "centred"): "approach",
     ("recentre", "lost"): "pause",
     ("recentre", "lost_default"): "blind",
+    ("approach", "abort"): "abort",
+    ("recentre", "abort"): "abort",
+    ("pause", "abort"): "abort",
     ("blind", "target"): "approach",
     ("approach", "touchdown"): "landed",
     ("blind", "touchdown"): "landed",
@@ -125,8 +137,8 @@ class LandingSequence:
     def path(self) -> str:
         """Which way the landing went: "precision" (the pad in view on the approach),
         "search-then-precision", "rtk-fallback" (searched in vain, descended on RTK fixed GNSS),
-        "aborted-climb" (searched in vain without RTK fixed: climbing or holding), or "gnss"
-        (never saw the pad, search off)."""
+        "aborted-climb" (searched in vain, or lost for the last time too high, without RTK fixed:
+        climbing or holding), or "gnss" (never saw the pad, search off)."""
         if self.state == "abort":
             return "aborted-climb"
         if self._fallback:
@@ -189,7 +201,7 @@ class LandingSequence:
             # cautious: pause and retry while attempts remain; the last loss goes blind at once
             # (another pause would only let the GNSS drift grow before the same blind descent)
             retry = self.retry.cautious and self.attempts < self.retry.max_attempts
-            self._fire("lost" if retry else "lost_default", now)
+            self._fire("lost" if retry else self._blind_or_abort("lost_default", a, gnss_fix), now)
         elif self.state == "acquire" and now - self._since >= self.search.acquire_s:
             centre = (float(vehicle_ned[0] + rel_ned[0]), float(vehicle_ned[1] + rel_ned[1]))
             self._square = ExpandingSquare.start(now, centre, a, self.camera, self.search)
@@ -206,7 +218,7 @@ class LandingSequence:
                 self._goal = self._climb_goal(vehicle_ned, a)
                 self._fire("retry", now)
             else:
-                self._fire("give_up", now)
+                self._fire(self._blind_or_abort("give_up", a, gnss_fix), now)
         elif self.state == "climb" and self._reached(vehicle_ned, a):
             self._fire("reached", now)
         return Command(
@@ -214,6 +226,31 @@ class LandingSequence:
             self._setpoint(now, rel_ned, pad_heading, vehicle_ned, yaw, dt),
             self.attempts,
         )
+
+    def follow(
+        self, now: float, seen: bool, est: Estimate, state: VehicleState, fresh: bool | None = None
+    ) -> Command:
+        """`step` on the filter's estimate and the autopilot's latest state."""
+        return self.step(
+            now,
+            seen,
+            est.rel_ned,
+            est.heading,
+            state.position_ned,
+            state.attitude[2],
+            fresh=fresh,
+            gnss_fix=state.gnss_fix,
+        )
+
+    def _blind_or_abort(self, event: str, a: float, gnss_fix: int | None) -> str:
+        """`event` (on to the blind descent) when a blind landing is allowed here, else "abort":
+        after a sighting, blind only on RTK fixed or within `blind_max_height_unfixed_m` of
+        touchdown. A pad never seen (the search off) is the operator's choice: blind."""
+        limit = self.retry.blind_max_height_unfixed_m
+        rtk = gnss_fix is not None and gnss_fix >= FIX_RTK_FIXED
+        if limit is None or rtk or self._last_seen is None:
+            return event
+        return event if a - self.control.touchdown_height <= limit else "abort"
 
     def _waypoint(self, now: float, vehicle_ned) -> tuple[float, float] | None:
         assert self._square is not None

@@ -247,10 +247,13 @@ class PrecisionLander:
         self.loop = loop
         self.last_fix = None
         self._loop_task = asyncio.create_task(loop.run(), name="precland-loop")
-        decided = self.takeover is not None and self.takeover.path not in (None, "aborted-climb")
-        if config.search.enabled and not decided:  # once per flight, unless it was abandoned
+        # the search once per flight, unless it was abandoned; the guard every landing loop
+        path = self.takeover.path if self.takeover is not None else None
+        path = None if path == "aborted-climb" else path
+        guard = config.retry.blind_max_height_unfixed_m is not None
+        if config.search.enabled or guard:
             self.takeover = Takeover(
-                self.autopilot, loop.pipeline, config, self.clock.now, self.clock.sleep
+                self.autopilot, loop.pipeline, config, self.clock.now, self.clock.sleep, path
             )
             self._takeover_task = asyncio.create_task(self._search(self.takeover))
         if config.mode == "landing_target" and config.autopilot.xy_dist_max_m is not None:
@@ -265,7 +268,12 @@ class PrecisionLander:
             log.exception("precland: the search failed")
             return
         if takeover.path == "aborted-climb":
-            detail = {"landing_path": "aborted-climb", "reason": "pad not found, no RTK fix"}
+            detail: dict[str, Any] = {"landing_path": "aborted-climb"}
+            if not takeover.losses:
+                detail["reason"] = "pad not found, no RTK fix"
+            else:  # the guard: lost too high, retries used up
+                detail["reason"] = "pad lost, no RTK fix"
+                detail["lost_at_m"] = takeover.losses[-1]
             self.events.append(Event("landing_aborted", MappingProxyType(detail)))
 
     async def _descent_gate(self, cfg: AutopilotDescentConfig) -> None:

@@ -12,6 +12,10 @@ setpoints, with the same rule after it:
   GNSS, and on the LANDING_TARGETs as soon as the pad is in view ("rtk-fallback");
 - otherwise: climb to the safe height and hold there, reporting it ("aborted-climb") — never a
   blind landing on a float or plain fix.
+
+After the hand-over the same rule guards the descent (`guard`, guard.py): on a fix short of RTK
+fixed a pad lost above the final stretch is not left to the autopilot's blind descent; the agent
+flies the cautious retry and, the retries used up, climbs and holds ("aborted-climb").
 """
 
 from __future__ import annotations
@@ -23,7 +27,9 @@ from typing import Any
 
 from asset_agent.precland.config import PrecisionLandingConfig
 from asset_agent.precland.control import clip_xy
-from asset_agent.precland.pipeline import LandingPipeline
+from asset_agent.precland.guard import LossGuard
+from asset_agent.precland.kalman import Estimate
+from asset_agent.precland.pipeline import LandingPipeline, VehicleState
 from asset_agent.precland.sequence import LandingSequence
 
 log = logging.getLogger(__name__)
@@ -43,6 +49,7 @@ class Takeover:
         config: PrecisionLandingConfig,
         now_fn: Callable[[], float],
         sleep_fn: Callable[[float], Awaitable[None]],
+        path: str | None = None,
     ) -> None:
         self.autopilot = autopilot
         self.pipeline = pipeline
@@ -50,11 +57,25 @@ class Takeover:
         self.now_fn = now_fn
         self.sleep_fn = sleep_fn
         self.active = False  # the agent holds the vehicle (GUIDED): keep the loop running
-        self.path: str | None = None  # decided: precision, search-then-precision, ...
+        self.path = path  # decided: precision, search-then-precision, ... (None: not yet)
         search = config.search.model_copy(update={"acquire_s": 0.0})  # waited for already
         self.sequence = LandingSequence(config.control, config.retry, search, config.camera)
+        self.loss_guard: LossGuard | None = None  # after the hand-over (guard.py)
 
     async def run(self) -> None:
+        """Search unless decided (a first measurement within `acquire_s`, else search and fall
+        back), then guard the autopilot's descent while it lands on the pad."""
+        if self.path is None and self.config.search.enabled:
+            await self.search()
+        elif self.path is None:
+            while not self.pipeline.kalman.updates:  # the search off: the guard needs a sighting
+                await self.sleep_fn(PERIOD_S)
+            self.path = "precision"
+        if self.path in ("precision", "search-then-precision", "rtk-fallback"):
+            if self.config.retry.blind_max_height_unfixed_m is not None:
+                await self.guard()
+
+    async def search(self) -> None:
         """Wait for a first measurement; without one, search and fall back."""
         start = self.now_fn()
         while self.now_fn() - start < self.config.search.acquire_s:
@@ -66,12 +87,49 @@ class Takeover:
             self.path = "precision"
             return
         log.info("precland: the pad is not in view: searching")
-        await self.autopilot.set_mode("GUIDED")
         self.active = True
         try:
+            await self.autopilot.set_mode("GUIDED")
             await self._fly()
         finally:
             self.active = False
+
+    async def guard(self) -> None:
+        """While the autopilot lands: a pad lost too high on a fix short of RTK fixed is flown
+        by the agent's own retry instead of the autopilot's blind descent (guard.py)."""
+        guard = self.loss_guard = LossGuard(self.config)
+        try:
+            while True:
+                now, state, est = await self._tick()
+                act = guard.step(now, self.pipeline.kalman.updates, est, state)
+                if act.kind == "landed":
+                    return
+                if act.kind == "take":
+                    log.warning(
+                        "precland: pad lost at %.1f m without RTK fixed GNSS: the agent retries",
+                        guard.losses[-1],
+                    )
+                    self.active = True
+                    await self.autopilot.set_mode("GUIDED")
+                if act.setpoint is not None:
+                    sp = act.setpoint
+                    self.autopilot.send_velocity_ned(sp.vn, sp.ve, sp.vd)
+                if act.kind == "land":
+                    await self._land()
+                    self.active = False
+                if act.kind == "hold":
+                    self.path = "aborted-climb"
+                    log.warning(
+                        "precland: the pad lost, no RTK fixed GNSS: holding at a safe height"
+                    )
+                    return
+        finally:
+            self.active = False
+
+    @property
+    def losses(self) -> list[float]:
+        """Heights (above touchdown) at which the guard took the vehicle, this landing."""
+        return self.loss_guard.losses if self.loss_guard is not None else []
 
     async def _land(self) -> None:
         """Hand the descent back (LAND), staying active until the autopilot reports it, so that
@@ -85,23 +143,10 @@ class Takeover:
     async def _fly(self) -> None:
         seen_before = self.pipeline.kalman.updates
         while True:
-            now = self.now_fn()
-            state = self.pipeline.state_at(now)
-            if state is None:
-                await self.sleep_fn(PERIOD_S)
-                continue
-            est = self.pipeline.kalman.estimate()
+            now, state, est = await self._tick()
             seen = self.pipeline.kalman.updates > seen_before
             seen_before = self.pipeline.kalman.updates
-            cmd = self.sequence.step(
-                now,
-                seen,
-                est.rel_ned,
-                est.heading,
-                state.position_ned,
-                state.attitude[2],
-                gnss_fix=state.gnss_fix,
-            )
+            cmd = self.sequence.follow(now, seen, est, state)
             if cmd.state in ("recentre", "approach"):  # found: the autopilot lands on it
                 self.path = "search-then-precision"
                 await self._land()
@@ -125,4 +170,13 @@ class Takeover:
                         "precland: no pad found, no RTK fixed GNSS: holding at a safe height"
                     )
                     return
+
+    async def _tick(self) -> tuple[float, VehicleState, Estimate]:
+        """The next step, PERIOD_S of sensor time on, once the autopilot's state is known: the
+        time, that state and the filter's estimate."""
+        while True:
             await self.sleep_fn(PERIOD_S)
+            now = self.now_fn()
+            state = self.pipeline.state_at(now)
+            if state is not None:
+                return now, state, self.pipeline.kalman.estimate()

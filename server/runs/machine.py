@@ -404,8 +404,9 @@ STEPS: dict[State, Step] = {
             (Action("uav", ReturnToBase),), 900,
             done=(
                 Exit(State.confirming, "the UAV reports it has landed", when=uav_landed),
-                Exit(State.failed, "the UAV gave up its landing: the pad was not found and its "
-                     "GNSS has no RTK fix to land on, so it climbed and holds there; the base "
+                Exit(State.failed, "the UAV gave up its landing: the pad was not found (or lost "
+                     "too high with its retries used up) and its GNSS has no RTK fix to land "
+                     "on, so it climbed and holds there; the base "
                      "stays open — land it by hand", "landing_aborted", alert=True,
                      when=landing_abandoned),
             ),

@@ -37,10 +37,10 @@ async def precland_adapter(vehicle: VehicleServer) -> AsyncIterator[Autopilot]:
 
 @contextlib.asynccontextmanager
 async def blind_beacon_lander(
-    ap: Autopilot, vehicle: VehicleServer, /, **section: Any
+    ap: Autopilot, vehicle: VehicleServer, /, fault: FaultConfig | None = None, **section: Any
 ) -> AsyncIterator[PrecisionLander]:
     """The daemon's precision landing (`PreclandSection(**section)`) with an IR beacon whose
-    every reading is dropped: the loop runs, it never sees the pad."""
+    every reading is dropped (or those `fault` drops): the loop runs, it never sees the pad."""
     copter = vehicle.copter
 
     def pose() -> tuple[float, float, float, float, float, float]:
@@ -52,7 +52,7 @@ async def blind_beacon_lander(
     port = await beacon.start()
     lander = PrecisionLander(
         ap,
-        PreclandSection(ir_port=port, faults={"ir": FaultConfig(r_drop=1.0)}, **section),
+        PreclandSection(ir_port=port, faults={"ir": fault or FaultConfig(r_drop=1.0)}, **section),
     )
     stop = asyncio.Event()
     task = asyncio.create_task(lander.run(stop))

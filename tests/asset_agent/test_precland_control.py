@@ -16,6 +16,7 @@ from asset_agent.precland.control import (
     landing_target,
 )
 from asset_agent.precland.geometry import rotation_world_from_body
+from asset_agent.precland.kalman import FIX_3D, FIX_RTK_FIXED, FIX_RTK_FLOAT
 from asset_agent.precland.sequence import LandingSequence, blind_profile
 
 C = ControlConfig()
@@ -78,8 +79,8 @@ def test_slow_final_half_metre_and_touchdown():
     )
 
 
-def run(seq, t, seen, rel, vehicle=(0.0, 0.0)):
-    return seq.step(t, seen, rel, 0.0, vehicle, 0.0)
+def run(seq, t, seen, rel, vehicle=(0.0, 0.0), fix: int | None = FIX_RTK_FIXED):
+    return seq.step(t, seen, rel, 0.0, vehicle, 0.0, gnss_fix=fix)
 
 
 def test_cautious_retry_pause_climb_back_retry_then_blind():
@@ -235,6 +236,43 @@ def test_blind_never_finishes_the_final_stretch_off_centre():
     )
     run(free, 0.0, True, (0.0, 0.0, low))
     assert run(free, 0.1, False, (0.15, 0.12, low)).setpoint.vd > 0
+
+
+@pytest.mark.parametrize("fix", [FIX_RTK_FLOAT, FIX_3D, None])
+def test_without_rtk_fixed_the_last_loss_aborts_instead_of_landing_blind(fix):
+    """The marker failing below 3 m on a float or plain fix: the retries used up, the last loss
+    climbs to the safe height and holds ("aborted-climb") instead of a blind descent on the
+    fix's drift; in the final stretch (within `blind_max_height_unfixed_m`) it goes on blind."""
+    retry = RetryConfig(cautious=True, pause_s=1.0, max_attempts=1, recentre=False)
+    seq = LandingSequence(C, retry)
+    assert run(seq, 0.0, True, (0.0, 0.0, 3.2), (0.0, 0.0), fix).state == "approach"
+    assert run(seq, 1.0, False, (0.0, 0.0, 3.0), (0.0, 0.0), fix).state == "pause"
+    assert run(seq, 2.0, False, (0.0, 0.0, 3.0), (0.0, 0.0), fix).state == "climb"
+    assert run(seq, 4.0, False, (0.0, 0.0, 3.7), (0.0, 0.0), fix).state == "pause"
+    cmd = run(seq, 5.1, False, (0.0, 0.0, 3.7), (0.0, 0.0), fix)  # no retry left
+    assert cmd.state == "abort" and seq.path == "aborted-climb" and cmd.setpoint.vd < 0
+    assert not seq.holding_safe
+    # seen again on the way up: the landing stays abandoned, for the operator to decide
+    assert run(seq, 6.0, True, (0.0, 0.0, 5.0), (0.0, 0.0), fix).state == "abort"
+    held = run(seq, 30.0, False, (0.0, 0.0, SearchConfig().abort_height_m), (0.0, 0.0), fix)
+    assert held.setpoint.vd == 0.0 and seq.holding_safe
+    # the same loss on RTK fixed descends blind, as before
+    rtk = LandingSequence(C, retry)
+    for t, seen, h in ((0.0, True, 3.2), (1.0, False, 3.0), (2.0, False, 3.0), (4.0, False, 3.7)):
+        run(rtk, t, seen, (0.0, 0.0, h))
+    assert run(rtk, 5.1, False, (0.0, 0.0, 3.7)).state == "blind"
+    # without retries (the default mode): lost at 3 m aborts, lost in the final stretch is blind
+    plain = LandingSequence(C, RetryConfig(cautious=False))
+    run(plain, 0.0, True, (0.0, 0.0, 3.0), (0.0, 0.0), fix)
+    assert run(plain, 0.1, False, (0.0, 0.0, 2.9), (0.0, 0.0), fix).state == "abort"
+    low = LandingSequence(C, RetryConfig(cautious=False))
+    run(low, 0.0, True, (0.0, 0.0, C.touchdown_height + 0.45), (0.0, 0.0), fix)
+    lost = run(low, 0.1, False, (0.0, 0.0, C.touchdown_height + 0.45), (0.0, 0.0), fix)
+    assert lost.state == "blind" and lost.setpoint.vd > 0
+    # the thesis's rule, blind from any height on any fix, is one setting away
+    thesis = LandingSequence(C, RetryConfig(cautious=False, blind_max_height_unfixed_m=None))
+    run(thesis, 0.0, True, (0.0, 0.0, 3.0), (0.0, 0.0), fix)
+    assert run(thesis, 0.1, False, (0.0, 0.0, 2.9), (0.0, 0.0), fix).state == "blind"
 
 
 def test_integral_action_removes_a_steady_offset_and_is_bounded():

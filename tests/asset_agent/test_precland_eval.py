@@ -192,6 +192,21 @@ def test_searched_in_vain_on_a_float_fix_it_climbs_and_reports_on_rtk_fixed_it_l
     assert fixed.error_m < 0.08, fixed
 
 
+@pytest.mark.parametrize("path", ["agent", "autopilot"])
+def test_lost_below_3_m_on_a_plain_fix_it_climbs_and_reports_on_rtk_fixed_it_lands(path):
+    """Issue 19 items 1 and 2 on a poor fix: the only source (IR) fails below 3 m. On a 3D fix
+    neither path lands blind on the fix's drift: the agent's retries end in a climb to the safe
+    height, and on the autopilot's own landing the daemon's guard takes the vehicle at the loss
+    and does the same; on RTK fixed both land on the pad."""
+    sc = SCENARIOS["ir-below3-cautious"]
+    fly = run_trial if path == "agent" else run_autopilot_trial
+    aborted = fly(sc, seed=1000, gnss_fix="3d")
+    assert not aborted.landed and aborted.path == "aborted-climb", aborted
+    fixed = fly(sc, seed=1000, gnss_fix="rtk_fixed")
+    assert fixed.landed and fixed.path in ("precision", "autopilot"), fixed
+    assert fixed.error_m < 0.08, fixed
+
+
 def test_the_autopilot_paths_ekf_drifts_with_the_agent_paths_gnss():
     """Both landing paths fly the same world: the simulated autopilot's receiver (`CopterGnss`)
     gives the agent path's GNSS error (`GnssError`), draw for draw from the same generator, with

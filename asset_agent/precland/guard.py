@@ -1,0 +1,91 @@
+"""The rule that keeps the autopilot's own descent from landing blind on a poor fix.
+
+In mode `landing_target` the autopilot lands by itself on our LANDING_TARGETs. Its target lost,
+it goes on descending on its last estimate (ArduPilot: for PLND_TIMEOUT, then retries that need
+a rangefinder, then lands vertically) — blind, on the GNSS's drift: on a 3D fix 6.5 cm/√s, the
+marker failing below 3 m landed 11.4 / 24.1 cm off. `LossGuard` is that rule as a pure step,
+driven by the daemon (takeover.py, over MAVLink) and by the evaluation's autopilot path alike:
+
+- while the autopilot lands it watches: the companion sequence (sequence.py) is stepped on the
+  agent's estimate, the pad "seen" while measured within `fusion.hold_s` (the agent sends
+  LANDING_TARGETs as long);
+- the pad lost above the final stretch (`retry.blind_max_height_unfixed_m`) on a fix short of RTK
+  fixed: "take" the vehicle (GUIDED) and fly the sequence's cautious retry (pause, climb back
+  above where the pad was last measured); in view again: "land" (LAND again, the autopilot
+  descends on the LANDING_TARGETs); the retries used up: the sequence's abort (climb to the safe
+  height), and "hold" once there — the landing is abandoned ("aborted-climb");
+- on RTK fixed, or in the final stretch, the autopilot lands as it would.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from asset_agent.precland.config import PrecisionLandingConfig
+from asset_agent.precland.control import VelocitySetpoint
+from asset_agent.precland.kalman import FIX_RTK_FIXED, Estimate
+from asset_agent.precland.pipeline import VehicleState
+from asset_agent.precland.sequence import LandingSequence
+
+TAKE_STATES = ("pause", "climb", "abort")  # the sequence would not descend: nor may the autopilot
+
+
+@dataclass(frozen=True)
+class GuardAction:
+    """What to do now: "watch" (the autopilot lands), "take" (switch to GUIDED, then fly
+    `setpoint`), "fly" (`setpoint`), "land" (hand LAND back), "hold" (abandoned, at the safe
+    height) or "landed"."""
+
+    kind: str
+    setpoint: VelocitySetpoint | None = None
+
+
+class LossGuard:
+    """One landing's guard; feed it `step()` at a steady rate once the pad has been measured."""
+
+    def __init__(self, config: PrecisionLandingConfig) -> None:
+        self.config = config
+        search = config.search.model_copy(update={"acquire_s": 0.0})
+        self.sequence = LandingSequence(config.control, config.retry, search, config.camera)
+        self.flying = False  # the agent holds the vehicle
+        self.losses: list[float] = []  # heights above touchdown it took the vehicle at
+        self._updates = 0
+        self._last_fresh: float | None = None
+
+    @property
+    def aborted(self) -> bool:
+        """The retries used up: climbing to the safe height, or holding there."""
+        return self.sequence.state == "abort"
+
+    @property
+    def held(self) -> bool:
+        """Abandoned and holding at the safe height: the landing is over."""
+        return self.flying and self.sequence.holding_safe
+
+    def step(self, now: float, updates: int, est: Estimate, state: VehicleState) -> GuardAction:
+        """`updates`: the agent's filter's measurement count (a new one: the pad measured)."""
+        fresh = updates > self._updates
+        self._updates = updates
+        if fresh:
+            self._last_fresh = now
+        if self._last_fresh is None:
+            return GuardAction("watch")  # not measured yet: nothing to guard
+        seen = now - self._last_fresh <= self.config.fusion.hold_s
+        cmd = self.sequence.follow(now, seen, est, state, fresh)
+        if cmd.state == "landed":
+            return GuardAction("landed")
+        if self.flying:
+            if self.sequence.holding_safe:
+                return GuardAction("hold", cmd.setpoint)
+            if cmd.state in TAKE_STATES:
+                return GuardAction("fly", cmd.setpoint)
+            self.flying = False  # in view again (recentre, approach): the autopilot lands
+            return GuardAction("land")
+        above = float(est.rel_ned[2]) - self.config.control.touchdown_height
+        rtk = state.gnss_fix is not None and state.gnss_fix >= FIX_RTK_FIXED
+        limit = self.config.retry.blind_max_height_unfixed_m
+        if cmd.state in TAKE_STATES and not rtk and limit is not None and above > limit:
+            self.flying = True
+            self.losses.append(round(above, 2))
+            return GuardAction("take", cmd.setpoint)
+        return GuardAction("watch")

@@ -1,0 +1,80 @@
+"""The guard on the autopilot's own descent (guard.py): a pad lost too high on a fix short of RTK
+fixed is flown by the agent's retry, then abandoned; on RTK fixed or in the final stretch the
+autopilot lands. The same guard runs in the daemon (test_precland_takeover.py, over MAVLink)."""
+
+from __future__ import annotations
+
+import pytest
+
+from asset_agent.precland.config import PrecisionLandingConfig, RetryConfig
+from asset_agent.precland.guard import LossGuard
+from asset_agent.precland.kalman import FIX_3D, FIX_RTK_FIXED, FIX_RTK_FLOAT, Estimate
+from asset_agent.precland.pipeline import VehicleState
+
+CFG = PrecisionLandingConfig(retry=RetryConfig(pause_s=1.0, max_attempts=1))
+TOUCHDOWN = CFG.control.touchdown_height
+
+
+class Flight:
+    """Feeds a guard: the pad straight below at `height`, measured or not."""
+
+    def __init__(self, fix: int | None, cfg: PrecisionLandingConfig = CFG) -> None:
+        self.guard = LossGuard(cfg)
+        self.fix = fix
+        self.updates = 0
+        self.t = 0.0
+
+    def step(self, height: float, measured: bool, dt: float = 0.1) -> str:
+        self.t += dt
+        self.updates += measured
+        est = Estimate((0.0, 0.0, height), 0.01, None, 0.1)
+        state = VehicleState(self.t, (0.0, 0.0, -height), (0.0, 0.0, 0.0), None, self.fix)
+        act = self.guard.step(self.t, self.updates, est, state)
+        assert (act.setpoint is None) == (act.kind in ("watch", "land", "landed"))
+        return act.kind
+
+    def lose(self, height: float) -> str:
+        """Unmeasured for the fusion's hold and a little more: the first action after it."""
+        kinds = {self.step(height, False) for _ in range(int(CFG.fusion.hold_s / 0.1) + 2)}
+        return "take" if "take" in kinds else kinds.pop()
+
+
+@pytest.mark.parametrize("fix", [FIX_RTK_FLOAT, FIX_3D, None])
+def test_a_pad_lost_high_without_rtk_fixed_is_retried_then_abandoned(fix):
+    f = Flight(fix)
+    assert f.step(3.2, False) == "watch"  # never measured: nothing to guard yet
+    assert f.step(3.0, True) == "watch"  # the autopilot lands on our LANDING_TARGETs
+    assert f.lose(2.8) == "take" and f.guard.losses == [round(2.8 - TOUCHDOWN, 2)]
+    # the pause (hover), then the climb back above the sighting: the one retry
+    assert all(f.step(2.8, False) == "fly" for _ in range(12))
+    assert f.guard.sequence.state == "climb" and f.guard.sequence.attempts == 1
+    assert f.step(3.5, True) == "land"  # in view again: LAND again
+    assert f.step(3.4, True) == "watch"
+    assert f.lose(2.7) == "take"  # the retry used up: the abort's climb
+    assert f.guard.aborted and len(f.guard.losses) == 2
+    assert f.step(8.0, False) == "fly"
+    assert f.step(CFG.search.abort_height_m, True) == "hold"  # seen or not: abandoned
+
+
+@pytest.mark.parametrize("fix", [FIX_RTK_FLOAT, FIX_3D])
+def test_a_pad_lost_in_the_final_stretch_is_left_to_the_autopilot(fix):
+    f = Flight(fix)
+    f.step(1.0, True)
+    low = TOUCHDOWN + CFG.retry.blind_max_height_unfixed_m - 0.05
+    assert f.lose(low) == "watch" and f.guard.losses == []
+    assert f.step(TOUCHDOWN, False) == "landed"
+
+
+def test_on_rtk_fixed_the_autopilot_lands_whatever_the_height():
+    f = Flight(FIX_RTK_FIXED)
+    f.step(3.0, True)
+    assert f.lose(2.8) == "watch" and all(f.step(h, False) == "watch" for h in (2.0, 1.0))
+    assert f.step(TOUCHDOWN, False) == "landed" and f.guard.losses == []
+
+
+def test_the_thesis_rule_leaves_every_loss_to_the_autopilot():
+    thesis = CFG.model_copy(update={"retry": CFG.retry.model_copy(
+        update={"blind_max_height_unfixed_m": None})})  # fmt: skip
+    f = Flight(FIX_3D, thesis)
+    f.step(3.0, True)
+    assert f.lose(2.8) == "watch" and f.guard.losses == []
