@@ -11,6 +11,7 @@ from dataclasses import replace
 
 import pytest
 
+from asset_agent.precland.config import RetryConfig
 from sim.vehicle.habits import profile
 from tests.conftest import Tenant
 from tests.e2e.harness import FINAL, platform
@@ -141,6 +142,44 @@ async def test_the_autopilots_own_precision_landing_fed_our_detections_lands_on_
         # the autopilot's estimator took the detections and steered: it found and kept the target
         assert copter.plnd.was_acquired and copter.plnd.accepted > 20, seen
         assert copter.plnd.rejected == 0, seen
+
+
+async def test_a_pad_lost_below_3_m_on_a_plain_fix_is_abandoned_not_landed_blind(
+    live_server, tenant: Tenant, tmp_path
+):
+    """Issue 19's hard case on the GNSS it was written against: every precision source fails
+    below 3 m (injected through the server) and the base's corrections stop reaching the UAV (a
+    plain 3D fix: its position drifts decimetres in the seconds of a blind descent). The UAV is
+    not landed blind: the daemon takes it from the autopilot's LAND at the loss, retries, then
+    climbs to its safe height and holds; the run fails at once with an alert, the base open."""
+    async with platform(
+        live_server.url, tenant, tmp_path, speed=SPEED, seed=SEED, habits=PLND, precland={}
+    ) as p:
+        copter, lander = p.copter, p.agent.lander
+        assert lander is not None
+        for source in ("marker", "ir"):
+            done = await _command(p, "precland_fault", {"source": source, "below_m": 3.0})
+            assert done["status"] == "succeeded", done
+        run_id = await p.start_run()
+        await p.wait_state(run_id, ("flying",), 60)
+        copter.gnss.correction = lambda now, valid: None  # the RTCM never arrives: a plain fix
+        await eventually(lambda: p.agent.autopilot.state.fix_type == 3, 30, "a plain 3D fix")
+        await p.wait_state(run_id, ("landing",), 90)
+        body = await p.wait_state(run_id, FINAL, 240)
+        seen = f"{lander.stats}, losses {lander.takeover and lander.takeover.losses}"
+        assert body["state"] == "failed" and body["cause"] == "landing_aborted", (
+            body["reason"],
+            body["timeline"],
+            seen,
+        )
+        assert body["alert"] and "land it by hand" in body["reason"]
+        # taken from LAND at the loss, its retries flown (climbing back into view above 3 m,
+        # LAND again), then abandoned at the safe height
+        took = lander.takeover
+        assert took is not None and took.loss_guard is not None and took.losses, seen
+        assert took.loss_guard.sequence.attempts == RetryConfig().max_attempts, seen
+        assert copter.armed and copter.dyn.state.altitude > 10, seen
+        assert p.world.base.pad_mass_g == 0 and p.world.base.can_vehicle_leave()
 
 
 async def test_unreachable_sensors_leave_the_landing_to_gnss(live_server, tenant: Tenant, tmp_path):
