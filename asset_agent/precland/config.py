@@ -192,7 +192,15 @@ class ControlConfig(_Model):
     max_climb: float = 1.0
     slow_height: float = 0.5  # the slow final stretch, above touchdown
     slow_descent: float = 0.1
+    # inside the cone, descend at least this fast (m/s; kp_z x a alone slows to nothing near
+    # the seat: the last 10 cm took 3 s, gusts swung the vehicle 7 cm off meanwhile and the
+    # hand-over landed it there — fused-wind8 seed 1012 8.2 cm, thesis-field seed 1009 6.5 cm)
+    final_descent_floor: float = Field(default=0.1, ge=0.0)
     final_inside_cone_only: bool = True  # in the final stretch, hold altitude outside the cone
+    # and this close to touchdown climb back instead (at slow_descent), no hand-over until
+    # inside: holding there, the descent's momentum sank the vehicle onto the seat off-centre
+    # (thesis-field seed 1012, 7.2 cm)
+    back_off_height: float = Field(default=0.05, ge=0.0)
     max_heading_error_deg: float = 5.0
     kp_yaw: float = 1.0
     max_yaw_rate: float = 0.8

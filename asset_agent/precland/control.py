@@ -134,15 +134,16 @@ def cone_setpoint(
     yaw_rate = 0.0
     if err is not None:
         yaw_rate = max(-cfg.max_yaw_rate, min(cfg.max_yaw_rate, cfg.kp_yaw * err))
-    if a <= cfg.land_margin:
+    off = held_off_centre(n, e, a, cfg)
+    if a <= cfg.land_margin and not off:
         return VelocitySetpoint(0.0, 0.0, cfg.slow_descent, 0.0, land=True)
     allowed = allowed_pos_error(a, cfg)
     if err is not None and abs(err) > math.radians(cfg.max_heading_error_deg):
         vd = 0.0
     elif math.hypot(n, e) <= allowed:
-        vd = cfg.kp_z * a  # setpoint on the pad: altitude 0
-    elif held_off_centre(n, e, a, cfg):
-        vd = 0.0  # never finish the slow final stretch off-centre: wait to be inside the cone
+        vd = max(cfg.kp_z * a, cfg.final_descent_floor)  # setpoint on the pad: altitude 0
+    elif off:  # never finish the slow final stretch off-centre: wait to be inside the cone,
+        vd = 0.0 if a >= cfg.back_off_height else -cfg.slow_descent  # backing off the seat
     else:
         vd = cfg.kp_z * min(allowed, a)  # setpoint a - AllowedPosError(a)
     vd = min(vd, cfg.max_descent)

@@ -182,7 +182,11 @@ class LandingSequence:
         self._last_t = now
         if self.state == "landed":
             return Command("landed", VelocitySetpoint(0, 0, 0, land=True), self.attempts)
-        if a <= self.control.touchdown_height + self.control.land_margin and self.state != "abort":
+        low = a <= self.control.touchdown_height + self.control.land_margin
+        off = self.state == "approach" and held_off_centre(
+            float(rel_ned[0]), float(rel_ned[1]), a - self.control.touchdown_height, self.control
+        )
+        if low and self.state != "abort" and not off:
             self._fire("touchdown", now)
             return Command(
                 self.state,

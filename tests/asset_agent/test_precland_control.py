@@ -79,6 +79,39 @@ def test_slow_final_half_metre_and_touchdown():
     )
 
 
+def test_inside_the_cone_the_last_centimetres_are_descended_at_a_steady_speed():
+    """kp_z x a alone slows to nothing near the seat (the last 10 cm took 3 s, long enough for a
+    gust to swing the vehicle out of the cone just above the hand-over): inside the cone the
+    descent keeps `final_descent_floor`; outside it still waits."""
+    low = C.touchdown_height + 0.05
+    near = cone_setpoint((0.0, 0.0, low), 0.0, 0.0, C)
+    assert near.vd == pytest.approx(C.final_descent_floor) and near.vd > C.kp_z * 0.05
+    assert cone_setpoint((0.1, 0.0, low), 0.0, 0.0, C).vd <= 0.0  # outside: no descent
+    former = C.model_copy(update={"final_descent_floor": 0.0})
+    assert cone_setpoint((0.0, 0.0, low), 0.0, 0.0, former).vd == pytest.approx(C.kp_z * 0.05)
+
+
+def test_off_centre_just_above_the_seat_it_backs_off_and_never_hands_over():
+    """thesis-field seed 1012: 3 cm above the seat a gust swung the vehicle 4-6 cm off; holding
+    height, it sank the last 2 cm on its descent's momentum and the hand-over landed it 7.2 cm
+    off. Outside the cone within `back_off_height` of the seat it climbs back, and the hand-over
+    to the autopilot's landing waits for the cone."""
+    t = C.touchdown_height
+    assert C.back_off_height < C.slow_height
+    held = cone_setpoint((0.06, 0.0, t + 0.1), 0.0, 0.0, C)
+    assert held.vd == 0.0 and not held.land  # higher in the final stretch: wait
+    back = cone_setpoint((0.06, 0.0, t + 0.03), 0.0, 0.0, C)
+    assert back.vd < 0 and back.vn > 0 and not back.land
+    low = cone_setpoint((0.06, 0.0, t + 0.01), 0.0, 0.0, C)
+    assert low.vd < 0 and not low.land  # below the hand-over height, off-centre: no landing
+    assert cone_setpoint((0.01, 0.0, t + 0.01), 0.0, 0.0, C).land  # centred: land
+    seq = LandingSequence(C, RetryConfig(cautious=False))
+    run(seq, 0.0, True, (0.0, 0.0, t + 0.05))
+    cmd = run(seq, 0.1, True, (0.06, 0.0, t + 0.01))
+    assert cmd.state == "approach" and cmd.setpoint.vd < 0 and not cmd.setpoint.land
+    assert run(seq, 0.2, True, (0.01, 0.0, t + 0.01)).state == "landed"
+
+
 def run(seq, t, seen, rel, vehicle=(0.0, 0.0), fix: int | None = FIX_RTK_FIXED):
     return seq.step(t, seen, rel, 0.0, vehicle, 0.0, gnss_fix=fix)
 
