@@ -212,13 +212,17 @@ class Link:
             await self._require_core().connected.wait()
 
     async def flush(self, timeout: float) -> bool:  # noqa: ASYNC109
-        """Wait until the server has acked everything queued; False at the timeout."""
+        """Wait until the server has acked everything queued before the call (what is queued
+        meanwhile — live telemetry goes on — is not waited for: a busy link may never be empty);
+        False at the timeout."""
         core = self._require_core()
         try:
             async with asyncio.timeout(timeout):
-                while len(core.outbox.sync) > 0:
+                target = await core.outbox.last_pos()
+                while True:
                     core.acked.clear()
-                    if len(core.outbox.sync) == 0:
+                    first = await core.outbox.first_pos()
+                    if first == 0 or first > target:
                         break
                     await core.acked.wait()
         except TimeoutError:

@@ -114,6 +114,10 @@ class Outbox(StateFile):
         """The position of the newest entry (0 when empty)."""
         return self._db.execute("SELECT COALESCE(MAX(pos), 0) FROM outbox").fetchone()[0]
 
+    def first_pos(self) -> int:
+        """The position of the oldest entry not yet acked (0 when empty)."""
+        return self._db.execute("SELECT COALESCE(MIN(pos), 0) FROM outbox").fetchone()[0]
+
     # --- the queue ---
 
     def append(

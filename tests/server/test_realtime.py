@@ -96,6 +96,39 @@ async def test_telemetry_is_stored_acked_and_reaches_operators(
         assert [e["name"] for e in events] == ["armed"]
 
 
+async def test_flush_waits_for_what_was_queued_not_for_a_stream_that_never_stops(
+    live_server, tenant: Tenant, tmp_path
+):
+    """A flying UAV queues telemetry all the time, so its outbox is never empty: flush waits
+    until what was queued before it is stored and acked (the e2e link-cut test flushed under
+    load and timed out waiting for an empty outbox)."""
+    cfg = _cfg(tenant.create_asset("uav"))
+    link = Link(live_server.url, cfg.name, cfg.secret, tmp_path / "link.db", seed=1)
+    await link.start()
+    stop = asyncio.Event()
+
+    async def stream() -> None:
+        i = 100
+        while not stop.is_set():
+            await link.send_telemetry(_sample(i))
+            i += 1
+            await asyncio.sleep(0)
+
+    try:
+        await link.wait_connected(15)
+        for i in range(20):
+            await link.send_telemetry(_sample(i))
+        streaming = asyncio.create_task(stream())
+        try:
+            assert await link.flush(15)
+            assert link.stats.acked >= 20 and link.stats.queued > 0  # still streaming
+        finally:
+            stop.set()
+            await streaming
+    finally:
+        await link.stop()
+
+
 async def test_operator_cannot_subscribe_to_another_organisation(
     live_server, tenant: Tenant, api, superuser_email
 ):
