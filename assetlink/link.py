@@ -212,19 +212,15 @@ class Link:
             await self._require_core().connected.wait()
 
     async def flush(self, timeout: float) -> bool:  # noqa: ASYNC109
-        """Wait until the server has acked everything queued before the call (what is queued
-        meanwhile — live telemetry goes on — is not waited for: a busy link may never be empty);
-        False at the timeout."""
+        """Wait until the server has acked what was queued before the call; False at the timeout."""
         core = self._require_core()
         try:
             async with asyncio.timeout(timeout):
                 target = await core.outbox.last_pos()
-                while True:
-                    core.acked.clear()
-                    first = await core.outbox.first_pos()
-                    if first == 0 or first > target:
-                        break
+                core.acked.clear()
+                while 0 < await core.outbox.first_pos() <= target:
                     await core.acked.wait()
+                    core.acked.clear()
         except TimeoutError:
             return False
         return True

@@ -142,7 +142,8 @@ async def test_a_pad_lost_at_3_m_on_rtk_fixed_is_landed_by_the_autopilot(
         await eventually(lambda: autopilot.state.fix_type == 6, 15, "RTK fixed")
         await take_off_and_land(autopilot, vehicle)
         await eventually(lambda: not autopilot.state.armed, 60, "landed and disarmed")
-        assert lander.takeover is not None and lander.takeover.losses == []
-        assert lander.takeover.path == "precision"
+        # lost over the pad, the autopilot lands; lost off it (outside the cone: under load the
+        # vehicle lags its targets), the guard flies a retry first — never an abandoned landing
+        assert lander.takeover is not None and lander.takeover.path == "precision"
         assert vehicle.copter.pad_distance() < 0.3
         assert [e.kind for e in lander.drain_events()] == []
