@@ -40,6 +40,7 @@ import numpy as np
 if __name__ == "__main__":  # run as a script from a checkout
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
 
+from asset_agent.autopilot.setpoints import VELOCITY_ONLY
 from asset_agent.precland.config import (
     DetectorConfig,
     FaultConfig,
@@ -343,7 +344,6 @@ CAMERA_HZ = 100 / 3  # a frame every third 10 ms step, with each control step
 # absolute error — the same draws scaled by this.
 RTK_SURVEY_SCALE = 0.02
 RETURNED_M = 0.5  # RTL's return is over this close to home (sim.vehicle.guidance)
-VELOCITY_ONLY = 0b0000_1101_1100_0111  # SET_POSITION_TARGET type_mask: the daemon's (setpoints.py)
 
 
 @dataclass(frozen=True)
@@ -692,17 +692,18 @@ def per_source_errors(heights: Sequence[float], n: int, seed: int = 0) -> list[d
 def _row(trials: list[Trial], name: str) -> dict:
     """A row's figures: errors over the trials that landed (None when none did), and how many
     trials took each landing path."""
-    landed = [tr for tr in trials if tr.landed] or trials
+    landed = [tr for tr in trials if tr.landed]
     errs = [100 * tr.error_m for tr in landed]
     paths: dict[str, int] = {}
     for tr in trials:
         paths[tr.path] = paths.get(tr.path, 0) + 1
-    some = any(tr.landed for tr in trials)
     return {
-        "landed": sum(tr.landed for tr in trials),
-        "mean_cm": round(statistics.fmean(errs), 2) if some else None,
-        "max_cm": round(max(errs), 2) if some else None,
-        "heading_deg": round(statistics.fmean(tr.heading_deg for tr in landed), 2),
+        "landed": len(landed),
+        "mean_cm": round(statistics.fmean(errs), 2) if landed else None,
+        "max_cm": round(max(errs), 2) if landed else None,
+        "heading_deg": round(statistics.fmean(tr.heading_deg for tr in landed), 2)
+        if landed
+        else None,
         "time_s": round(statistics.fmean(tr.time_s for tr in trials), 1),
         "paths": paths,
         "published": PUBLISHED.get(name),
@@ -846,11 +847,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
             touchdowns[label] = trials
             results["scenarios" if path == "agent" else "autopilot"][name] = row
-            mean = "-" if row["mean_cm"] is None else f"{row['mean_cm']:.1f}"
-            worst = "-" if row["max_cm"] is None else f"{row['max_cm']:.1f}"
+            mean, worst, heading = (
+                "-" if row[k] is None else f"{row[k]:.1f}"
+                for k in ("mean_cm", "max_cm", "heading_deg")
+            )
             print(
                 f"{label:<32}{row['landed']:>5}/{len(trials):<2}{mean:>9}"
-                f"{worst:>8}{row['heading_deg']:>7.1f}{row['time_s']:>8.1f}   "
+                f"{worst:>8}{heading:>7}{row['time_s']:>8.1f}   "
                 f"{row['published'] or ''}",
                 flush=True,
             )

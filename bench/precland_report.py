@@ -111,7 +111,7 @@ def _plot_traces(folder: Path, traces: dict[str, Trace], title: str) -> None:
     plt.close(fig)
 
 
-def _cm(value: float | None) -> str:
+def _figure(value: float | None) -> str:
     return "—" if value is None else f"{value}"
 
 
@@ -165,8 +165,8 @@ def write_report(
     for key, path in (("scenarios", "agent steers"), ("autopilot", "autopilot PLND")):
         for name, row in results[key].items():
             lines.append(
-                f"| {name} | {path} | {row['landed']}/{n} | {_cm(row['mean_cm'])} "
-                f"| {_cm(row['max_cm'])} | {row['heading_deg'] if row['landed'] else '—'} | {row['time_s']} "
+                f"| {name} | {path} | {row['landed']}/{n} | {_figure(row['mean_cm'])} "
+                f"| {_figure(row['max_cm'])} | {_figure(row['heading_deg'])} | {row['time_s']} "
                 f"| {row['published'] or ''} "
                 f"| {', '.join(f'{k} {v}' for k, v in row.get('paths', {}).items())} |"
             )

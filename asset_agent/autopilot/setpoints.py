@@ -12,6 +12,10 @@ from protocol.rtcm import MAVLINK_MAX_MESSAGE, mavlink_fragments
 
 log = logging.getLogger(__name__)
 
+# SET_POSITION_TARGET_LOCAL_NED type_mask: a velocity only (ignore position, acceleration, yaw,
+# yaw rate)
+VELOCITY_ONLY = 0b0000_1101_1100_0111
+
 
 def _rtcm(flags: int, length: int, data: bytes, mav: Any) -> None:
     mav.gps_rtcm_data_send(flags, length, data)
@@ -77,14 +81,13 @@ class SetpointsMixin:
     def send_velocity_ned(self, vn: float, ve: float, vd: float) -> None:
         """SET_POSITION_TARGET_LOCAL_NED with a velocity only (GUIDED)."""
         cfg = self.config
-        mask = 0b0000_1101_1100_0111  # ignore position, acceleration, yaw, yaw rate
         self.send(
             lambda mav: mav.set_position_target_local_ned_send(
                 0,
                 cfg.target_system,
                 cfg.target_component,
                 1,
-                mask,
+                VELOCITY_ONLY,
                 0,
                 0,
                 0,

@@ -27,9 +27,9 @@ from dataclasses import dataclass
 
 from asset_agent.precland.config import PrecisionLandingConfig
 from asset_agent.precland.control import VelocitySetpoint, allowed_pos_error
-from asset_agent.precland.kalman import FIX_RTK_FIXED, Estimate
+from asset_agent.precland.kalman import Estimate
 from asset_agent.precland.pipeline import VehicleState
-from asset_agent.precland.sequence import LandingSequence
+from asset_agent.precland.sequence import LandingSequence, blind_allowed
 
 TAKE_STATES = ("pause", "climb", "abort")  # the sequence would not descend: nor may the autopilot
 
@@ -55,11 +55,6 @@ class LossGuard:
         self.losses: list[float] = []  # heights above touchdown it took the vehicle at
         self._updates = 0
         self._last_fresh: float | None = None
-
-    @property
-    def aborted(self) -> bool:
-        """The retries used up: climbing to the safe height, or holding there."""
-        return self.sequence.state == "abort"
 
     @property
     def held(self) -> bool:
@@ -97,12 +92,10 @@ class LossGuard:
         """The autopilot's blind descent from here would land off the contacts: on a fix short
         of RTK fixed from above the final stretch (the fix's drift), or on any fix with the pad
         outside the acceptance cone (LAND descends where the vehicle is, not over the pad)."""
+        if self.config.retry.blind_max_height_unfixed_m is None:  # the thesis: blind anywhere
+            return False
         n, e, height = (float(v) for v in est.rel_ned)
         above = height - self.config.control.touchdown_height
-        rtk = state.gnss_fix is not None and state.gnss_fix >= FIX_RTK_FIXED
-        limit = self.config.retry.blind_max_height_unfixed_m
-        if limit is None:  # the thesis's rule: blind from anywhere
-            return False
-        if not rtk and above > limit:
+        if not blind_allowed(above, state.gnss_fix, self.config.retry):
             return True
         return math.hypot(n, e) > allowed_pos_error(above, self.config.control)

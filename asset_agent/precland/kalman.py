@@ -29,6 +29,11 @@ from asset_agent.precland.geometry import wrap_angle
 FIX_3D, FIX_DGPS, FIX_RTK_FLOAT, FIX_RTK_FIXED = 3, 4, 5, 6
 
 
+def rtk_fixed(fix_type: int | None) -> bool:
+    """The autopilot reports an RTK fixed fix (None: unknown, so not)."""
+    return fix_type is not None and fix_type >= FIX_RTK_FIXED
+
+
 def gnss_drift(config: KalmanConfig, fix_type: int | None) -> float:
     """The GNSS position drift (m per sqrt(s)) the filter assumes for a fix type (None: unknown)."""
     if fix_type is None:

@@ -44,7 +44,7 @@ from asset_agent.precland.control import (
     cone_setpoint,
     held_off_centre,
 )
-from asset_agent.precland.kalman import FIX_RTK_FIXED, Estimate
+from asset_agent.precland.kalman import Estimate, rtk_fixed
 from asset_agent.precland.search import ExpandingSquare
 
 if TYPE_CHECKING:
@@ -94,6 +94,13 @@ class Command:
     state: str
     setpoint: VelocitySetpoint
     attempts: int
+
+
+def blind_allowed(above_touchdown: float, gnss_fix: int | None, retry: RetryConfig) -> bool:
+    """A blind descent to the seat from `above_touchdown` metres: on RTK fixed, or within
+    `blind_max_height_unfixed_m` (None: from anywhere, the thesis's rule)."""
+    limit = retry.blind_max_height_unfixed_m
+    return limit is None or rtk_fixed(gnss_fix) or above_touchdown <= limit
 
 
 def blind_profile(above_touchdown: float, retry: RetryConfig) -> float:
@@ -211,10 +218,10 @@ class LandingSequence:
             self._square = ExpandingSquare.start(now, centre, a, self.camera, self.search)
             self._fire("search", now)
         elif self.state == "search" and self._waypoint(now, vehicle_ned) is None:
-            rtk = gnss_fix is not None and gnss_fix >= FIX_RTK_FIXED and self.search.rtk_fallback
+            rtk = rtk_fixed(gnss_fix) and self.search.rtk_fallback
             self._fallback = rtk
             self._fire("rtk_fallback" if rtk else "abort", now)
-        elif self.state == "fallback" and (gnss_fix is None or gnss_fix < FIX_RTK_FIXED):
+        elif self.state == "fallback" and not rtk_fixed(gnss_fix):
             self._fire("abort", now)  # the fix degraded on the way down: not blind on it
         elif self.state == "pause" and now - self._since >= self.retry.pause_s:
             if self.attempts < self.retry.max_attempts:
@@ -250,11 +257,10 @@ class LandingSequence:
         """`event` (on to the blind descent) when a blind landing is allowed here, else "abort":
         after a sighting, blind only on RTK fixed or within `blind_max_height_unfixed_m` of
         touchdown. A pad never seen (the search off) is the operator's choice: blind."""
-        limit = self.retry.blind_max_height_unfixed_m
-        rtk = gnss_fix is not None and gnss_fix >= FIX_RTK_FIXED
-        if limit is None or rtk or self._last_seen is None:
+        if self._last_seen is None:
             return event
-        return event if a - self.control.touchdown_height <= limit else "abort"
+        above = a - self.control.touchdown_height
+        return event if blind_allowed(above, gnss_fix, self.retry) else "abort"
 
     def _waypoint(self, now: float, vehicle_ned) -> tuple[float, float] | None:
         assert self._square is not None

@@ -250,22 +250,20 @@ class PrecisionLander:
         # the search once per flight, unless it was abandoned; the guard every landing loop
         path = self.takeover.path if self.takeover is not None else None
         path = None if path == "aborted-climb" else path
-        guard = config.retry.blind_max_height_unfixed_m is not None
-        if config.search.enabled or guard:
-            self.takeover = Takeover(
-                self.autopilot, loop.pipeline, config, self.clock.now, self.clock.sleep, path
-            )
-            self._takeover_task = asyncio.create_task(self._search(self.takeover))
+        self.takeover = Takeover(
+            self.autopilot, loop.pipeline, config, self.clock.now, self.clock.sleep, path
+        )
+        self._takeover_task = asyncio.create_task(self._take_over(self.takeover))
         if config.mode == "landing_target" and config.autopilot.xy_dist_max_m is not None:
             self._gate_task = asyncio.create_task(self._descent_gate(config.autopilot))
         self.stats.landings += 1
         log.info("precland: active at %.1f m (pad prior %s)", state.alt_rel or 0.0, prior)
 
-    async def _search(self, takeover: Takeover) -> None:
+    async def _take_over(self, takeover: Takeover) -> None:
         try:
             await takeover.run()
         except Exception:  # a refused mode change: the autopilot keeps its own landing
-            log.exception("precland: the search failed")
+            log.exception("precland: the search or the guard failed")
             return
         if takeover.path == "aborted-climb":
             detail: dict[str, Any] = {"landing_path": "aborted-climb"}

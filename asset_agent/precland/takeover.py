@@ -67,13 +67,11 @@ class Takeover:
         back), then guard the autopilot's descent while it lands on the pad."""
         if self.path is None and self.config.search.enabled:
             await self.search()
-        elif self.path is None:
-            while not self.pipeline.kalman.updates:  # the search off: the guard needs a sighting
-                await self.sleep_fn(PERIOD_S)
-            self.path = "precision"
-        if self.path in ("precision", "search-then-precision", "rtk-fallback"):
-            if self.config.retry.blind_max_height_unfixed_m is not None:
-                await self.guard()
+        if (
+            self.path != "aborted-climb"
+            and self.config.retry.blind_max_height_unfixed_m is not None
+        ):
+            await self.guard()  # it watches from the first sighting on
 
     async def search(self) -> None:
         """Wait for a first measurement; without one, search and fall back."""

@@ -207,6 +207,19 @@ def test_lost_below_3_m_on_a_plain_fix_it_climbs_and_reports_on_rtk_fixed_it_lan
     assert fixed.error_m < 0.08, fixed
 
 
+def test_a_row_with_no_landing_has_no_error_and_no_heading(capsys):
+    """Every trial held aloft (searched in vain on a float fix): the row reports no figures —
+    not the held positions as touchdowns — and the table prints dashes."""
+    argv = ["--trials", "1", "--scenario", "fallback-ir-above3-float", "--path", "agent", "--json"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    row = json.loads(out[-1])["scenarios"]["fallback-ir-above3-float"]
+    assert row["landed"] == 0 and row["paths"] == {"aborted-climb": 1}
+    assert row["mean_cm"] is row["max_cm"] is row["heading_deg"] is None
+    line = next(x for x in out if x.startswith("fallback-ir-above3-float "))
+    assert line.split()[1:5] == ["0/1", "-", "-", "-"], line
+
+
 def test_the_autopilot_paths_ekf_drifts_with_the_agent_paths_gnss():
     """Both landing paths fly the same world: the simulated autopilot's receiver (`CopterGnss`)
     gives the agent path's GNSS error (`GnssError`), draw for draw from the same generator, with

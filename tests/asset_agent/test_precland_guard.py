@@ -52,7 +52,7 @@ def test_a_pad_lost_high_without_rtk_fixed_is_retried_then_abandoned(fix):
     assert f.step(3.5, True) == "land"  # in view again: LAND again
     assert f.step(3.4, True) == "watch"
     assert f.lose(2.7) == "take"  # the retry used up: the abort's climb
-    assert f.guard.aborted and len(f.guard.losses) == 2
+    assert f.guard.sequence.state == "abort" and len(f.guard.losses) == 2
     assert f.step(8.0, False) == "fly"
     assert f.step(CFG.search.abort_height_m, True) == "hold"  # seen or not: abandoned
 
