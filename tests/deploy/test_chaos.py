@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import math
 import re
 import signal
 import sqlite3
@@ -236,7 +237,16 @@ async def test_killing_the_lease_holder_mid_flight_the_run_completes_on_the_othe
                     assert uav_link.stats.dropped == 0
                     # the flight's telemetry rows are complete: every sample the agent queued is
                     # stored, each sequence number once (a replay of the dead replica's unacked
-                    # tail is absorbed by the store's (asset, seq, ts) key)
+                    # tail is absorbed by the store's (asset, seq, ts) key). The agent reports
+                    # telemetry while its autopilot answers (5 Hz): silence the simulated
+                    # autopilot so the count holds still, rather than hoping for a quiet instant
+                    # between two samples (under load there was none in 30 s).
+                    p.copter.faults.mute_until = math.inf
+                    await eventually(
+                        lambda: not p.agent.autopilot.link_up,
+                        30,
+                        "the agent to see its autopilot gone",
+                    )
                     uav_id = p.ids["uav_id"]
 
                     async def all_stored() -> bool:
