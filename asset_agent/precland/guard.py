@@ -9,15 +9,17 @@ driven by the daemon (takeover.py, over MAVLink) and by the evaluation's autopil
 - while the autopilot lands it watches: the companion sequence (sequence.py) is stepped on the
   agent's estimate, the pad "seen" while measured within `fusion.hold_s` (the agent sends
   LANDING_TARGETs as long);
-- the pad lost above the final stretch (`retry.blind_max_height_unfixed_m`) on a fix short of RTK
-  fixed, or on any fix with the pad outside the acceptance cone (LAND would come down where the
+- the pad lost (last measured) above the final stretch (`retry.blind_max_height_unfixed_m`; LAND
+  goes on descending 0.5 m/s through the fusion's hold, so the height it is noticed at would let a
+  loss at 0.9 m through) on a fix short of RTK fixed, or on any fix with the pad outside the acceptance cone (LAND would come down where the
   vehicle is: fused-wind8 seed 1012, held 30 cm up by the descent gate, swung 20 cm off by the
   gusts, lost the pad and landed 15.7 cm off): "take" the vehicle (GUIDED) and fly the
   sequence's cautious retry (pause, climb back above where the pad was last measured); in view
   again: "land" (LAND again, the autopilot descends on the LANDING_TARGETs); the retries used
   up: on RTK fixed the sequence's blind descent is handed to LAND, otherwise its abort (climb to
   the safe height) and "hold" once there — the landing is abandoned ("aborted-climb");
-- otherwise (RTK fixed and over the pad, or the final stretch) the autopilot lands as it would.
+- otherwise (RTK fixed and over the pad, or the final stretch) the autopilot lands as it would,
+  and the loss spends none of the sequence's retries (its pause starts over at each step).
 """
 
 from __future__ import annotations
@@ -86,6 +88,7 @@ class LossGuard:
                 round(float(est.rel_ned[2]) - self.config.control.touchdown_height, 2)
             )
             return GuardAction("take", cmd.setpoint)
+        self.sequence.restart_pause(now)  # the autopilot lands through this loss: no retry spent
         return GuardAction("watch")
 
     def _blind_unsafe(self, est: Estimate, state: VehicleState) -> bool:
@@ -95,7 +98,9 @@ class LossGuard:
         if self.config.retry.blind_max_height_unfixed_m is None:  # the thesis: blind anywhere
             return False
         n, e, height = (float(v) for v in est.rel_ned)
-        above = height - self.config.control.touchdown_height
-        if not blind_allowed(above, state.gnss_fix, self.config.retry):
+        touchdown = self.config.control.touchdown_height
+        # LAND went on descending through the fusion's hold: blind since the last measurement
+        lost_at = max(height, self.sequence.last_measured_height or height) - touchdown
+        if not blind_allowed(lost_at, state.gnss_fix, self.config.retry):
             return True
-        return math.hypot(n, e) > allowed_pos_error(above, self.config.control)
+        return math.hypot(n, e) > allowed_pos_error(height - touchdown, self.config.control)

@@ -155,10 +155,22 @@ class LandingSequence:
         return "search-then-precision" if self._square is not None else "precision"
 
     @property
+    def last_measured_height(self) -> float | None:
+        """The height above the pad at the last fresh sighting (None: never seen): where a blind
+        descent after a loss began, whatever the vehicle did while the fusion held the pad."""
+        return None if self._last_seen is None else self._last_seen[2]
+
+    @property
     def holding_safe(self) -> bool:
         """Aborted and up at the safe height: the landing is over, for the operator to decide."""
         tol = self.retry.reached_tolerance_m
         return self.state == "abort" and self._height >= self.search.abort_height_m - tol
+
+    def restart_pause(self, now: float) -> None:
+        """A loss somebody else flies through (the autopilot's own landing, guard.py): its pause
+        starts over, so it spends no retry and the retries stay for the losses this sequence flies."""
+        if self.state == "pause":
+            self._since = now
 
     def _fire(self, event: str, now: float) -> None:
         nxt = TRANSITIONS.get((self.state, event))
@@ -255,11 +267,11 @@ class LandingSequence:
 
     def _blind_or_abort(self, event: str, a: float, gnss_fix: int | None) -> str:
         """`event` (on to the blind descent) when a blind landing is allowed here, else "abort":
-        after a sighting, blind only on RTK fixed or within `blind_max_height_unfixed_m` of
-        touchdown. A pad never seen (the search off) is the operator's choice: blind."""
+        after a sighting, blind only on RTK fixed or when the pad was last measured within
+        `blind_max_height_unfixed_m` of touchdown. A pad never seen (the search off) is the operator's choice: blind."""
         if self._last_seen is None:
             return event
-        above = a - self.control.touchdown_height
+        above = max(a, self._last_seen[2]) - self.control.touchdown_height
         return event if blind_allowed(above, gnss_fix, self.retry) else "abort"
 
     def _waypoint(self, now: float, vehicle_ned) -> tuple[float, float] | None:

@@ -302,6 +302,13 @@ def test_without_rtk_fixed_the_last_loss_aborts_instead_of_landing_blind(fix):
     run(low, 0.0, True, (0.0, 0.0, C.touchdown_height + 0.45), (0.0, 0.0), fix)
     lost = run(low, 0.1, False, (0.0, 0.0, C.touchdown_height + 0.45), (0.0, 0.0), fix)
     assert lost.state == "blind" and lost.setpoint.vd > 0
+    # last measured above the final stretch, noticed inside it (the fusion held the pad while the
+    # vehicle went on down): the blind descent began up there, so it aborts
+    late = LandingSequence(C, RetryConfig(cautious=False))
+    run(late, 0.0, True, (0.0, 0.0, C.touchdown_height + 0.9), (0.0, 0.0), fix)
+    assert run(late, 1.0, False, (0.0, 0.0, C.touchdown_height + 0.4), (0.0, 0.0), fix).state == (
+        "abort"
+    )
     # the thesis's rule, blind from any height on any fix, is one setting away
     thesis = LandingSequence(C, RetryConfig(cautious=False, blind_max_height_unfixed_m=None))
     run(thesis, 0.0, True, (0.0, 0.0, 3.0), (0.0, 0.0), fix)

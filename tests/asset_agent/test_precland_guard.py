@@ -58,10 +58,26 @@ def test_a_pad_lost_high_without_rtk_fixed_is_retried_then_abandoned(fix):
 
 
 @pytest.mark.parametrize("fix", [FIX_RTK_FLOAT, FIX_3D])
+def test_the_height_that_counts_is_where_the_pad_was_lost_not_where_the_loss_is_noticed(fix):
+    """LAND goes on descending (0.5 m/s) through the fusion's hold: a pad lost 0.9 m above
+    touchdown is noticed below the final stretch, but the blind descent began at 0.9 m."""
+    f = Flight(fix)
+    lost = TOUCHDOWN + 0.9
+    f.step(lost, True)
+    kinds, height = [], lost
+    while height > TOUCHDOWN + 0.3:
+        height -= 0.05  # 0.5 m/s at 10 Hz
+        kinds.append(f.step(height, False))
+    assert "take" in kinds, kinds
+    assert f.guard.sequence.state in ("pause", "climb")
+
+
+@pytest.mark.parametrize("fix", [FIX_RTK_FLOAT, FIX_3D])
 def test_a_pad_lost_in_the_final_stretch_is_left_to_the_autopilot(fix):
     f = Flight(fix)
-    f.step(1.0, True)
     low = TOUCHDOWN + CFG.retry.blind_max_height_unfixed_m - 0.05
+    f.step(1.0, True)
+    f.step(low, True)  # last measured in the final stretch
     assert f.lose(low) == "watch" and f.guard.losses == []
     assert f.step(TOUCHDOWN, False) == "landed"
 
@@ -85,6 +101,22 @@ def test_on_rtk_fixed_a_pad_lost_off_centre_is_flown_back_not_landed_beside():
     g = Flight(FIX_RTK_FIXED)
     g.step(low, True, north=0.02)
     assert g.lose(low, north=0.02) == "watch" and g.guard.losses == []
+
+
+def test_losses_the_autopilot_lands_through_spend_no_retry():
+    """On RTK fixed over the pad the guard watches a loss; its sequence must not count it as a
+    retry, or a later loss off the cone finds none left and LAND comes down beside the pad."""
+    f = Flight(FIX_RTK_FIXED)
+    f.step(3.0, True)
+    for height in (2.8, 2.4, 2.0):  # three long losses over the pad, each far past the pause
+        assert all(f.step(height, False) == "watch" for _ in range(40))
+        assert f.step(height, True) == "watch"
+    assert f.guard.sequence.attempts == 0
+    low = TOUCHDOWN + 0.3
+    f.step(low, True, north=0.2)
+    assert f.lose(low, north=0.2) == "take"  # the retry is still there to fly
+    assert all(f.step(low, False, north=0.2) == "fly" for _ in range(12))
+    assert f.guard.sequence.state == "climb"
 
 
 def test_the_thesis_rule_leaves_every_loss_to_the_autopilot():
