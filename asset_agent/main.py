@@ -31,7 +31,7 @@ from asset_agent.handlers import Handlers
 from asset_agent.metrics import families
 from asset_agent.precland.supervisor import PrecisionLander, stream_rates
 from asset_agent.uav_telemetry import to_event, to_telemetry
-from asset_agent.video.publish import video_publisher
+from asset_agent.video.publish import VideoPublisher, video_publisher
 from assetlink.configfile import AssetConfig, ConfigFileError
 from assetlink.configfile_cli import PasswordSourceError, load_config
 from assetlink.link import Link
@@ -122,6 +122,13 @@ async def _report(agent: Agent, stop: asyncio.Event) -> None:
         agent.autopilot.unsubscribe(notes)
 
 
+async def _publish(agent: Agent, video: VideoPublisher) -> None:
+    """The camera to the server once the link has a session: a WHIP offer without its bearer
+    token would only be refused (401) and retried."""
+    await agent.link.wait_connected()
+    await video.run()
+
+
 async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
     """Run until `stop` is set (or forever)."""
     stop = stop or asyncio.Event()
@@ -139,7 +146,9 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
     video = video_publisher(
         agent.config, agent.link.server_url, agent.asset.asset_id, lambda: agent.link.token
     )
-    publishing = asyncio.create_task(video.run(), name="video") if video is not None else None
+    publishing = None
+    if video is not None:
+        publishing = asyncio.create_task(_publish(agent, video), name="video")
     metrics = None
     if agent.config.metrics.port:
         collector = DaemonMetrics(agent.link, lambda: families(agent.autopilot))

@@ -52,3 +52,6 @@ def test_demo_runs_a_scheduled_survey_to_completion(tmp_path):
     # the landing as the agent measured it, and the base's scale
     assert "cm from the pad's centre" in out and "the base weighed it" in out, out
     assert "stopping every process" in out
+    # the agent publishes its camera once its link has a session, not before (a 401 and a retry)
+    agent_log = (tmp_path / "demo" / "agent.log").read_text()
+    assert "video publish failed" not in agent_log, agent_log
