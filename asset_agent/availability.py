@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from asset_agent.autopilot.state import FIX_NAMES, UavState
@@ -59,6 +60,11 @@ def check_availability(
     return [c for c in conditions(state, limits) if not c.ok]
 
 
-def report(state: UavState, limits: AvailabilityLimits | None = None) -> AvailabilityReport:
-    """The `check_availability` answer: every condition, the failed ones repeated."""
-    return AvailabilityReport.of(conditions(state, limits))
+def report(
+    state: UavState,
+    limits: AvailabilityLimits | None = None,
+    more: Sequence[AvailabilityCondition] = (),
+) -> AvailabilityReport:
+    """The `check_availability` answer: every condition (the state's, then `more`, those the
+    daemon had to ask the autopilot for), the failed ones repeated."""
+    return AvailabilityReport.of([*conditions(state, limits), *more])

@@ -9,7 +9,7 @@ one in RTL mode; so it answers what is already happening instead.
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable, Sequence
 from typing import Any
 
 from asset_agent.autopilot import (
@@ -24,6 +24,7 @@ from assetlink.dispatch import CommandRequest, Handler, result
 from protocol.messages import CommandProgress, CommandResultPayload
 from protocol.vocabulary import (
     Abort,
+    AvailabilityCondition,
     CheckAvailability,
     CommandParams,
     Land,
@@ -45,9 +46,16 @@ def _failure(err: AutopilotError) -> CommandResultPayload:
 class Handlers:
     """Every command the agent answers, bound to one autopilot."""
 
-    def __init__(self, autopilot: Autopilot, limits: AvailabilityLimits) -> None:
+    def __init__(
+        self,
+        autopilot: Autopilot,
+        limits: AvailabilityLimits,
+        checks: Sequence[Callable[[], Awaitable[AvailabilityCondition]]] = (),
+    ) -> None:
+        """`checks`: conditions read from the autopilot at each availability check."""
         self.autopilot = autopilot
         self.limits = limits
+        self.checks = tuple(checks)
         self._mission: tuple[int, ...] = ()  # command of each item last uploaded and verified
 
     def table(self) -> dict[type[CommandParams], Handler]:
@@ -67,7 +75,8 @@ class Handlers:
         self, request: CommandRequest[CheckAvailability]
     ) -> CommandResultPayload:
         """Battery, GNSS fix, autopilot health and link, disarmed: every failed condition listed."""
-        answer = report(self.autopilot.state, self.limits)
+        more = [await check() for check in self.checks]
+        answer = report(self.autopilot.state, self.limits, more)
         data = answer.model_dump(mode="json")
         if not answer.available:
             return result("failed", answer.summary, data)

@@ -29,6 +29,7 @@ from asset_agent.config import AgentConfig
 from asset_agent.events import EventLimits, EventTracker
 from asset_agent.handlers import Handlers
 from asset_agent.metrics import families
+from asset_agent.precland.readiness import PrecisionLandingCheck
 from asset_agent.precland.supervisor import PrecisionLander, stream_rates
 from asset_agent.uav_telemetry import to_event, to_telemetry
 from asset_agent.video.publish import VideoPublisher, video_publisher
@@ -78,7 +79,9 @@ def setup(config: AgentConfig, asset: AssetConfig) -> Agent:
     limits = AvailabilityLimits(
         config.availability.min_battery_pct, config.availability.min_fix_type
     )
-    for command, handler in Handlers(autopilot, limits).table().items():
+    landing_target = precland and config.precland.mode == "landing_target"
+    checks = [PrecisionLandingCheck(autopilot)] if landing_target else []
+    for command, handler in Handlers(autopilot, limits, checks).table().items():
         link.on_command(command.name, handler)
 
     def inject_rtcm(frame: bytes) -> None:

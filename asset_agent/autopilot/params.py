@@ -1,4 +1,5 @@
-"""Autopilot parameters: PARAM_SET answered by PARAM_VALUE, with retries, and the fence's set.
+"""Autopilot parameters: PARAM_SET and PARAM_REQUEST_READ answered by PARAM_VALUE, with retries,
+and the fence's set.
 
 ArduPilot answers a PARAM_SET with the parameter's PARAM_VALUE (the value it now holds); a
 name it does not know gets no answer at all. So a set is retried on silence and fails with
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from asset_agent.autopilot.errors import AutopilotError
@@ -31,29 +33,49 @@ def _name(param_id: Any) -> str:
     return raw.rstrip("\x00")
 
 
-async def set_param(
-    ap: Autopilot, name: str, value: float, param_type: int = MAV_PARAM_TYPE_REAL32
-) -> float:
-    """Set one parameter and return the value the autopilot reports it now holds."""
+async def _answer(ap: Autopilot, name: str, send: Callable[[Any], None]) -> float:
+    """Send (`send(mav)`) until the autopilot answers `name`'s PARAM_VALUE; its value."""
     ap.require_link()
     cfg = ap.config
-    wire = name.encode("ascii")
     with ap.tap(lambda m: m.get_type() == "PARAM_VALUE" and _name(m.param_id) == name) as q:
         for _ in range(cfg.command_retries + 1):
-            ap.send(
-                lambda mav: mav.param_set_send(
-                    cfg.target_system, cfg.target_component, wire, float(value), param_type
-                )
-            )
+            ap.send(send)
             try:
                 msg = await asyncio.wait_for(q.get(), cfg.command_timeout_s)
             except TimeoutError:
                 continue
-            got = float(msg.param_value)
-            if not math.isclose(got, float(value), rel_tol=1e-6, abs_tol=1e-6):
-                raise ParamError(f"{name}: set to {value}, the autopilot holds {got}")
-            return got
+            return float(msg.param_value)
     raise ParamError(f"{name}: no PARAM_VALUE after {cfg.command_retries + 1} tries")
+
+
+async def read_param(ap: Autopilot, name: str) -> float:
+    """The value the autopilot holds (PARAM_REQUEST_READ by name); ParamError when it answers
+    nothing: no such parameter (or, on ArduPilot, one hidden by its group's disabled switch)."""
+    cfg = ap.config
+    wire = name.encode("ascii")
+    return await _answer(
+        ap,
+        name,
+        lambda mav: mav.param_request_read_send(cfg.target_system, cfg.target_component, wire, -1),
+    )
+
+
+async def set_param(
+    ap: Autopilot, name: str, value: float, param_type: int = MAV_PARAM_TYPE_REAL32
+) -> float:
+    """Set one parameter and return the value the autopilot reports it now holds."""
+    cfg = ap.config
+    wire = name.encode("ascii")
+    got = await _answer(
+        ap,
+        name,
+        lambda mav: mav.param_set_send(
+            cfg.target_system, cfg.target_component, wire, float(value), param_type
+        ),
+    )
+    if not math.isclose(got, float(value), rel_tol=1e-6, abs_tol=1e-6):
+        raise ParamError(f"{name}: set to {value}, the autopilot holds {got}")
+    return got
 
 
 async def enable_fence(ap: Autopilot, alt_max_m: float | None) -> dict[str, float]:

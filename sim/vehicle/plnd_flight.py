@@ -7,7 +7,7 @@ from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 from sim.vehicle.constants import CRITICAL, INFO, WARNING
-from sim.vehicle.fence import PARAM_REAL32
+from sim.vehicle.fence import PARAM_INT8, PARAM_REAL32
 from sim.vehicle.plnd import ArduPrecLand
 from sim.vehicle.precland import TargetReading
 
@@ -17,7 +17,11 @@ if TYPE_CHECKING:
 
 
 def landing_target(c: Copter, msg: Any) -> None:
-    """LANDING_TARGET: to ArduPilot's precision landing (habit) or the simulator's own."""
+    """LANDING_TARGET: to ArduPilot's precision landing (habit) or the simulator's own, while
+    PLND_ENABLED and PLND_TYPE say companion computer; otherwise ignored, as ArduPilot has no
+    companion backend to hand it to (there a change of either needs a reboot; here it is at once)."""
+    if not plnd_takes_landing_target(c):
+        return
     reading = TargetReading(
         msg.frame, msg.angle_x, msg.angle_y, msg.distance, msg.x, msg.y, msg.z,
         bool(msg.position_valid),
@@ -34,9 +38,19 @@ def landing_target(c: Copter, msg: Any) -> None:
         c.text(WARNING, reason, throttle_s=2.0)
 
 
+def plnd_takes_landing_target(c: Copter) -> bool:
+    """PLND_ENABLED = 1 and PLND_TYPE = 1 (companion computer over MAVLink)."""
+    return c.fence.params["PLND_ENABLED"][0] == 1 and c.fence.params["PLND_TYPE"][0] == 1
+
+
 def precision_landing_habit(c: Copter) -> ArduPrecLand | None:
     """ArduPilot's PLND when the habit has it, with PLND_XY_DIST_MAX in the autopilot's
-    parameters for a companion to set (ArduPilot 4; 3.x had none)."""
+    parameters for a companion to set (ArduPilot 4; 3.x had none). Every habit has
+    PLND_ENABLED and PLND_TYPE, set up for a companion computer (1, 1; ArduPilot's defaults are
+    0, 0): a UAV configured for precision landing. (ArduPilot hides the group's other
+    parameters while PLND_ENABLED is 0; not modelled.)"""
+    c.fence.params["PLND_ENABLED"] = (1.0, PARAM_INT8)
+    c.fence.params["PLND_TYPE"] = (1.0, PARAM_INT8)
     params = c.config.habits.plnd
     if params is None:
         return None

@@ -15,6 +15,7 @@ from assetlink.configfile import decrypt_config
 from sim.vehicle.server import run_vehicle
 from sim.vehicle.standalone import OpenPad
 from tests.conftest import Tenant
+from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
@@ -159,3 +160,63 @@ async def test_agent_reports_telemetry_and_answers_commands(live_server, tenant:
         finally:
             stop.set()
             await asyncio.wait_for(task, 20)
+
+
+async def test_the_availability_check_reads_the_autopilots_precision_landing_switches(
+    live_server, tenant: Tenant, tmp_path
+):
+    """In mode landing_target the autopilot's own precision landing must take our
+    LANDING_TARGETs: ArduPilot does only with PLND_ENABLED = 1 and PLND_TYPE = 1 (both default to
+    0, and then it drops them and lands on GNSS). The agent's availability check reads both and
+    says what to set; an autopilot without them (no ArduPilot PLND) is not held back."""
+    asset = tenant.create_asset("uav")
+    cfg = decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
+    async with run_vehicle(speed=10.0, seed=3, base=OpenPad()) as vehicle:
+        config = AgentConfig.model_validate(
+            {
+                "server": {"state_file": str(tmp_path / "agent.db")},
+                "autopilot": {
+                    "url": f"udpout:127.0.0.1:{vehicle.udp_port}",
+                    "link_timeout_s": 2.0,
+                    "command_timeout_s": 0.3,
+                },
+                "precland": {"enabled": True},  # mode landing_target, the default
+            }
+        )
+        agent = setup(config, cfg)
+        stop = asyncio.Event()
+        task = asyncio.create_task(run(agent, stop))
+        copter = vehicle.copter
+
+        async def plnd_condition(c: httpx.AsyncClient) -> tuple[dict, dict]:
+            check = await _command(c, tenant, asset["id"], "check_availability")
+            assert check["status"] in ("succeeded", "failed"), check
+            (cond,) = [x for x in check["result"]["conditions"] if x["name"] == "precision_landing"]
+            return check, cond
+
+        try:
+            async with httpx.AsyncClient(base_url=live_server.url) as c:
+                await eventually(lambda: agent.link.connected, 30, "the agent connected")
+                await eventually(lambda: agent.autopilot.link_up, 30, "the autopilot's HEARTBEAT")
+                check, cond = await plnd_condition(c)
+                assert cond["ok"] and "PLND_TYPE = 1" in cond["message"], cond["message"]
+                assert cond not in check["result"]["failed"]
+
+                assert copter.set_param("PLND_ENABLED", 0)  # ArduPilot's default
+                check, cond = await plnd_condition(c)
+                assert not cond["ok"] and check["status"] == "failed", check
+                assert cond in check["result"]["failed"]
+                assert "PLND_ENABLED = 0" in cond["message"] in check["reason"]
+                assert 'mode = "companion"' in cond["message"]
+
+                assert copter.set_param("PLND_ENABLED", 1) and copter.set_param("PLND_TYPE", 2)
+                check, cond = await plnd_condition(c)
+                assert not cond["ok"] and "PLND_TYPE = 2" in cond["message"], cond
+
+                for name in ("PLND_ENABLED", "PLND_TYPE"):  # an autopilot without ArduPilot PLND
+                    del copter.fence.params[name]
+                check, cond = await plnd_condition(c)
+                assert cond["ok"] and "has no PLND_ENABLED" in cond["message"], cond
+        finally:
+            stop.set()
+            await task

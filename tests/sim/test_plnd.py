@@ -190,11 +190,16 @@ def _rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
     )
 
 
-def land_fed_the_truth(seed: int, habits: Habits, feed_targets: bool = True) -> float:
+def land_fed_the_truth(
+    seed: int, habits: Habits, feed_targets: bool = True, params: dict[str, float] | None = None
+) -> float:
     """LAND from 10 m and 1.5 m off the pad, LANDING_TARGET at 15 Hz from the true relative
-    position in BODY_FRD (both the angle and the position fields); the touchdown error (m)."""
+    position in BODY_FRD (both the angle and the position fields); the touchdown error (m).
+    `params`: the autopilot's parameters as configured before the flight."""
     gnss = GnssParams(sigma_3d_m=0.01)  # as RTK: plain LAND then lands where it started
     c = Copter(OpenPad(), CopterConfig(seed=seed, habits=habits, gnss=gnss))
+    for name, value in (params or {}).items():
+        assert c.set_param(name, value), name
     yaw = seed * 1.3
     start = (1.5 * math.cos(yaw + 1), 1.5 * math.sin(yaw + 1), -10.0)
     c.dyn.state = replace(c.dyn.state, position=start, landed=False, yaw=yaw)
@@ -225,3 +230,12 @@ def test_land_fed_the_true_target_lands_on_it_as_ardupilot_4_7_did() -> None:
     errors = [land_fed_the_truth(seed, profile("ardupilot-4")) for seed in range(5)]
     assert max(errors) < 0.05, errors
     assert land_fed_the_truth(0, profile("ardupilot-4"), feed_targets=False) > 1.4
+
+
+def test_with_plnd_off_or_another_sensor_type_landing_targets_are_dropped() -> None:
+    """ArduPilot gives a LANDING_TARGET to precision landing only with PLND_ENABLED = 1 and
+    PLND_TYPE = 1 (companion computer; both default to 0): otherwise LAND lands as if unfed."""
+    for habits in (profile("ardupilot-4"), Habits()):
+        assert land_fed_the_truth(0, habits) < 0.05
+        assert land_fed_the_truth(0, habits, params={"PLND_ENABLED": 0}) > 1.4
+        assert land_fed_the_truth(0, habits, params={"PLND_TYPE": 2}) > 1.4  # IRLock

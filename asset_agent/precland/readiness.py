@@ -1,0 +1,82 @@
+"""Will the autopilot land on our LANDING_TARGETs? A condition of the UAV's availability check.
+
+In mode `landing_target` the autopilot's own precision landing flies the descent. ArduPilot
+hands a LANDING_TARGET to it only when PLND_ENABLED is 1 and PLND_TYPE is 1 (companion computer);
+both default to 0, and then the message is dropped without a word and LAND comes down on GNSS
+alone, wherever that puts it (153 cm off from a 1.5 m offset, ../shared/notes). So before a run
+the agent reads both: switched off, or another sensor type, the UAV is not available and the
+message says what to set. An autopilot that answers no PLND_ENABLED has no ArduPilot precision
+landing (PX4 has its own landing-target estimator, other parameters): nothing to check, said so.
+"""
+
+from __future__ import annotations
+
+import logging
+
+from asset_agent.autopilot.client import Autopilot
+from asset_agent.autopilot.errors import AutopilotError
+from asset_agent.autopilot.params import read_param
+from protocol.vocabulary import AvailabilityCondition
+
+log = logging.getLogger(__name__)
+
+NAME = "precision_landing"
+PLND_TYPE_COMPANION = 1  # AC_PrecLand::Type::COMPANION (MAVLink LANDING_TARGET)
+FIX = (
+    "set PLND_ENABLED = 1 and PLND_TYPE = 1 on the autopilot (and reboot it), or [precland] mode = "
+    '"companion" to steer the descent from the agent'
+)
+
+
+class PrecisionLandingCheck:
+    """Reads PLND_ENABLED and PLND_TYPE at each check. An autopilot that answered neither once is
+    not asked again (its parameters do not appear without new firmware, and each silent read
+    costs the adapter's retries)."""
+
+    def __init__(self, autopilot: Autopilot) -> None:
+        self.autopilot = autopilot
+        self.absent = False
+
+    async def __call__(self) -> AvailabilityCondition:
+        if self.absent:
+            return _no_plnd()
+        try:
+            enabled = await read_param(self.autopilot, "PLND_ENABLED")
+        except AutopilotError as exc:
+            if not self.autopilot.link_up:  # no link: autopilot_link says so; ask next time
+                return AvailabilityCondition(
+                    name=NAME, ok=False, message=f"PLND_ENABLED not read: {exc}"
+                )
+            log.info("precland: the autopilot answers no PLND_ENABLED: %s", exc)
+            self.absent = True
+            return _no_plnd()
+        if enabled != 1:
+            return AvailabilityCondition(
+                name=NAME, ok=False, value=f"PLND_ENABLED={enabled:g}", limit="PLND_ENABLED=1",
+                message="the autopilot's precision landing is off (PLND_ENABLED = "
+                f"{enabled:g}): it would drop our LANDING_TARGETs and land on GNSS alone; {FIX}",
+            )  # fmt: skip
+        try:
+            kind = await read_param(self.autopilot, "PLND_TYPE")
+        except AutopilotError as exc:
+            return AvailabilityCondition(
+                name=NAME, ok=False, message=f"PLND_TYPE not read: {exc}; {FIX}"
+            )
+        if kind != PLND_TYPE_COMPANION:
+            return AvailabilityCondition(
+                name=NAME, ok=False, value=f"PLND_TYPE={kind:g}", limit="PLND_TYPE=1",
+                message=f"the autopilot's precision landing reads another sensor (PLND_TYPE = "
+                f"{kind:g}), not our LANDING_TARGETs; {FIX}",
+            )  # fmt: skip
+        return AvailabilityCondition(
+            name=NAME, ok=True, value="PLND_ENABLED=1 PLND_TYPE=1", limit="PLND_TYPE=1",
+            message="the autopilot lands on our LANDING_TARGETs (PLND_ENABLED = 1, PLND_TYPE = 1)",
+        )  # fmt: skip
+
+
+def _no_plnd() -> AvailabilityCondition:
+    return AvailabilityCondition(
+        name=NAME, ok=True, value=None, limit=None,
+        message="the autopilot has no PLND_ENABLED (not ArduPilot's precision landing): "
+        "LANDING_TARGETs go to its own estimator, not checked here",
+    )  # fmt: skip
