@@ -29,9 +29,10 @@ FIX = (
 
 
 class PrecisionLandingCheck:
-    """Reads PLND_ENABLED and PLND_TYPE at each check. An autopilot that answered neither once is
-    not asked again (its parameters do not appear without new firmware, and each silent read
-    costs the adapter's retries)."""
+    """Reads PLND_ENABLED and PLND_TYPE at each check. An autopilot that once answered no
+    PLND_ENABLED is not asked again (the parameter does not appear without new firmware, and each
+    silent read costs the adapter's retries). ArduPilot builds its PLND backend from PLND_TYPE at
+    boot (AC_PrecLand::init), hence "and reboot it"."""
 
     def __init__(self, autopilot: Autopilot) -> None:
         self.autopilot = autopilot
