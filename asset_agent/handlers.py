@@ -74,7 +74,8 @@ class Handlers:
     async def check_availability(
         self, request: CommandRequest[CheckAvailability]
     ) -> CommandResultPayload:
-        """Battery, GNSS fix, autopilot health and link, disarmed: every failed condition listed."""
+        """Battery, GNSS fix, autopilot health and link, disarmed, and `checks` (read from the
+        autopilot now): every failed condition listed."""
         more = [await check() for check in self.checks]
         answer = report(self.autopilot.state, self.limits, more)
         data = answer.model_dump(mode="json")

@@ -11,13 +11,14 @@ driven by the daemon (takeover.py, over MAVLink) and by the evaluation's autopil
   LANDING_TARGETs as long);
 - the pad lost (last measured) above the final stretch (`retry.blind_max_height_unfixed_m`; LAND
   goes on descending 0.5 m/s through the fusion's hold, so the height it is noticed at would let a
-  loss at 0.9 m through) on a fix short of RTK fixed, or on any fix with the pad outside the acceptance cone (LAND would come down where the
-  vehicle is: fused-wind8 seed 1012, held 30 cm up by the descent gate, swung 20 cm off by the
-  gusts, lost the pad and landed 15.7 cm off): "take" the vehicle (GUIDED) and fly the
-  sequence's cautious retry (pause, climb back above where the pad was last measured); in view
-  again: "land" (LAND again, the autopilot descends on the LANDING_TARGETs); the retries used
-  up: on RTK fixed the sequence's blind descent is handed to LAND, otherwise its abort (climb to
-  the safe height) and "hold" once there — the landing is abandoned ("aborted-climb");
+  loss at 0.9 m through) on a fix short of RTK fixed, or on any fix with the pad outside the
+  acceptance cone (LAND would come down where the vehicle is: fused-wind8 seed 1012, held 30 cm
+  up by the descent gate, swung 20 cm off by the gusts, lost the pad and landed 15.7 cm off):
+  "take" the vehicle (GUIDED) and fly the sequence's cautious retry (pause, climb back above
+  where the pad was last measured); in view again: "land" (LAND again, the autopilot descends on
+  the LANDING_TARGETs); the retries used up: on RTK fixed the sequence's blind descent is handed
+  to LAND, otherwise its abort (climb to the safe height) and "hold" once there — the landing is
+  abandoned ("aborted-climb");
 - otherwise (RTK fixed and over the pad, or the final stretch) the autopilot lands as it would,
   and the loss spends none of the sequence's retries (its pause starts over at each step).
 """
@@ -98,9 +99,8 @@ class LossGuard:
         if self.config.retry.blind_max_height_unfixed_m is None:  # the thesis: blind anywhere
             return False
         n, e, height = (float(v) for v in est.rel_ned)
-        touchdown = self.config.control.touchdown_height
         # LAND went on descending through the fusion's hold: blind since the last measurement
-        lost_at = max(height, self.sequence.last_measured_height or height) - touchdown
-        if not blind_allowed(lost_at, state.gnss_fix, self.config.retry):
+        if not blind_allowed(self.sequence.blind_from(height), state.gnss_fix, self.config.retry):
             return True
-        return math.hypot(n, e) > allowed_pos_error(height - touchdown, self.config.control)
+        above = height - self.config.control.touchdown_height
+        return math.hypot(n, e) > allowed_pos_error(above, self.config.control)

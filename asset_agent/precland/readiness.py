@@ -22,7 +22,7 @@ log = logging.getLogger(__name__)
 
 NAME = "precision_landing"
 PLND_TYPE_COMPANION = 1  # AC_PrecLand::Type::COMPANION (MAVLink LANDING_TARGET)
-FIX = (
+WHAT_TO_SET = (
     "set PLND_ENABLED = 1 and PLND_TYPE = 1 on the autopilot (and reboot it), or [precland] mode = "
     '"companion" to steer the descent from the agent'
 )
@@ -55,19 +55,20 @@ class PrecisionLandingCheck:
             return AvailabilityCondition(
                 name=NAME, ok=False, value=f"PLND_ENABLED={enabled:g}", limit="PLND_ENABLED=1",
                 message="the autopilot's precision landing is off (PLND_ENABLED = "
-                f"{enabled:g}): it would drop our LANDING_TARGETs and land on GNSS alone; {FIX}",
+                f"{enabled:g}): it would drop our LANDING_TARGETs and land on GNSS alone; "
+                + WHAT_TO_SET,
             )  # fmt: skip
         try:
             kind = await read_param(self.autopilot, "PLND_TYPE")
         except AutopilotError as exc:
             return AvailabilityCondition(
-                name=NAME, ok=False, message=f"PLND_TYPE not read: {exc}; {FIX}"
+                name=NAME, ok=False, message=f"PLND_TYPE not read: {exc}; {WHAT_TO_SET}"
             )
         if kind != PLND_TYPE_COMPANION:
             return AvailabilityCondition(
                 name=NAME, ok=False, value=f"PLND_TYPE={kind:g}", limit="PLND_TYPE=1",
                 message=f"the autopilot's precision landing reads another sensor (PLND_TYPE = "
-                f"{kind:g}), not our LANDING_TARGETs; {FIX}",
+                f"{kind:g}), not our LANDING_TARGETs; {WHAT_TO_SET}",
             )  # fmt: skip
         return AvailabilityCondition(
             name=NAME, ok=True, value="PLND_ENABLED=1 PLND_TYPE=1", limit="PLND_TYPE=1",

@@ -154,11 +154,11 @@ class LandingSequence:
             return "gnss"
         return "search-then-precision" if self._square is not None else "precision"
 
-    @property
-    def last_measured_height(self) -> float | None:
-        """The height above the pad at the last fresh sighting (None: never seen): where a blind
-        descent after a loss began, whatever the vehicle did while the fusion held the pad."""
-        return None if self._last_seen is None else self._last_seen[2]
+    def blind_from(self, a: float) -> float:
+        """Height above touchdown a blind descent began at, the vehicle `a` above the pad now:
+        where the pad was last measured, whatever the vehicle did while the fusion held it."""
+        seen = a if self._last_seen is None else max(a, self._last_seen[2])
+        return seen - self.control.touchdown_height
 
     @property
     def holding_safe(self) -> bool:
@@ -168,7 +168,7 @@ class LandingSequence:
 
     def restart_pause(self, now: float) -> None:
         """A loss somebody else flies through (the autopilot's own landing, guard.py): its pause
-        starts over, so it spends no retry and the retries stay for the losses this sequence flies."""
+        starts over, so it spends no retry; the retries stay for the losses this sequence flies."""
         if self.state == "pause":
             self._since = now
 
@@ -268,11 +268,11 @@ class LandingSequence:
     def _blind_or_abort(self, event: str, a: float, gnss_fix: int | None) -> str:
         """`event` (on to the blind descent) when a blind landing is allowed here, else "abort":
         after a sighting, blind only on RTK fixed or when the pad was last measured within
-        `blind_max_height_unfixed_m` of touchdown. A pad never seen (the search off) is the operator's choice: blind."""
+        `blind_max_height_unfixed_m` of touchdown. A pad never seen (the search off) is the
+        operator's choice: blind."""
         if self._last_seen is None:
             return event
-        above = max(a, self._last_seen[2]) - self.control.touchdown_height
-        return event if blind_allowed(above, gnss_fix, self.retry) else "abort"
+        return event if blind_allowed(self.blind_from(a), gnss_fix, self.retry) else "abort"
 
     def _waypoint(self, now: float, vehicle_ned) -> tuple[float, float] | None:
         assert self._square is not None

@@ -19,8 +19,8 @@ if TYPE_CHECKING:
 def landing_target(c: Copter, msg: Any) -> None:
     """LANDING_TARGET: to ArduPilot's precision landing (habit) or the simulator's own, while
     PLND_ENABLED and PLND_TYPE say companion computer; otherwise ignored, as ArduPilot has no
-    companion backend to hand it to (there a change of either needs a reboot; here it is at once)."""
-    if not plnd_takes_landing_target(c):
+    companion backend to hand it to (there a change of either needs a reboot; here at once)."""
+    if not _takes_landing_target(c):
         return
     reading = TargetReading(
         msg.frame, msg.angle_x, msg.angle_y, msg.distance, msg.x, msg.y, msg.z,
@@ -38,9 +38,11 @@ def landing_target(c: Copter, msg: Any) -> None:
         c.text(WARNING, reason, throttle_s=2.0)
 
 
-def plnd_takes_landing_target(c: Copter) -> bool:
-    """PLND_ENABLED = 1 and PLND_TYPE = 1 (companion computer over MAVLink)."""
-    return c.fence.params["PLND_ENABLED"][0] == 1 and c.fence.params["PLND_TYPE"][0] == 1
+def _takes_landing_target(c: Copter) -> bool:
+    """PLND_ENABLED = 1 and PLND_TYPE = 1 (companion computer over MAVLink); an autopilot without
+    the parameters has no precision landing to take it."""
+    params = c.fence.params
+    return all(params.get(name, (0.0,))[0] == 1 for name in ("PLND_ENABLED", "PLND_TYPE"))
 
 
 def precision_landing_habit(c: Copter) -> ArduPrecLand | None:
