@@ -53,6 +53,39 @@ async def _frames_over(video, n: int) -> bool:  # type: ignore[no-untyped-def]
     return int(await video.get_attribute("data-frames") or 0) > n
 
 
+def _ms(iso: str) -> int:
+    """Unix milliseconds of an ISO time, truncated as the browser's Date.parse does."""
+    at = datetime.fromisoformat(iso.replace("Z", "+00:00"))
+    return (at - datetime(1970, 1, 1, tzinfo=UTC)) // timedelta(milliseconds=1)
+
+
+class _RecordedFrames:
+    """The recorded frame the replay shows at a moment: the last segment begun by 0.5 s after
+    it, and in it the last frame received by then (or its first), as (segment, seconds)."""
+
+    def __init__(self, api, headers: dict[str, str], uav_id: str) -> None:  # type: ignore[no-untyped-def]
+        self.api, self.headers, self.uav_id = api, headers, uav_id
+        self.times: dict[str, list[dict[str, int]]] = {}
+
+    async def __call__(self, moment: float) -> tuple[str, float]:
+        rows = (
+            await self.api.get(
+                f"/api/v1/assets/{self.uav_id}/video/recordings?limit=1000", headers=self.headers
+            )
+        ).json()
+        segment = max(
+            (r for r in rows if _ms(r["started_at"]) <= moment + 500),
+            key=lambda r: _ms(r["started_at"]),
+        )
+        if segment["name"] not in self.times:
+            text = (await self.api.get(segment["times_url"], headers=self.headers)).text
+            lines = text.split("\n")  # a segment being written may end in a half-written line
+            self.times[segment["name"]] = [json.loads(x) for x in lines[:-1]]
+        times = self.times[segment["name"]]
+        frame = ([x for x in times if x["t"] <= moment] or times[:1])[-1]
+        return segment["name"], frame["pts"] / 90000
+
+
 async def _numbers(locator) -> float | None:  # type: ignore[no-untyped-def]
     text = await locator.inner_text()
     m = re.search(r"-?\d+(?:\.\d+)?", text)
@@ -240,22 +273,32 @@ async def _operator_story(live_server, tenant: Tenant, tmp_path, browser) -> Non
         # with the token and played from a blob: URL at that moment's frame
         # (the first moment the run's step is `flying`: where it falls in the run depends on how
         # fast this machine flew the 3x square, so the slider walks there rather than guessing)
+        # Where the page must put the video is read from the server's recording (the segment and
+        # its frame-times file); a moment on a segment's first frame is at 0 s, so the walk goes on
+        # through `flying` to a frame inside a segment, one that shows the page positioned it.
         steps = 2 * int(float(await slider.get_attribute("max") or 0)) + 1
         await slider.press("Home")
         step = page.get_by_role("definition").first
+        frame_at = _RecordedFrames(p.api, tenant.h(), uav["id"])
+        created = _ms((await p.run_state(run_url.rsplit("/", 1)[-1]))["created_at"])
+        segment, at_s = "", 0.0
         for _ in range(steps):
             if "flying" in (await step.text_content() or ""):
-                break
+                moment = created + float(await slider.input_value()) * 1000
+                segment, at_s = await frame_at(moment)
+                if at_s >= 0.5:
+                    break
             await slider.press("ArrowRight")
         await expect(step).to_contain_text("flying")
+        assert at_s >= 0.5, (segment, at_s)
         recorded = page.get_by_role("status", name="Recorded video state")
-        await expect(recorded).to_contain_text(re.compile(r"^recorded · \d{8}T"), timeout=30_000)
+        await expect(recorded).to_have_text(f"recorded · {segment}", timeout=30_000)
         playback = page.get_by_label("Recorded video of the run")
         media = "v => [v.readyState, v.seeking, v.currentTime, v.duration, v.error && v.error.code]"
 
         async def playable() -> bool:
             ready, seeking, at, _, _ = await playback.evaluate(media)
-            return ready >= 2 and not seeking and at > 0
+            return ready >= 2 and not seeking and abs(at - at_s) < 0.02
 
         try:
             await eventually(playable, 30, "the recorded frame of that moment")
