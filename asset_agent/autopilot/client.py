@@ -78,6 +78,7 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
         self.extended_state_seen = False  # EXTENDED_SYS_STATE arrived: no landed-state inference
         self._booted_at: float | None = None  # monotonic time the autopilot booted
         self.reboots = 0
+        self.unanswered_params: dict[str, int] = {}  # name -> `reboots` when it went unanswered
         self.round_trips = RoundTrips()  # COMMAND_LONG sent -> its final COMMAND_ACK
 
     # --- life cycle ------------------------------------------------------------------------

@@ -28,6 +28,18 @@ class ParamError(AutopilotError):
     """A parameter could not be set (no answer, or the autopilot kept another value)."""
 
 
+class NoSuchParam(ParamError):
+    """No PARAM_VALUE for the name, every try, the link up all the while: the autopilot has no
+    such parameter (or hides it behind its group's disabled switch)."""
+
+
+def unanswered(ap: Autopilot, name: str) -> bool:
+    """`name` went unanswered (NoSuchParam) since the autopilot last booted. A parameter appears
+    only with new firmware or a switch that takes a reboot, so a caller for whom its absence is
+    harmless need not spend every retry on it again until then."""
+    return ap.unanswered_params.get(name) == ap.reboots
+
+
 def _name(param_id: Any) -> str:
     raw = param_id.decode("ascii", "replace") if isinstance(param_id, bytes) else str(param_id)
     return raw.rstrip("\x00")
@@ -45,7 +57,11 @@ async def _answer(ap: Autopilot, name: str, send: Callable[[Any], None]) -> floa
             except TimeoutError:
                 continue
             return float(msg.param_value)
-    raise ParamError(f"{name}: no PARAM_VALUE after {cfg.command_retries + 1} tries")
+    tries = f"{name}: no PARAM_VALUE after {cfg.command_retries + 1} tries"
+    if not ap.link_up:
+        raise ParamError(f"{tries}, the link lost")
+    ap.unanswered_params[name] = ap.reboots
+    raise NoSuchParam(tries)
 
 
 async def read_param(ap: Autopilot, name: str) -> float:

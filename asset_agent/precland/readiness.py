@@ -15,7 +15,7 @@ import logging
 
 from asset_agent.autopilot.client import Autopilot
 from asset_agent.autopilot.errors import AutopilotError
-from asset_agent.autopilot.params import read_param
+from asset_agent.autopilot.params import NoSuchParam, read_param, unanswered
 from protocol.vocabulary import AvailabilityCondition
 
 log = logging.getLogger(__name__)
@@ -29,28 +29,26 @@ WHAT_TO_SET = (
 
 
 class PrecisionLandingCheck:
-    """Reads PLND_ENABLED and PLND_TYPE at each check. An autopilot that once answered no
-    PLND_ENABLED is not asked again (the parameter does not appear without new firmware, and each
-    silent read costs the adapter's retries). ArduPilot builds its PLND backend from PLND_TYPE at
-    boot (AC_PrecLand::init), hence "and reboot it"."""
+    """Reads PLND_ENABLED and PLND_TYPE at each check. An autopilot that answered no
+    PLND_ENABLED is not asked again until it reboots (`unanswered`: each silent read costs the
+    adapter's retries). ArduPilot builds its PLND backend from PLND_TYPE at boot
+    (AC_PrecLand::init), hence "and reboot it"."""
 
     def __init__(self, autopilot: Autopilot) -> None:
         self.autopilot = autopilot
-        self.absent = False
 
     async def __call__(self) -> AvailabilityCondition:
-        if self.absent:
+        if unanswered(self.autopilot, "PLND_ENABLED"):
             return _no_plnd()
         try:
             enabled = await read_param(self.autopilot, "PLND_ENABLED")
-        except AutopilotError as exc:
-            if not self.autopilot.link_up:  # no link: autopilot_link says so; ask next time
-                return AvailabilityCondition(
-                    name=NAME, ok=False, message=f"PLND_ENABLED not read: {exc}"
-                )
+        except NoSuchParam as exc:
             log.info("precland: the autopilot answers no PLND_ENABLED: %s", exc)
-            self.absent = True
             return _no_plnd()
+        except AutopilotError as exc:  # no link: autopilot_link says so; ask next time
+            return AvailabilityCondition(
+                name=NAME, ok=False, message=f"PLND_ENABLED not read: {exc}"
+            )
         if enabled != 1:
             return AvailabilityCondition(
                 name=NAME, ok=False, value=f"PLND_ENABLED={enabled:g}", limit="PLND_ENABLED=1",

@@ -33,7 +33,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from asset_agent.autopilot.errors import AutopilotError
-from asset_agent.autopilot.params import set_param
+from asset_agent.autopilot.params import set_param, unanswered
 from asset_agent.config import PreclandSection
 from asset_agent.events import Event
 from asset_agent.precland.clock import SensorClock
@@ -276,7 +276,11 @@ class PrecisionLander:
 
     async def _descent_gate(self, cfg: AutopilotDescentConfig) -> None:
         """PLND_XY_DIST_MAX for this landing: the configured radius (LAND descends only while
-        its target estimate is that close), relaxed once the landing is `relax_after_s` old."""
+        its target estimate is that close), relaxed once the landing is `relax_after_s` old.
+        An autopilot without the parameter (ArduPilot 3.x, PX4) is asked once per boot."""
+        if unanswered(self.autopilot, "PLND_XY_DIST_MAX"):
+            log.info("precland: the autopilot has no PLND_XY_DIST_MAX, LAND descends as it will")
+            return
         start = self.clock.now()
         try:
             for wait in (0.0, cfg.relax_after_s):

@@ -12,6 +12,7 @@ from collections.abc import AsyncIterator
 import pytest
 
 from asset_agent.autopilot import Autopilot, CommandRejected, items_from_dicts
+from asset_agent.autopilot.params import NoSuchParam, read_param, set_param, unanswered
 from asset_agent.events import EventTracker
 from sim.vehicle.copter import CopterConfig
 from sim.vehicle.geo import GeoOrigin
@@ -82,6 +83,23 @@ async def test_a_reboot_brings_the_streams_back_without_restarting_the_agent(nam
             await asyncio.wait_for(q.get(), 5)
         assert ap.reboots == 1 and ap.streams.negotiations == negotiations + 1
         print(f"{name}: position streaming again {time.monotonic() - since:.2f} s after the reboot")
+
+
+async def test_a_parameter_the_autopilot_lacks_is_remembered_until_it_reboots():
+    """ArduPilot 3.7 has no PLND_XY_DIST_MAX: unanswered, it is marked so (its callers skip it)
+    until the autopilot reboots, when new firmware may have brought it."""
+    async with flying("ardupilot-3.7", reboot_s=1.0) as (vehicle, ap):
+        await eventually(lambda: complete(ap), 5, "complete telemetry")
+        assert not unanswered(ap, "PLND_XY_DIST_MAX")
+        with pytest.raises(NoSuchParam, match="no PARAM_VALUE"):
+            await set_param(ap, "PLND_XY_DIST_MAX", 0.05)
+        assert unanswered(ap, "PLND_XY_DIST_MAX")
+        assert await read_param(ap, "PLND_ENABLED") == 1  # one it has: answered, not marked
+        assert not unanswered(ap, "PLND_ENABLED")
+        await ap.reboot()
+        await eventually(lambda: ap.reboots == 1, 10, "the agent saw the reboot")
+        assert vehicle.copter.boots == 1
+        assert not unanswered(ap, "PLND_XY_DIST_MAX")
 
 
 async def test_a_reboot_is_refused_while_armed():

@@ -6,6 +6,7 @@ the simulated autopilot (ArduPilot 4 with PLND, which applies the parameter to i
 from __future__ import annotations
 
 import contextlib
+import logging
 from collections.abc import AsyncIterator
 from dataclasses import replace
 
@@ -71,7 +72,8 @@ async def test_a_landing_sets_plnd_xy_dist_max_over_mavlink_and_relaxes_it_late(
 @pytest.mark.slow  # ~10 s: the parameter set is retried on silence before the daemon gives up
 async def test_an_autopilot_without_the_parameter_still_lands(caplog) -> None:
     """ArduPilot 3.7 (no PLND_XY_DIST_MAX: it answers nothing): the daemon asks, gives up with a
-    warning, and the autopilot lands as before."""
+    warning, and the autopilot lands as before; the next landing does not ask again."""
+    caplog.set_level(logging.INFO, logger="asset_agent.precland.supervisor")
     old = profile("ardupilot-3.7")
     habits = replace(old, streams_at_boot="all", boot_s=0.0)
     gate = AutopilotDescentConfig(xy_dist_max_m=0.05)
@@ -84,3 +86,9 @@ async def test_an_autopilot_without_the_parameter_still_lands(caplog) -> None:
         await eventually(lambda: not ap.state.armed, 90, "landed and disarmed")
         assert daemon.xy_dist_max is None
         assert "PLND_XY_DIST_MAX" not in vehicle.copter.fence.params
+        landings = daemon.stats.landings
+        await take_off_and_land(ap, vehicle)
+        await eventually(lambda: daemon.stats.landings > landings, 30, "the next landing")
+        await eventually(lambda: "has no PLND_XY_DIST_MAX" in caplog.text, 5, "the gate skipped")
+        assert caplog.text.count("PLND_XY_DIST_MAX not set") == 1
+        await eventually(lambda: not ap.state.armed, 90, "landed and disarmed again")
