@@ -82,6 +82,11 @@ def _plot_touchdowns(folder: Path, touchdowns: dict[str, list[Any]]) -> None:
         ax.set_xlabel("east, cm", fontsize=8)
         ax.set_ylabel("north, cm", fontsize=8)
         ax.title.set_fontsize(8)
+    fig.suptitle(
+        f"touchdowns (●) around the pad's centre (+); green: the charging contacts, "
+        f"{100 * CONTACTS_M:g} cm",
+        fontsize=9,
+    )
     fig.tight_layout()
     fig.savefig(folder / "touchdown.png", dpi=90)
     plt.close(fig)
