@@ -28,6 +28,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy.orm.exc import StaleDataError
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.requests import ClientDisconnect
 
 log = logging.getLogger(__name__)
 
@@ -165,6 +166,8 @@ class ErrorResponse(JSONResponse):
         ).encode("utf-8")
 
 
+CLIENT_CLOSED_REQUEST = 499  # nginx's status for a client that hung up before the answer
+
 _STATUS_CODES = {
     400: "bad_request",
     401: "unauthorized",
@@ -232,6 +235,16 @@ def install_error_handlers(app: FastAPI) -> None:
         message = "changed by another request at the same time: read it again and reapply the edit"
         lost = PreconditionFailed if "if-match" in request.headers else EditConflict
         return ErrorResponse(error_body(lost.code, message), status_code=lost.status)
+
+    @app.exception_handler(ClientDisconnect)
+    async def _hung_up(request: Request, _: ClientDisconnect) -> JSONResponse:
+        # the client closed the connection while sending its body (a browser tab closed mid-WHEP
+        # offer): no server error, and nobody reads the answer; 499 as nginx logs it
+        log.info("the client hung up during %s %s", request.method, request.url.path)
+        return ErrorResponse(
+            error_body("client_closed_request", "the client closed the connection mid-request"),
+            status_code=CLIENT_CLOSED_REQUEST,
+        )
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
