@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test test-fast lint bench clean
+.PHONY: run test test-fast lint bench bench-console clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -36,6 +36,10 @@ test-fast: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python bench/telemetry.py
+
+# the operator console's lag in headless Chromium, beside a plain operator socket
+bench-console: $(STAMP)
+	$(BIN)/python bench/console_lag.py
 
 clean:
 	rm -rf $(VENV) var .pytest_cache

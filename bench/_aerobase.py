@@ -21,7 +21,7 @@ import sys
 import time
 import uuid
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -168,6 +168,7 @@ class Fleet:
     names: list[str]
     secrets: list[str]
     viewer_tokens: list[str]
+    viewer_emails: list[str] = field(default_factory=list)  # each with USER_PASSWORD
 
 
 def _ok(r: httpx.Response, expected: int = 200) -> dict:
@@ -197,9 +198,10 @@ async def set_up(
             await api.post("/api/v1/auth/login", json={**login, "organization_id": org["id"]})
         )["access_token"]
         h = {"Authorization": f"Bearer {root}"}
-        tokens = []
+        tokens, emails = [], []
         for k in range(operators):
             email = f"viewer-{k}-{uuid.uuid4().hex[:6]}@bench.test"
+            emails.append(email)
             _ok(
                 await api.post(
                     "/api/v1/users",
@@ -239,7 +241,7 @@ async def set_up(
                         progress(f"registered {registered}/{assets} assets")
 
         await asyncio.gather(*(worker() for _ in range(min(8, assets))))
-        return Fleet(ids, names, secrets, tokens)
+        return Fleet(ids, names, secrets, tokens, emails)
 
 
 def _ws(url: str) -> str:
