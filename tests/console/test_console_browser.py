@@ -155,6 +155,9 @@ async def _operator_story(live_server, tenant: Tenant, tmp_path, browser) -> Non
         size = await video.evaluate("v => [v.videoWidth, v.videoHeight]")
         assert size == [CAMERA["width"], CAMERA["height"]], size
         weight = traffic.total()
+        # one sign-in renders the fleet once: each asset's latest sample asked for once
+        latest = [u for u in traffic.urls if u.endswith("/telemetry/latest")]
+        assert sorted(latest) == sorted(set(latest)) and len(latest) <= 2, latest
         await shot(page, "fleet")
 
         # a mission file with a refused item: every problem is named by item

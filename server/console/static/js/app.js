@@ -31,6 +31,13 @@ function scheduleRenewal() {
   renewTimer = setTimeout(() => renew().then(scheduleRenewal, () => {}), Math.min(wait, 2 ** 31 - 1));
 }
 
+// Show `hash`: a new hash is shown by the hashchange handler, the same one here (showing it
+// from both would boot and render the page twice, every request of it sent twice).
+function go(hash) {
+  if (location.hash === hash) show();
+  else location.hash = hash;
+}
+
 function route() {
   const [name, ...args] = location.hash.replace(/^#\/?/, "").split("/");
   return { name: name || "fleet", args };
@@ -130,8 +137,7 @@ function signInPage() {
       const choice = orgPick.querySelector("select").value;
       if (choice === picking.organization_id) {
         password.value = "";
-        location.hash = "#/fleet";
-        return show();
+        return go("#/fleet");
       }
       organization = choice;
       force = true; // the session just opened is replaced by one in the chosen organisation
@@ -146,8 +152,7 @@ function signInPage() {
       if (!organization && (me.memberships || []).length > 1) return chooseOrganisation(me);
       password.value = "";
       signedOutReason = "";
-      if (!location.hash || location.hash === "#/") location.hash = "#/fleet";
-      show();
+      go(!location.hash || location.hash === "#/" ? "#/fleet" : location.hash);
     } catch (err) {
       if (!(err instanceof ApiError)) throw err;
       if (err.code === "session_active") {
