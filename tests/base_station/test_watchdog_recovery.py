@@ -45,8 +45,14 @@ async def test_a_daemon_restarted_after_a_kill_mid_open_clears_the_latch_and_can
         written = [c.coil for c in base.command_log[before:]]
         assert written == ["FAULT_RESET"], written  # recovery moves nothing by itself
         assert not base.panels.moving and 0.0 < base.panels.position < 1.0
-        assert any(
-            e.kind is EventKind.WATCHDOG_RECOVERED for e in rig.app.coordinator.events.history
+        # the event is recorded once the PLC has answered the write, which clears the latch
+        # first: the PLC's clear may be seen before the daemon has the answer
+        await eventually(
+            lambda: any(
+                e.kind is EventKind.WATCHDOG_RECOVERED for e in rig.app.coordinator.events.history
+            ),
+            5.0,
+            "the recovery recorded as an event",
         )
         closed = await run(rig.station, "close")
         assert closed.status is Status.SUCCEEDED, closed.reason
