@@ -72,7 +72,9 @@ WATCH = """name => {
       }
     }
   };
-  new MutationObserver(read).observe(card, { childList: true, subtree: true, characterData: true });
+  if (window.__observer) window.__observer.disconnect(); // one observer, not one per load
+  window.__observer = new MutationObserver(read);
+  window.__observer.observe(card, { childList: true, subtree: true, characterData: true });
 }"""
 
 
