@@ -23,6 +23,10 @@ generator share one machine, where an operator's browser has its own. The machin
 every load records its CPU pressure (/proc/pressure/cpu); above 10 % the figures say more about
 the machine than about the console, and the report says so. A benchmark
 never fails a build: it exits 0 with the figures, non-zero only when it could not run.
+
+Before the loads, the fleet page's video panels: none of the UAVs publishes video, so each panel
+should settle on "no signal" without opening a viewer session. The benchmark records how long
+after the sign-in every panel has left "starting" and how many WHEP offers the page made.
 """
 
 from __future__ import annotations
@@ -117,6 +121,26 @@ def _browser_cpu() -> float:
         if name in ("chromium", "chrome", "headless_shell"):
             total += process_cpu(int(comm.parent.name)) or 0.0
     return total
+
+
+SETTLED = """() => [...document.querySelectorAll("p.video-state")].map((p) => p.dataset.state || "starting")"""
+
+
+async def _video_settled(page: Any, signed_in: float, within_s: float = 60.0) -> dict[str, Any]:
+    """How long after the sign-in until every UAV card's video panel has left "starting" (the
+    panels of idle UAVs say "no signal"), polled every 0.1 s; and what they say then."""
+    states: list[str] = []
+    while time.perf_counter() - signed_in < within_s:
+        states = await page.evaluate(SETTLED)
+        if states and "starting" not in states:
+            break
+        await asyncio.sleep(0.1)
+    counts = {k: states.count(k) for k in sorted(set(states))}
+    done = bool(states) and "starting" not in states
+    return {
+        "settled_s": round(time.perf_counter() - signed_in, 2) if done else None,
+        "states": counts,
+    }
 
 
 def _index(alt: float) -> int:
@@ -230,12 +254,28 @@ async def bench(args: argparse.Namespace) -> dict[str, Any]:
                 page = await (
                     await browser.new_context(viewport={"width": 1280, "height": 800})
                 ).new_page()
+                offers: list[str] = []
+                page.on(
+                    "request",
+                    lambda r: (
+                        offers.append(r.url)
+                        if r.method == "POST" and r.url.endswith("/video/whep")
+                        else None
+                    ),
+                )
                 await page.goto(server.url + "/")
+                signed_in = time.perf_counter()
                 await _sign_in(page, fleet.viewer_emails[1])
                 await page.get_by_role("heading", name=f"UAV {fleet.names[0]}").wait_for(
                     timeout=60_000
                 )
                 progress(f"the console shows the fleet page ({args.fleet} UAV cards)")
+                video = await _video_settled(page, signed_in)
+                video["whep_offers"] = len(offers)
+                progress(
+                    f"every video panel settled {video['settled_s']} s after the sign-in: "
+                    f"{video['states']}, {len(offers)} WHEP offers (no UAV publishes)"
+                )
                 await asyncio.sleep(5.0)  # its first requests done: then idle, nothing sent
                 idle = (_browser_cpu(), time.perf_counter())
                 await asyncio.sleep(10.0)
@@ -261,6 +301,7 @@ async def bench(args: argparse.Namespace) -> dict[str, Any]:
     return {
         "args": {k: v for k, v in vars(args).items() if k != "json"},
         "idle_browser_cpu_pct": idle_pct,
+        "video_panels": video,
         "loads": {n: _median(rows) for n, rows in runs.items()},
         "runs": runs,
     }
@@ -298,6 +339,12 @@ def report(res: dict[str, Any]) -> str:
         "| UAVs sending | page p50 / p95 ms | shown | socket p50 / p95 ms | page / socket (p50) "
         "| browser / server CPU, % of a core | CPU pressure |",
         "|---|---|---|---|---|---|---|",
+    ]
+    v = res["video_panels"]
+    lines[1:1] = [
+        f"Video panels (no UAV publishes): every one settled {v['settled_s']} s after the "
+        f"sign-in, {v['states']}, {v['whep_offers']} WHEP offers; idle page "
+        f"{res['idle_browser_cpu_pct']} % of a core"
     ]
     for n, row in res["loads"].items():
         busy = row["cpu_pressure_pct"]

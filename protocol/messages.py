@@ -143,6 +143,13 @@ class ErrorPayload(Frozen):
     re_seq: Seq | None = None
 
 
+class VideoStatePayload(Frozen):
+    """Server -> operator: an asset's live video started or stopped (`GET .../video`'s `state`)."""
+
+    asset_id: uuid.UUID
+    state: Literal["live", "offline"]
+
+
 MAX_IDS_PER_MESSAGE = 5000
 AssetIds = Annotated[tuple[uuid.UUID, ...], Field(max_length=MAX_IDS_PER_MESSAGE)]
 
@@ -263,13 +270,20 @@ class RunProgress(_Envelope):
     payload: RunProgressPayload
 
 
+class VideoState(_Envelope):
+    """Envelope of kind `video_state` (server -> operator)."""
+
+    type: Literal["video_state"] = "video_state"
+    payload: VideoStatePayload
+
+
 AssetToServer = Annotated[
     Hello | Telemetry | Event | CommandResult | Rtcm | Error, Field(discriminator="type")
 ]
 ServerToAsset = Annotated[Welcome | Command | Ack | Rtcm | Error, Field(discriminator="type")]
 OperatorToServer = Annotated[Hello | Subscribe | Unsubscribe | Error, Field(discriminator="type")]
 ServerToOperator = Annotated[
-    Welcome | Telemetry | Event | CommandResult | RunProgress | Error,
+    Welcome | Telemetry | Event | CommandResult | RunProgress | VideoState | Error,
     Field(discriminator="type"),
 ]
 AnyMessage = Annotated[
@@ -284,7 +298,8 @@ AnyMessage = Annotated[
     | Error
     | Subscribe
     | Unsubscribe
-    | RunProgress,
+    | RunProgress
+    | VideoState,
     Field(discriminator="type"),
 ]
 Envelope = (
@@ -300,6 +315,7 @@ Envelope = (
     | Subscribe
     | Unsubscribe
     | RunProgress
+    | VideoState
 )
 
 DIRECTIONS: dict[str, Any] = {
@@ -332,6 +348,7 @@ _BY_PAYLOAD: dict[type, type[_Envelope]] = {
     SubscribePayload: Subscribe,
     UnsubscribePayload: Unsubscribe,
     RunProgressPayload: RunProgress,
+    VideoStatePayload: VideoState,
 }
 
 

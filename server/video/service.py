@@ -18,6 +18,7 @@ from server.kit.principal import Principal
 from server.kit.service import Service
 from server.kit.uow import UnitOfWork
 from server.realtime.hub import Hub
+from server.video.announce import announce
 from server.video.camera import camera_of
 from server.video.errors import ViewerLimit
 from server.video.gateway import MediaGateway, Negotiated
@@ -25,6 +26,7 @@ from server.video.ice import ice_servers
 from server.video.schemas import IceServerOut, RecordingOut, RtpTargetOut, VideoOut
 
 MAX_SDP_BYTES = 64 * 1024
+RTP_LIVE_WITHIN_S = 15.0  # after handing out an RTP target: how long the media may take to arrive
 SEGMENT_NAME = re.compile(r"^(\d{8}T\d{6}\.\d{6}Z)\.(webm|times\.jsonl)$")
 
 
@@ -161,12 +163,24 @@ class VideoService(Service):
         self._check_publisher(asset_id)
         asset = await self._uav(asset_id)
         hold = self.hub.hold(self.principal.session_id, "video_publisher") if self.hub else None
+
+        def ended() -> None:
+            if hold is not None:
+                hold.release()
+            self._announce(asset_id)
+
         opened = await self.gateway.publish(
-            asset_id, offer, camera_of(asset.attributes), on_end=hold.release if hold else None
+            asset_id, offer, camera_of(asset.attributes), on_end=ended
         )
         if hold is not None:  # the asset's session ending (a new config, removal) ends it
             hold.start(lambda: self._quietly(self.gateway.unpublish(asset_id, opened.session_id)))
+        self._announce(asset_id)
         return opened
+
+    def _announce(self, asset_id: uuid.UUID, until_live_s: float = 0.0) -> None:
+        """Tell the asset's followers its video state (`video_state` on /ws/operator)."""
+        if self.hub is not None:
+            announce(self.hub.broker, self.gateway, asset_id, until_live_s)
 
     async def rtp_target(self, asset_id: uuid.UUID) -> RtpTargetOut:
         """The asset asks where to send its RTP (Janus path): the mountpoint's port."""
@@ -174,6 +188,7 @@ class VideoService(Service):
         asset = await self._uav(asset_id)
         camera = camera_of(asset.attributes)
         target = await self.gateway.rtp_target(asset_id, camera)
+        self._announce(asset_id, until_live_s=RTP_LIVE_WITHIN_S)  # once its media reaches Janus
         return RtpTargetOut(
             host=target.host,
             port=target.port,

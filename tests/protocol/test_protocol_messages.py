@@ -34,6 +34,7 @@ CARRIERS = {
     "subscribe": ["operator_to_server"],
     "unsubscribe": ["operator_to_server"],
     "run_progress": ["server_to_operator"],
+    "video_state": ["server_to_operator"],
 }
 
 

@@ -15,7 +15,7 @@ from tests.conftest import LiveServer, Tenant, auth
 from tests.metrics import value
 from tests.polling import eventually
 from tests.video.conftest import MAX_VIEWERS, TURN_SECRET
-from tests.video.peers import Viewer, publisher
+from tests.video.peers import Viewer, following, next_video_state, publisher
 
 CAMERA = {"width": 320, "height": 240, "fps": 20}
 
@@ -151,3 +151,27 @@ async def test_viewers_get_frames_of_the_camera_size_and_the_limit_answers_503(
             await v.close()
         await pub.stop()
         await pub.track.aclose()  # type: ignore[attr-defined]
+
+
+@pytest.mark.slow
+async def test_operators_following_a_uav_are_told_when_its_video_goes_live_and_offline(
+    video_server: LiveServer, video_api: httpx.Client, video_tenant: Tenant
+):
+    asset_id, asset_token = uav_with_camera(video_tenant, video_api)
+    async with following(video_server.url, video_tenant.tokens["viewer"], asset_id) as ws:
+        pub = publisher(video_server.url, asset_id, asset_token, 320, 240, 20)
+        try:
+            await pub.publish_once()
+            live = await next_video_state(ws, 10)
+            assert live == {"asset_id": asset_id, "state": "live"}
+            # what the description says at that moment, too
+            async with httpx.AsyncClient(base_url=video_server.url) as c:
+                desc = await c.get(
+                    f"/api/v1/assets/{asset_id}/video", headers=video_tenant.h("viewer")
+                )
+            assert desc.json()["state"] == "live"
+            await pub.stop()  # the UAV ends its publication (WHIP DELETE)
+            assert await next_video_state(ws, 10) == {"asset_id": asset_id, "state": "offline"}
+        finally:
+            await pub.stop()
+            await pub.track.aclose()  # type: ignore[attr-defined]

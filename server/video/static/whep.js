@@ -10,6 +10,12 @@
 // the asset is live but nothing reaches us), "error" (the server refused; retried after
 // Retry-After for 503/409).
 // w.stats: {state, frames, width, height, error, info} — frames counts requestVideoFrameCallback.
+//
+// openWhenLive (a page showing many UAVs, e.g. the console's fleet): no session is held for an
+// asset that publishes nothing. Nothing happens until w.wake(); then the description is read and a
+// session opened only when the asset is live, else "no signal" with no session. Call w.wake() when
+// the asset's video goes live (`video_state` on /ws/operator) and after that socket reconnects.
+// A session whose asset stops publishing is ended (the description says so), not kept.
 
 const STALL_MS = 2000; // no frame for this long: "reconnecting"
 const GIVE_UP_MS = 10000; // still none: ask the server whether the asset publishes
@@ -32,7 +38,7 @@ function gathered(pc, timeoutMs) {
   });
 }
 
-export function watch({ asset, video, token, onState = () => {} }) {
+export function watch({ asset, video, token, onState = () => {}, openWhenLive = false }) {
   const stats = { state: "starting", frames: 0, width: 0, height: 0, error: null, info: "" };
   let session = null; // {pc, location}
   let stopped = false;
@@ -40,6 +46,8 @@ export function watch({ asset, video, token, onState = () => {} }) {
   let checking = false;
   let nextCheckAt = 0;
   let backoff = 500; // ms before the next attempt when the server cannot be reached
+  let trying = false; // an attempt, or its scheduled retry, is under way
+  let again = false; // woken during an attempt: look once more when it ends without a session
 
   const show = (state, info) => {
     if (info !== undefined) stats.info = info;
@@ -85,6 +93,10 @@ export function watch({ asset, video, token, onState = () => {} }) {
   async function connect() {
     const desc = await describe();
     const info = `${desc.width}×${desc.height} ${desc.codec} @ ${desc.fps} fps · ${desc.path}`;
+    if (openWhenLive && desc.state !== "live") {
+      show("no signal", info); // no session until the asset publishes (wake)
+      return;
+    }
     const iceServers = desc.ice_servers.map((s) => ({
       urls: s.urls, ...(s.username ? { username: s.username, credential: s.credential } : {}),
     }));
@@ -123,6 +135,7 @@ export function watch({ asset, video, token, onState = () => {} }) {
   }
 
   async function start(delayMs = 0) {
+    trying = true;
     if (delayMs) await new Promise((r) => setTimeout(r, delayMs));
     if (stopped) return;
     try {
@@ -134,23 +147,41 @@ export function watch({ asset, video, token, onState = () => {} }) {
       if (err.retryAfterS) {
         show("error", stats.error);
         start(err.retryAfterS * 1000);
+        return;
       } else if (err.status === undefined || err.status >= 500 || err.status === 401) {
         // the server is away (restart, a replica's death) or the token was being renewed: again,
         // backing off to 8 s; a refusal (404 no video, 403) stays an error
         show("reconnecting");
         backoff = Math.min(8000, backoff * 2);
         start(backoff);
-      } else {
-        show("error", stats.error);
+        return;
       }
+      show("error", stats.error); // refused: stays an error
+      trying = false;
       return;
     }
     backoff = 500;
     stats.error = null;
+    trying = false;
+    if (again && !session && !stopped) {
+      again = false;
+      start();
+    }
+  }
+
+  function wake() {
+    if (stopped || session) return;
+    if (trying) again = true;
+    else start();
   }
 
   function onFrame(_now, meta) {
     if (stopped) return;
+    if (!session) {
+      // a frame presented as a closed session's track ends is no sign of life
+      video.requestVideoFrameCallback(onFrame);
+      return;
+    }
     stats.frames = meta.presentedFrames;
     stats.width = meta.width;
     stats.height = meta.height;
@@ -174,8 +205,13 @@ export function watch({ asset, video, token, onState = () => {} }) {
     try {
       const desc = await describe();
       if (stopped) return;
-      if (desc.state !== "live") show("no signal");
-      else {
+      if (desc.state !== "live") {
+        if (openWhenLive) {
+          end(); // its next publication wakes us
+          video.srcObject = null; // no frozen last frame under "no signal"
+        }
+        show("no signal");
+      } else {
         show("reconnecting");
         end();
         await start();
@@ -187,9 +223,10 @@ export function watch({ asset, video, token, onState = () => {} }) {
     }
   }, 500);
 
-  start();
+  if (!openWhenLive) start();
   return {
     stats,
+    wake,
     stop() {
       stopped = true;
       clearInterval(timer);

@@ -2,8 +2,14 @@
 // (/video/whep.js, served by server/video: one client, not two). Viewers may watch: video is not
 // a control. The panel's state is a status (live, no signal, reconnecting); the frames decoded so
 // far are the video's data-frames (requestVideoFrameCallback's count).
+//
+// A fleet page shows every UAV, most of them idle: a panel holds a viewer session only while its
+// UAV publishes. It reads the description once the operator socket is up (and after each of its
+// reconnects) and opens a session when the UAV is live; the server's `video_state` message on
+// that socket says when an idle UAV starts publishing. No panel asks again and again.
 
 import { api, get, token } from "./api.js";
+import { on, state as feed } from "./live.js";
 import { h } from "./ui.js";
 
 const SAY = {
@@ -24,6 +30,7 @@ export function livePanel(asset) {
   const el = h("figure", { class: "video" }, video, h("figcaption", {}, status, info));
   let watching = null;
   let stopped = false;
+  let offs = [];
   const onState = (state, detail) => {
     const [text, tone] = SAY[state] || [state, ""];
     status.textContent = state === "error" ? `${text}: ${detail}` : text;
@@ -33,7 +40,13 @@ export function livePanel(asset) {
   };
   import("/video/whep.js").then(({ watch }) => {
     if (stopped) return;
-    watching = watch({ asset: asset.id, video, token, onState });
+    watching = watch({ asset: asset.id, video, token, onState, openWhenLive: true });
+    const w = watching;
+    offs = [
+      on("video_state", (p) => { if (p.asset_id === asset.id && p.state === "live") w.wake(); }),
+      on("reconnected", () => w.wake()),
+    ];
+    if (feed.link === "live") w.wake(); // the socket opened before this module loaded
     const copy = (_now, meta) => {
       if (stopped) return;
       video.dataset.frames = String(meta.presentedFrames);
@@ -41,7 +54,14 @@ export function livePanel(asset) {
     };
     video.requestVideoFrameCallback(copy);
   }).catch((err) => onState("error", `the video client did not load (${err.message})`));
-  return { el, stop() { stopped = true; if (watching) watching.stop(); } };
+  return {
+    el,
+    stop() {
+      stopped = true;
+      for (const off of offs) off();
+      if (watching) watching.stop();
+    },
+  };
 }
 
 // The run's recorded video on the replay page: the UAV's WebM segments (newest first from the

@@ -1,0 +1,61 @@
+"""Telling an asset's followers when its live video starts or stops: `video_state` on /ws/operator.
+
+A page that shows many UAVs' video (the console's fleet) opens a viewer session only for a UAV
+that is live and learns of the others' start from this message, instead of holding a session per
+idle UAV or asking each one's description again and again. The message goes through the broker on
+the asset's channel, so it reaches the asset's followers in every replica.
+
+The state sent is what the media path says at that moment (`GET .../video`'s `state`), not what
+the change implies: a publication replaced by the next one says `live` however the two ends race.
+On the Janus path the stream is live once the mountpoint has had media, a moment after the asset
+has asked where to send it; the announcement waits for that, for at most `within_s`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import uuid
+
+from protocol.messages import VideoStatePayload, envelope
+from server.realtime.broker import Broker
+from server.realtime.channels import asset_channel
+from server.video.gateway import MediaGateway
+
+log = logging.getLogger(__name__)
+POLL_S = 0.5  # the Janus path: how often to look whether the media has arrived
+_running: set[asyncio.Task[None]] = set()  # announcements under way (a task needs a reference)
+
+
+def announce(
+    broker: Broker,
+    gateway: MediaGateway,
+    asset_id: uuid.UUID,
+    until_live_s: float = 0.0,
+) -> None:
+    """Send the asset's video state to its followers, soon (never blocks, never raises); with
+    `until_live_s`, first wait up to that long for the stream to become live."""
+    task = asyncio.get_running_loop().create_task(
+        _announce(broker, gateway, asset_id, until_live_s)
+    )
+    _running.add(task)
+    task.add_done_callback(_running.discard)
+
+
+async def _announce(
+    broker: Broker, gateway: MediaGateway, asset_id: uuid.UUID, until_live_s: float
+) -> None:
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + until_live_s
+    try:
+        while True:
+            live = (await gateway.status(asset_id)).live
+            if live or loop.time() >= deadline:
+                break
+            await asyncio.sleep(POLL_S)
+        message = envelope(
+            VideoStatePayload(asset_id=asset_id, state="live" if live else "offline")
+        ).model_dump(mode="json")
+        await broker.publish(asset_channel(asset_id), message)
+    except Exception as err:  # the gateway or the broker away: pages find out when they look
+        log.warning("could not announce asset %s's video state: %r", asset_id, err)
