@@ -180,9 +180,15 @@ def _ok(r: httpx.Response, expected: int = 200) -> dict:
 
 
 async def set_up(
-    url: str, superuser: str, assets: int, operators: int, progress: Progress
+    url: str,
+    superuser: str,
+    assets: int,
+    operators: int,
+    progress: Progress,
+    base_at: tuple[float, float] | None = None,
 ) -> Fleet:
-    """Organisation, viewers and UAV assets through the public API."""
+    """Organisation, viewers and UAV assets through the public API; with `base_at` (latitude,
+    longitude) also a landing base surveyed there (the console draws the UAVs' maps around it)."""
     async with httpx.AsyncClient(base_url=url, timeout=120) as api:
         login = {"email": superuser, "password": SUPER_PASSWORD, "force": True}
         root = _ok(await api.post("/api/v1/auth/login", json=login))["access_token"]
@@ -217,6 +223,14 @@ async def set_up(
                     )
                 )["access_token"]
             )
+        if base_at is not None:
+            base = {
+                "name": f"bench-base-{uuid.uuid4().hex[:6]}",
+                "kind": "landing_base",
+                "password": ASSET_PASSWORD,
+                "attributes": {"latitude": base_at[0], "longitude": base_at[1]},
+            }
+            _ok(await api.post("/api/v1/assets", json=base, headers=h), 201)
         ids, names, secrets = [""] * assets, [""] * assets, [""] * assets
         tag, counter, lock = uuid.uuid4().hex[:6], iter(range(assets)), asyncio.Lock()
         registered = 0

@@ -2,11 +2,14 @@
 page in a real browser, beside its delivery to a plain operator socket in the same run.
 
     python bench/console_lag.py [--fleet 200] [--loads 1,50,200] [--rate 5] [--seconds 20]
-                                [--repeats 3] [--json]
+                                [--repeats 3] [--no-maps] [--render-all] [--json]
 
 One `aerobase server` (a subprocess, its own SQLite file or DATABASE_URL), a fleet of `--fleet`
-UAVs registered through the API, and Debian's headless Chromium (Playwright) signed in as a viewer
-on the fleet page, which draws a card for every UAV. At each load, that many of the UAVs send
+UAVs and one landing base surveyed at BASE_AT registered through the API, and Debian's headless
+Chromium (Playwright) signed in as a viewer on the fleet page, which draws a card for every UAV
+with its live track map around the base (`--no-maps`: no base, no maps). `--render-all` makes the
+browser lay out and paint every card, off screen too, as the console did before its cards had
+`content-visibility: auto` (a style added with the page's CSP bypassed): what that rule gives. At each load, that many of the UAVs send
 telemetry at `--rate` Hz over their own /ws/asset sockets. UAV 0 is the probe: each of its
 samples carries its own altitude (a value the card shows to 0.1 m), sent at a recorded wall-clock
 time. The page's MutationObserver notes when the probe card's altitude changes to each value
@@ -63,6 +66,8 @@ from protocol.codec import encode
 from protocol.messages import envelope
 
 CHROMIUM = "/usr/bin/chromium"  # Debian's, as the console tests use (.ci/install-system.sh)
+BASE_AT = (41.0, -8.6)  # the one surveyed base: the UAVs' samples circle 0.01° steps from it
+RENDER_ALL = ".stack-cards > .card { content-visibility: visible !important; }"
 ALT0, ALT_STEP, ALT_VALUES = 10.0, 0.1, 900  # the probe's altitudes: unique over 180 s at 5 Hz
 
 WATCH = """name => {
@@ -93,6 +98,17 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--rate", type=float, default=5.0, help="telemetry per UAV per second")
     p.add_argument("--seconds", type=float, default=20.0, help="measured seconds per load")
     p.add_argument("--repeats", type=int, default=3, help="runs of every load (median reported)")
+    p.add_argument(
+        "--no-maps",
+        dest="maps",
+        action="store_false",
+        help="no surveyed base, so no UAV card draws its live track map",
+    )
+    p.add_argument(
+        "--render-all",
+        action="store_true",
+        help="lay out and paint every card, off screen too (the console before content-visibility)",
+    )
     p.add_argument("--json", action="store_true", help="print the result as JSON too")
     args = p.parse_args(argv)
     args.loads = [int(x) for x in args.loads.split(",")]
@@ -226,7 +242,9 @@ async def bench(args: argparse.Namespace) -> dict[str, Any]:
     with tempfile.TemporaryDirectory(prefix="console-lag-") as tmp:
         server = await asyncio.to_thread(start_server, Path(tmp), superuser, progress)
         try:
-            fleet = await set_up(server.url, superuser, args.fleet, 2, progress)
+            fleet = await set_up(
+                server.url, superuser, args.fleet, 2, progress, BASE_AT if args.maps else None
+            )
             delivered: dict[int, float] = {}
 
             def on_probe(raw: bytes) -> None:
@@ -252,7 +270,9 @@ async def bench(args: argparse.Namespace) -> dict[str, Any]:
                     executable_path=CHROMIUM, headless=True, args=["--no-sandbox"]
                 )
                 page = await (
-                    await browser.new_context(viewport={"width": 1280, "height": 800})
+                    await browser.new_context(
+                        viewport={"width": 1280, "height": 800}, bypass_csp=args.render_all
+                    )
                 ).new_page()
                 offers: list[str] = []
                 page.on(
@@ -264,6 +284,8 @@ async def bench(args: argparse.Namespace) -> dict[str, Any]:
                     ),
                 )
                 await page.goto(server.url + "/")
+                if args.render_all:
+                    await page.add_style_tag(content=RENDER_ALL)
                 signed_in = time.perf_counter()
                 await _sign_in(page, fleet.viewer_emails[1])
                 await page.get_by_role("heading", name=f"UAV {fleet.names[0]}").wait_for(
@@ -335,7 +357,9 @@ def report(res: dict[str, Any]) -> str:
     a = res["args"]
     lines = [
         f"Console lag: fleet page of {a['fleet']} UAV cards in headless Chromium, {a['rate']:g} Hz per "
-        f"UAV, {a['seconds']:g} s per load, median of {a['repeats']} repeats",
+        f"UAV, {a['seconds']:g} s per load, median of {a['repeats']} repeats; "
+        f"{'maps drawn' if a['maps'] else 'no maps'}, "
+        f"{'every card rendered' if a['render_all'] else 'off-screen cards skipped'}",
         "| UAVs sending | page p50 / p95 ms | shown | socket p50 / p95 ms | page / socket (p50) "
         "| browser / server CPU, % of a core | CPU pressure |",
         "|---|---|---|---|---|---|---|",

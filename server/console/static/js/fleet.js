@@ -98,20 +98,35 @@ function card(ctx, asset) {
     actions.length ? h("div", { class: "actions", role: "group", "aria-label": `Commands for ${asset.name}` }, actions) : null,
     out,
     asset.kind === "uav" ? h("div", { class: "views" }, mapBox, video.el) : null);
-  const update = () => {
+  // the map is the card's costly part: drawn only while the card is on (or near) the screen —
+  // off it the browser skips the card's rendering (app.css: content-visibility) and says so
+  let skipped = false;
+  let mapStale = false;
+  const drawMap = () => {
+    mapStale = false;
+    const v = (state.telemetry.get(asset.id) || { values: {} }).values;
+    const origin = originOf(ctx, asset);
+    const trail = trails.get(asset.id) || [];
+    const here = origin && v["position.lat"] !== undefined ? metres(origin, v["position.lat"], v["position.lon"]) : null;
+    clear(mapBox, origin
+      ? h("figure", {}, h("figcaption", {}, flying.has(asset.id) ? "Live track and the current run's mission (dashed), metres around the base" : "Live track, metres around the base"),
+        trackMap({ title: `Live track of ${asset.name}`, track: trail, uav: here, mission: flying.get(asset.id) || [], geo: origin,
+          airspace: airspace(origin, zonesOf.get(asset.id) || [], plans.get(asset.id)) }))
+      : h("p", { class: "muted" }, "No map: the base's position (attributes latitude, longitude) is unknown."));
+  };
+  section.addEventListener("contentvisibilityautostatechange", (e) => {
+    skipped = e.skipped;
+    if (!skipped && mapStale) drawMap();
+  });
+  // values: the link's age and the latest sample; withMap: the track too (not for the clock)
+  const update = (withMap = true) => {
     const t = state.telemetry.get(asset.id);
     const v = t ? t.values : {};
     section.classList.toggle("stale", freshness(asset.id).stale);
     clear(values, asset.kind === "uav" ? uavValues(asset, v) : baseValues(asset, v));
-    if (asset.kind === "uav") {
-      const origin = originOf(ctx, asset);
-      const trail = trails.get(asset.id) || [];
-      const here = origin && v["position.lat"] !== undefined ? metres(origin, v["position.lat"], v["position.lon"]) : null;
-      clear(mapBox, origin
-        ? h("figure", {}, h("figcaption", {}, flying.has(asset.id) ? "Live track and the current run's mission (dashed), metres around the base" : "Live track, metres around the base"),
-          trackMap({ title: `Live track of ${asset.name}`, track: trail, uav: here, mission: flying.get(asset.id) || [], geo: origin,
-            airspace: airspace(origin, zonesOf.get(asset.id) || [], plans.get(asset.id)) }))
-        : h("p", { class: "muted" }, "No map: the base's position (attributes latitude, longitude) is unknown."));
+    if (asset.kind === "uav" && withMap) {
+      if (skipped) mapStale = true;
+      else drawMap();
     }
   };
   return { asset, section, update, stop: () => video && video.stop() };
@@ -216,7 +231,7 @@ export function render(main, ctx) {
     on("availability", (id) => cards.get(id) && cards.get(id).update()),
     on("event", showEvents),
     on("run_progress", (p) => { if (p.state === "checking" || p.final) missions(); }),
-    on("tick", () => { for (const c of cards.values()) c.update(); }),
+    on("tick", () => { for (const c of cards.values()) c.update(false); }),
   ];
   return () => {
     offs.forEach((f) => f());
