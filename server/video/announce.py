@@ -8,7 +8,9 @@ the asset's channel, so it reaches the asset's followers in every replica.
 The state sent is what the media path says at that moment (`GET .../video`'s `state`), not what
 the change implies: a publication replaced by the next one says `live` however the two ends race.
 On the Janus path the stream is live once the mountpoint has had media, a moment after the asset
-has asked where to send it; the announcement waits for that, for at most `within_s`.
+has asked where to send it; the announcement waits for that, for at most `until_live_s`, and is
+sent only if the stream was not live already when the asset asked (the agent asks again every few
+seconds while it streams: nothing has changed then) and has become live by the end.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ def announce(
     until_live_s: float = 0.0,
 ) -> None:
     """Send the asset's video state to its followers, soon (never blocks, never raises); with
-    `until_live_s`, first wait up to that long for the stream to become live."""
+    `until_live_s`, only its becoming live within that long (nothing if it already was)."""
     task = asyncio.get_running_loop().create_task(
         _announce(broker, gateway, asset_id, until_live_s)
     )
@@ -48,11 +50,15 @@ async def _announce(
     loop = asyncio.get_running_loop()
     deadline = loop.time() + until_live_s
     try:
-        while True:
-            live = (await gateway.status(asset_id)).live
-            if live or loop.time() >= deadline:
-                break
-            await asyncio.sleep(POLL_S)
+        live = (await gateway.status(asset_id)).live
+        if until_live_s > 0:
+            if live:
+                return  # live before the asset asked again: its followers know
+            while not live and loop.time() < deadline:
+                await asyncio.sleep(POLL_S)
+                live = (await gateway.status(asset_id)).live
+            if not live:
+                return  # offline when it asked and still: nothing to tell
         message = envelope(
             VideoStatePayload(asset_id=asset_id, state="live" if live else "offline")
         ).model_dump(mode="json")
