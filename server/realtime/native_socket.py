@@ -290,8 +290,12 @@ class NativeSocket:
         self._wake()
 
     def _fail(self, code: int, reason: str) -> None:
+        """RFC 6455 §7.1.7, "Fail the WebSocket Connection": our close frame, then the TCP
+        connection closed at once (once the frame is written); nothing more of the peer's is
+        read, its answering close frame neither."""
         log.info("closing a WebSocket: %d %s", code, reason)
         self.close(code, reason)
+        self.transport.close()
 
     def _peer_closed(self, code: int) -> None:
         if self.state == "open":  # the peer started the closing handshake: answer it
@@ -349,8 +353,7 @@ class NativeSocket:
 
     def _no_pong(self) -> None:
         self._pong_due = None
-        self._fail(ws.INTERNAL_ERROR, "keepalive ping timeout")
-        self.transport.close()  # a peer that answers no ping will not answer the close either
+        self._fail(ws.INTERNAL_ERROR, "keepalive ping timeout")  # it would not answer a close
 
     def _stop_ping(self) -> None:
         for handle in (self._ping, self._pong_due):
