@@ -16,6 +16,7 @@ from assetlink.link import Link
 from protocol.telemetry_payloads import Battery, Position, UavTelemetry
 from tests.conftest import LiveServer, Tenant, test_settings
 from tests.console.browser import launch, open_page, sign_in
+from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # a browser: not in the fast lane
 
@@ -83,4 +84,67 @@ async def test_an_off_screen_card_draws_its_uavs_map_as_it_comes_into_view(
         assert traffic.errors == []
         await page.context.close()
     finally:
+        await asyncio.to_thread(server.stop)
+
+
+async def test_only_the_cards_on_the_screen_hold_a_video_session(
+    database_url, superuser_email, browser
+):
+    from playwright.async_api import expect
+
+    from tests.video.peers import publisher
+    from tests.video.test_video_api import uav_with_camera
+
+    server = LiveServer(test_settings(database_url)).start()
+    publishers = []
+    try:
+        with httpx.Client(base_url=server.url, timeout=30) as sync_api:
+            tenant = await asyncio.to_thread(Tenant, sync_api, superuser_email, "fleet-many-video")
+            uavs = [await asyncio.to_thread(uav_with_camera, tenant, sync_api) for _ in range(UAVS)]
+        async with httpx.AsyncClient(base_url=server.url, timeout=30) as api:
+
+            async def viewers(asset_id: str) -> int:
+                r = await api.get(f"/api/v1/assets/{asset_id}/video", headers=tenant.h("operator"))
+                return int(r.json()["viewers"])
+
+            names = {}
+            for asset_id, _ in uavs:
+                r = await api.get(f"/api/v1/assets/{asset_id}", headers=tenant.h())
+                names[r.json()["name"]] = asset_id
+            for asset_id, token in uavs:  # every UAV streams
+                pub = publisher(server.url, asset_id, token, 320, 240, 15)
+                publishers.append(pub)
+                await pub.publish_once()
+            page, traffic = await open_page(browser, server.url + "/")
+            await sign_in(page, tenant.emails["viewer"], Tenant.PASSWORD)
+            cards = page.get_by_role("region", name=re.compile("^UAV "))
+            await expect(cards).to_have_count(UAVS)
+            heads = [await c.get_by_role("heading").text_content() for c in await cards.all()]
+            first, last = (names[str(h).removeprefix("UAV ")] for h in (heads[0], heads[-1]))
+            state_of = {
+                i: page.get_by_role("status", name=f"Video state of {n}") for n, i in names.items()
+            }
+            await expect(state_of[first]).to_have_text("live", timeout=30_000)
+            await expect(state_of[last]).to_have_text("paused (off screen)")
+            assert await viewers(first) == 1 and await viewers(last) == 0
+
+            def offers(asset_id: str) -> int:
+                return sum(1 for u in traffic.urls if u.endswith(f"/{asset_id}/video/whep"))
+
+            assert offers(last) == 0
+            # scrolled to the last card: it watches, and the first, now off the screen, lets go
+            await cards.last.scroll_into_view_if_needed()
+            await expect(state_of[last]).to_have_text("live", timeout=30_000)
+            await expect(state_of[first]).to_have_text("paused (off screen)")
+
+            async def moved() -> bool:
+                return await viewers(last) == 1 and await viewers(first) == 0
+
+            await eventually(moved, within=10, what="the session moved to the card on the screen")
+            assert traffic.errors == []
+            await page.context.close()
+    finally:
+        for pub in publishers:
+            await pub.stop()
+            await pub.track.aclose()  # type: ignore[attr-defined]
         await asyncio.to_thread(server.stop)

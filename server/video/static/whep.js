@@ -16,6 +16,7 @@
 // session opened only when the asset is live, else "no signal" with no session. Call w.wake() when
 // the asset's video goes live (`video_state` on /ws/operator) and after that socket reconnects.
 // A session whose asset stops publishing is ended (the description says so), not kept.
+// w.sleep() ends the session and holds none until the next w.wake() (a panel off the screen).
 
 const STALL_MS = 2000; // no frame for this long: "reconnecting"
 const GIVE_UP_MS = 10000; // still none: ask the server whether the asset publishes
@@ -48,6 +49,7 @@ export function watch({ asset, video, token, onState = () => {}, openWhenLive = 
   let backoff = 500; // ms before the next attempt when the server cannot be reached
   let trying = false; // an attempt, or its scheduled retry, is under way
   let again = false; // woken during an attempt: look once more when it ends without a session
+  let asleep = false; // put to sleep: no session until woken
 
   const show = (state, info) => {
     if (info !== undefined) stats.info = info;
@@ -122,9 +124,9 @@ export function watch({ asset, video, token, onState = () => {}, openWhenLive = 
       });
       if (!patched.ok) throw new Error(await errorOf(patched));
     }
-    if (stopped) { end(); return; }
+    if (stopped || asleep) { end(); return; }
     pc.addEventListener("connectionstatechange", () => {
-      if (["failed", "closed"].includes(pc.connectionState) && session && session.pc === pc && !stopped) {
+      if (["failed", "closed"].includes(pc.connectionState) && session && session.pc === pc && !stopped && !asleep) {
         show("reconnecting");
         end();
         start(1000);
@@ -138,6 +140,7 @@ export function watch({ asset, video, token, onState = () => {}, openWhenLive = 
     trying = true;
     if (delayMs) await new Promise((r) => setTimeout(r, delayMs));
     if (stopped) return;
+    if (asleep) { trying = false; return; }
     try {
       await connect();
     } catch (err) {
@@ -163,16 +166,27 @@ export function watch({ asset, video, token, onState = () => {}, openWhenLive = 
     backoff = 500;
     stats.error = null;
     trying = false;
-    if (again && !session && !stopped) {
+    if (again && !session && !stopped && !asleep) {
       again = false;
       start();
     }
   }
 
   function wake() {
-    if (stopped || session) return;
+    if (stopped) return;
+    asleep = false;
+    if (session) return;
     if (trying) again = true;
     else start();
+  }
+
+  function sleep() {
+    if (stopped || asleep) return;
+    asleep = true;
+    again = false;
+    end();
+    video.srcObject = null;
+    show("paused");
   }
 
   function onFrame(_now, meta) {
@@ -204,7 +218,7 @@ export function watch({ asset, video, token, onState = () => {}, openWhenLive = 
     checking = true;
     try {
       const desc = await describe();
-      if (stopped) return;
+      if (stopped || asleep) return;
       if (desc.state !== "live") {
         if (openWhenLive) {
           end(); // its next publication wakes us
@@ -227,6 +241,7 @@ export function watch({ asset, video, token, onState = () => {}, openWhenLive = 
   return {
     stats,
     wake,
+    sleep,
     stop() {
       stopped = true;
       clearInterval(timer);

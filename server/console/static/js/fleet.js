@@ -98,8 +98,9 @@ function card(ctx, asset) {
     actions.length ? h("div", { class: "actions", role: "group", "aria-label": `Commands for ${asset.name}` }, actions) : null,
     out,
     asset.kind === "uav" ? h("div", { class: "views" }, mapBox, video.el) : null);
-  // the map is the card's costly part: drawn only while the card is on (or near) the screen —
-  // off it the browser skips the card's rendering (app.css: content-visibility) and says so
+  // the map and the video are the card's costly parts: drawn and watched only while the card is
+  // on (or near) the screen — off it the browser skips the card's rendering (app.css:
+  // content-visibility) and says so
   let skipped = false;
   let mapStale = false;
   const drawMap = () => {
@@ -116,6 +117,7 @@ function card(ctx, asset) {
   };
   section.addEventListener("contentvisibilityautostatechange", (e) => {
     skipped = e.skipped;
+    if (video) video.shown(!skipped); // no video session for a card off the screen
     if (!skipped && mapStale) drawMap();
   });
   // values: the link's age and the latest sample; withMap: the track too (not for the clock)

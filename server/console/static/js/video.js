@@ -6,7 +6,9 @@
 // A fleet page shows every UAV, most of them idle: a panel holds a viewer session only while its
 // UAV publishes. It reads the description once the operator socket is up (and after each of its
 // reconnects) and opens a session when the UAV is live; the server's `video_state` message on
-// that socket says when an idle UAV starts publishing. No panel asks again and again.
+// that socket says when an idle UAV starts publishing. No panel asks again and again. A panel
+// whose card is off the screen holds no session either ("paused"), so a fleet page takes a
+// viewer place (AEROBASE_VIDEO_MAX_VIEWERS per UAV) only for the UAVs it shows.
 
 import { api, get, token } from "./api.js";
 import { on, state as feed } from "./live.js";
@@ -17,6 +19,7 @@ const SAY = {
   connecting: ["connecting…", "warn"],
   "no signal": ["no signal (the UAV is not sending video)", "warn"],
   live: ["live", "ok"],
+  paused: ["paused (off screen)", ""],
   reconnecting: ["reconnecting…", "warn"],
   error: ["unavailable", "bad"],
 };
@@ -31,6 +34,7 @@ export function livePanel(asset) {
   let watching = null;
   let stopped = false;
   let offs = [];
+  let onScreen = true; // the fleet page says when its card leaves the screen (shown)
   const onState = (state, detail) => {
     const [text, tone] = SAY[state] || [state, ""];
     status.textContent = state === "error" ? `${text}: ${detail}` : text;
@@ -43,10 +47,11 @@ export function livePanel(asset) {
     watching = watch({ asset: asset.id, video, token, onState, openWhenLive: true });
     const w = watching;
     offs = [
-      on("video_state", (p) => { if (p.asset_id === asset.id && p.state === "live") w.wake(); }),
-      on("reconnected", () => w.wake()),
+      on("video_state", (p) => { if (p.asset_id === asset.id && p.state === "live" && onScreen) w.wake(); }),
+      on("reconnected", () => { if (onScreen) w.wake(); }),
     ];
-    if (feed.link === "live") w.wake(); // the socket opened before this module loaded
+    if (!onScreen) w.sleep(); // its card left the screen before this module loaded
+    else if (feed.link === "live") w.wake(); // the socket opened before this module loaded
     const copy = (_now, meta) => {
       if (stopped) return;
       video.dataset.frames = String(meta.presentedFrames);
@@ -56,6 +61,14 @@ export function livePanel(asset) {
   }).catch((err) => onState("error", `the video client did not load (${err.message})`));
   return {
     el,
+    // on the screen (or near it) the panel watches; off it, it holds no session
+    shown(visible) {
+      if (visible === onScreen) return;
+      onScreen = visible;
+      if (!watching) return;
+      if (!visible) watching.sleep();
+      else if (feed.link === "live") watching.wake();
+    },
     stop() {
       stopped = true;
       for (const off of offs) off();
