@@ -145,6 +145,7 @@ export function watch({ asset, video, token, onState = () => {}, openWhenLive = 
       await connect();
     } catch (err) {
       if (stopped) return;
+      if (asleep) { trying = false; return; } // put to sleep mid-attempt (its session ended)
       end();
       stats.error = String(err.message || err);
       if (err.retryAfterS) {
