@@ -163,11 +163,13 @@ class VideoService(Service):
         self._check_publisher(asset_id)
         asset = await self._uav(asset_id)
         hold = self.hub.hold(self.principal.session_id, "video_publisher") if self.hub else None
+        hub, gateway = self.hub, self.gateway  # not self: this request's unit of work ends first
 
         def ended() -> None:
             if hold is not None:
                 hold.release()
-            self._announce(asset_id)
+            if hub is not None:
+                announce(hub.broker, gateway, asset_id)
 
         opened = await self.gateway.publish(
             asset_id, offer, camera_of(asset.attributes), on_end=ended
