@@ -17,6 +17,8 @@ from protocol.telemetry_payloads import Battery, Position, UavTelemetry
 from tests.conftest import LiveServer, Tenant, test_settings
 from tests.console.browser import launch, open_page, sign_in
 from tests.polling import eventually
+from tests.video.peers import publisher
+from tests.video.test_video_api import uav_with_camera
 
 pytestmark = pytest.mark.slow  # a browser: not in the fast lane
 
@@ -91,9 +93,6 @@ async def test_only_the_cards_on_the_screen_hold_a_video_session(
     database_url, superuser_email, browser
 ):
     from playwright.async_api import expect
-
-    from tests.video.peers import publisher
-    from tests.video.test_video_api import uav_with_camera
 
     server = LiveServer(test_settings(database_url)).start()
     publishers = []

@@ -77,6 +77,19 @@ async def asset_socket(server_url: str, token: str, **kw: Any) -> AsyncIterator[
         yield ws
 
 
+@asynccontextmanager
+async def operator_socket(
+    server_url: str, token: str, follow: tuple[str, ...] = ()
+) -> AsyncIterator[ClientConnection]:
+    """An operator socket the server is serving, following `follow`: its subscribe also names an
+    unknown id, whose not_found is sent once the known ones are followed, and is awaited."""
+    async with websockets.connect(ws_url(server_url, "/ws/operator", token)) as ws:
+        await ws.send(message("subscribe", {"asset_ids": [*follow, str(uuid.uuid4())]}, ts=0))
+        answer = json.loads(await asyncio.wait_for(ws.recv(), 10))
+        assert answer["type"] == "error" and answer["payload"]["code"] == "not_found", answer
+        yield ws
+
+
 async def next_of(ws: ClientConnection, *kinds: str, within: float = 10.0) -> dict[str, Any]:
     """The next message of one of these kinds (others are skipped)."""
     async with asyncio.timeout(within):

@@ -11,8 +11,7 @@ import asyncio
 import json
 import time
 import uuid
-from collections.abc import AsyncIterator, Iterator
-from contextlib import asynccontextmanager
+from collections.abc import Iterator
 
 import httpx
 import pytest
@@ -22,33 +21,9 @@ from protocol.codec import encode
 from protocol.messages import HelloPayload, envelope
 from tests.conftest import LiveServer, Tenant, auth, login, test_settings
 from tests.replicas import replicas
+from tests.server.realtime_client import operator_socket
 
 CLOSE_WITHIN_S = 1.0
-
-
-@asynccontextmanager
-async def operator_socket(
-    server_url: str, token: str
-) -> AsyncIterator[websockets.ClientConnection]:
-    """An operator socket the server is serving (a request of ours has been answered on it)."""
-    url = server_url.replace("http", "ws") + f"/ws/operator?token={token}"
-    async with websockets.connect(url) as ws:
-        probe = {"asset_ids": [str(uuid.uuid4())]}
-        await ws.send(
-            json.dumps(
-                {
-                    "v": 1,
-                    "type": "subscribe",
-                    "id": str(uuid.uuid4()),
-                    "seq": 0,
-                    "ts": 0,
-                    "payload": probe,
-                }
-            )
-        )
-        answer = json.loads(await asyncio.wait_for(ws.recv(), 10))
-        assert answer["type"] == "error" and answer["payload"]["code"] == "not_found", answer
-        yield ws
 
 
 async def closed_within(ws: websockets.ClientConnection, started: float, limit_s: float) -> int:

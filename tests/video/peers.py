@@ -7,15 +7,12 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
-import uuid
 from collections.abc import AsyncIterator
 from dataclasses import dataclass, field
 from typing import Any
 
 import httpx
 import numpy as np
-import websockets
 from aiortc import RTCConfiguration, RTCPeerConnection, RTCSessionDescription
 from aiortc.mediastreams import MediaStreamError
 
@@ -107,33 +104,3 @@ class Viewer:
             await self.pc.close()
         if self._reader is not None:
             self._reader.cancel()
-
-
-@contextlib.asynccontextmanager
-async def following(
-    server_url: str, token: str, asset_id: str
-) -> AsyncIterator[websockets.ClientConnection]:
-    """An operator socket following `asset_id`, once the server has taken the subscription (it
-    names an unknown id in the same message and waits for that id's not_found, sent as the
-    known one is followed)."""
-    url = server_url.replace("http", "ws", 1) + f"/ws/operator?token={token}"
-    async with websockets.connect(url) as ws:
-        unknown = str(uuid.uuid4())
-        payload = {"asset_ids": [asset_id, unknown]}
-        await ws.send(
-            json.dumps(
-                {"v": 1, "type": "subscribe", "id": unknown, "seq": 0, "ts": 0, "payload": payload}
-            )
-        )
-        answer = json.loads(await asyncio.wait_for(ws.recv(), 10))
-        assert answer["type"] == "error" and answer["payload"]["code"] == "not_found", answer
-        yield ws
-
-
-async def next_video_state(ws: websockets.ClientConnection, within_s: float) -> dict[str, Any]:
-    """The payload of the next `video_state` message on an operator socket (others skipped)."""
-    async with asyncio.timeout(within_s):
-        while True:
-            msg = json.loads(await ws.recv())
-            if msg["type"] == "video_state":
-                return msg["payload"]  # type: ignore[no-any-return]

@@ -14,8 +14,9 @@ import pytest
 from tests.conftest import LiveServer, Tenant, auth
 from tests.metrics import value
 from tests.polling import eventually
+from tests.server.realtime_client import next_of, operator_socket
 from tests.video.conftest import MAX_VIEWERS, TURN_SECRET
-from tests.video.peers import Viewer, following, next_video_state, publisher
+from tests.video.peers import Viewer, publisher
 
 CAMERA = {"width": 320, "height": 240, "fps": 20}
 
@@ -158,11 +159,11 @@ async def test_operators_following_a_uav_are_told_when_its_video_goes_live_and_o
     video_server: LiveServer, video_api: httpx.Client, video_tenant: Tenant
 ):
     asset_id, asset_token = uav_with_camera(video_tenant, video_api)
-    async with following(video_server.url, video_tenant.tokens["viewer"], asset_id) as ws:
+    async with operator_socket(video_server.url, video_tenant.tokens["viewer"], (asset_id,)) as ws:
         pub = publisher(video_server.url, asset_id, asset_token, 320, 240, 20)
         try:
             await pub.publish_once()
-            live = await next_video_state(ws, 10)
+            live = (await next_of(ws, "video_state", within=10))["payload"]
             assert live == {"asset_id": asset_id, "state": "live"}
             # what the description says at that moment, too
             async with httpx.AsyncClient(base_url=video_server.url) as c:
@@ -171,7 +172,10 @@ async def test_operators_following_a_uav_are_told_when_its_video_goes_live_and_o
                 )
             assert desc.json()["state"] == "live"
             await pub.stop()  # the UAV ends its publication (WHIP DELETE)
-            assert await next_video_state(ws, 10) == {"asset_id": asset_id, "state": "offline"}
+            assert (await next_of(ws, "video_state", within=10))["payload"] == {
+                "asset_id": asset_id,
+                "state": "offline",
+            }
         finally:
             await pub.stop()
             await pub.track.aclose()  # type: ignore[attr-defined]

@@ -21,8 +21,9 @@ from asset_agent.video.rtp import RtpPublisher
 from asset_agent.video.source import CameraTrack
 from tests.conftest import LiveServer, Tenant, auth, test_settings
 from tests.polling import eventually
+from tests.server.realtime_client import next_of, operator_socket
 from tests.video.netns.janus_env import RTP_PORTS, Janus, free_port, in_private_network
-from tests.video.peers import following, next_video_state, pattern
+from tests.video.peers import pattern
 from tests.video.test_video_api import uav_with_camera
 
 
@@ -161,12 +162,15 @@ async def test_operators_following_the_uav_are_told_once_its_rtp_reaches_janus(
     server: LiveServer, tenant: Tenant
 ):
     asset_id, token = uav_with_camera(tenant, httpx.Client(base_url=server.url))
-    async with following(server.url, tenant.tokens["viewer"], asset_id) as ws:
+    async with operator_socket(server.url, tenant.tokens["viewer"], (asset_id,)) as ws:
         pub = rtp_publisher(server, asset_id, token)
         sending = asyncio.create_task(pub.run())
         try:
-            assert await next_video_state(ws, 25) == {"asset_id": asset_id, "state": "live"}
-            assert pub.packets > 0  # sent after the media arrived, not when the port was asked
+            assert (await next_of(ws, "video_state", within=25))["payload"] == {
+                "asset_id": asset_id,
+                "state": "live",
+            }
+            assert pub.packets > 0  # (this does not show the message waited for the media)
             async with httpx.AsyncClient(base_url=server.url, timeout=30) as c:
                 desc = await c.get(f"/api/v1/assets/{asset_id}/video", headers=tenant.h("viewer"))
             assert desc.json()["state"] == "live"
