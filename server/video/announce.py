@@ -10,7 +10,9 @@ the change implies: a publication replaced by the next one says `live` however t
 On the Janus path the stream is live once the mountpoint has had media, a moment after the asset
 has asked where to send it; the announcement waits for that, for at most `until_live_s`, and is
 sent only if the stream was not live already when the asset asked (the agent asks again every few
-seconds while it streams: nothing has changed then) and has become live by the end.
+seconds while it streams: nothing has changed then) and has become live by the end. One wait per
+asset: an asset that asks again before its media has arrived extends the wait under way rather
+than starting a second one, which would tell its followers `live` twice.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from server.video.gateway import MediaGateway
 log = logging.getLogger(__name__)
 POLL_S = 0.5  # the Janus path: how often to look whether the media has arrived
 _running: set[asyncio.Task[None]] = set()  # announcements under way (a task needs a reference)
+_awaited: dict[uuid.UUID, float] = {}  # the Janus path: assets whose media is awaited, until when
 
 
 def announce(
@@ -47,21 +50,38 @@ def announce(
 async def _announce(
     broker: Broker, gateway: MediaGateway, asset_id: uuid.UUID, until_live_s: float
 ) -> None:
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + until_live_s
     try:
-        live = (await gateway.status(asset_id)).live
         if until_live_s > 0:
-            if live:
-                return  # live before the asset asked again: its followers know
-            while not live and loop.time() < deadline:
-                await asyncio.sleep(POLL_S)
-                live = (await gateway.status(asset_id)).live
-            if not live:
-                return  # offline when it asked and still: nothing to tell
+            if not await _becomes_live(gateway, asset_id, until_live_s):
+                return
+            live = True
+        else:
+            live = (await gateway.status(asset_id)).live
         message = envelope(
             VideoStatePayload(asset_id=asset_id, state="live" if live else "offline")
         ).model_dump(mode="json")
         await broker.publish(asset_channel(asset_id), message)
     except Exception as err:  # the gateway or the broker away: pages find out when they look
         log.warning("could not announce asset %s's video state: %r", asset_id, err)
+
+
+async def _becomes_live(gateway: MediaGateway, asset_id: uuid.UUID, within_s: float) -> bool:
+    """True when the asset's stream, offline as it asked, gets media within `within_s`. False
+    when it was live already (nothing changed), stays offline, or is awaited by an earlier ask
+    (whose wait this one extends: that one tells)."""
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + within_s
+    if asset_id in _awaited:
+        _awaited[asset_id] = max(_awaited[asset_id], deadline)
+        return False
+    _awaited[asset_id] = deadline
+    try:
+        if (await gateway.status(asset_id)).live:
+            return False
+        while loop.time() < _awaited[asset_id]:
+            await asyncio.sleep(POLL_S)
+            if (await gateway.status(asset_id)).live:
+                return True
+        return False
+    finally:
+        del _awaited[asset_id]

@@ -161,19 +161,34 @@ async def test_a_viewer_gets_frames_through_janus(server: LiveServer, tenant: Te
 async def test_operators_following_the_uav_are_told_once_its_rtp_reaches_janus(
     server: LiveServer, tenant: Tenant
 ):
+    """`live` once, when the media arrives: not when the UAV asks where to send it, not again
+    when it asks a second time before sending, nor at each re-ask while it streams."""
     asset_id, token = uav_with_camera(tenant, httpx.Client(base_url=server.url))
-    async with operator_socket(server.url, tenant.tokens["viewer"], (asset_id,)) as ws:
-        pub = rtp_publisher(server, asset_id, token)
+    rtp = f"/api/v1/assets/{asset_id}/video/rtp"
+    async with (
+        operator_socket(server.url, tenant.tokens["viewer"], (asset_id,)) as ws,
+        httpx.AsyncClient(base_url=server.url, timeout=30) as c,
+    ):
+        # asked, no media yet: nothing is said (a server that announced at the ask would have
+        # within milliseconds; this one is looking every POLL_S for the media meanwhile)
+        assert (await c.post(rtp, headers=auth(token))).status_code == 200
+        with pytest.raises(TimeoutError):
+            await next_of(ws, "video_state", within=3)
+        pub = rtp_publisher(server, asset_id, token)  # it asks again, then sends
         sending = asyncio.create_task(pub.run())
         try:
             assert (await next_of(ws, "video_state", within=25))["payload"] == {
                 "asset_id": asset_id,
                 "state": "live",
             }
-            assert pub.packets > 0  # (this does not show the message waited for the media)
-            async with httpx.AsyncClient(base_url=server.url, timeout=30) as c:
-                desc = await c.get(f"/api/v1/assets/{asset_id}/video", headers=tenant.h("viewer"))
+            assert pub.packets > 0
+            desc = await c.get(f"/api/v1/assets/{asset_id}/video", headers=tenant.h("viewer"))
             assert desc.json()["state"] == "live"
+            # streaming, it asks again (as the agent does every few seconds): nothing new to say
+            for _ in range(2):
+                assert (await c.post(rtp, headers=auth(token))).status_code == 200
+            with pytest.raises(TimeoutError):
+                await next_of(ws, "video_state", within=3)
         finally:
             sending.cancel()
             await pub.track.aclose()
