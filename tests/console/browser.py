@@ -102,3 +102,15 @@ async def shot(page: Any, name: str) -> None:
     if SHOTS:
         os.makedirs(SHOTS, exist_ok=True)
         await page.screenshot(path=str(Path(SHOTS) / f"{name}.png"))
+
+
+def video_panel(page: Any, name: str) -> tuple[Any, Any, Any]:
+    """The fleet page's card of the UAV `name`, its video state and its video (locators)."""
+    card = page.get_by_role("region", name=f"UAV {name}")
+    state = card.get_by_role("status", name=f"Video state of {name}")
+    return card, state, card.get_by_label(f"Live video of {name}")
+
+
+def whep_offers(traffic: Traffic, asset_id: str) -> int:
+    """How many viewer sessions the page has asked the server for the asset's video."""
+    return sum(1 for u in traffic.urls if u.endswith(f"/{asset_id}/video/whep"))

@@ -15,7 +15,7 @@ from assetlink.configfile import decrypt_config
 from assetlink.link import Link
 from protocol.telemetry_payloads import Battery, Position, UavTelemetry
 from tests.conftest import LiveServer, Tenant, test_settings
-from tests.console.browser import launch, open_page, sign_in
+from tests.console.browser import launch, open_page, sign_in, whep_offers
 from tests.polling import eventually
 from tests.video.peers import publisher
 from tests.video.test_video_api import uav_with_camera
@@ -127,10 +127,7 @@ async def test_only_the_cards_on_the_screen_hold_a_video_session(
             await expect(state_of[last]).to_have_text("paused (off screen)")
             assert await viewers(first) == 1 and await viewers(last) == 0
 
-            def offers(asset_id: str) -> int:
-                return sum(1 for u in traffic.urls if u.endswith(f"/{asset_id}/video/whep"))
-
-            assert offers(last) == 0
+            assert whep_offers(traffic, last) == 0
             # scrolled to the last card: it watches, and the first, now off the screen, lets go
             await cards.last.scroll_into_view_if_needed()
             await expect(state_of[last]).to_have_text("live", timeout=30_000)

@@ -11,7 +11,7 @@ import httpx
 import pytest
 
 from tests.conftest import LiveServer, Tenant, test_settings
-from tests.console.browser import launch, open_page, shot, sign_in
+from tests.console.browser import launch, open_page, shot, sign_in, video_panel, whep_offers
 from tests.polling import eventually
 from tests.video.peers import publisher
 from tests.video.test_video_api import uav_with_camera
@@ -45,16 +45,11 @@ async def test_a_fleet_panel_holds_no_session_for_an_idle_uav_and_opens_one_when
 
             page, traffic = await open_page(browser, server.url + "/")
             await sign_in(page, tenant.emails["viewer"], Tenant.PASSWORD)
-            card = page.get_by_role("region", name=f"UAV {name}")
-            state = card.get_by_role("status", name=f"Video state of {name}")
-            video = card.get_by_label(f"Live video of {name}")
-
-            def offers() -> int:
-                return sum(1 for u in traffic.urls if u.endswith(f"/{asset_id}/video/whep"))
+            _, state, video = video_panel(page, name)
 
             # idle: the panel says so and holds nothing on the server
             await expect(state).to_have_text(re.compile("^no signal"))
-            assert await viewers() == 0 and offers() == 0
+            assert await viewers() == 0 and whep_offers(traffic, asset_id) == 0
             await shot(page, "fleet-video-idle")
 
             # the UAV publishes: the server's video_state wakes the panel, which opens one session
@@ -66,7 +61,7 @@ async def test_a_fleet_panel_holds_no_session_for_an_idle_uav_and_opens_one_when
                 return int(await video.get_attribute("data-frames") or 0) > 10
 
             await eventually(frames, within=30, what="frames in the panel")
-            assert await viewers() == 1 and offers() == 1
+            assert await viewers() == 1 and whep_offers(traffic, asset_id) == 1
             await shot(page, "fleet-video-live")
 
             # it stops: the panel ends its session once the description says offline
@@ -81,7 +76,7 @@ async def test_a_fleet_panel_holds_no_session_for_an_idle_uav_and_opens_one_when
             # and publishes again: woken again, a second session
             await pub.publish_once()
             await expect(state).to_have_text("live", timeout=30_000)
-            assert offers() == 2
+            assert whep_offers(traffic, asset_id) == 2
             assert traffic.errors == []
             await page.context.close()
     finally:
