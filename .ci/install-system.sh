@@ -3,7 +3,7 @@
 # topology), docker-compose (validates docker-compose.yml; no image is pulled), chromium (the
 # console's and the video viewer's browser tests drive Debian's headless Chromium; no browser is
 # downloaded), janus and coturn (the media services, started with the very configuration files
-# compose mounts, and by the video tests). Idempotent.
+# compose mounts, and by the video tests), rtklib (str2str, a real NTRIP 1 client). Idempotent.
 set -euo pipefail
 need=()
 command -v nginx >/dev/null 2>&1 || [ -x /usr/sbin/nginx ] || need+=(nginx)
@@ -14,6 +14,7 @@ command -v turnserver >/dev/null 2>&1 || need+=(coturn)
 # the Janus tests build a private network namespace (unshare, ip link ... type veth)
 command -v ip >/dev/null 2>&1 || need+=(iproute2)
 command -v unshare >/dev/null 2>&1 || need+=(util-linux)
+command -v str2str >/dev/null 2>&1 || need+=(rtklib)  # a real NTRIP 1 client (tests/server/test_ntrip_caster.py)
 if [ ${#need[@]} -eq 0 ]; then
     echo "system packages already installed"
     exit 0

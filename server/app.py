@@ -39,6 +39,7 @@ from server.runs.engine import RunEngine
 from server.schedules.endpoints import router as schedules_router
 from server.schedules.service import Scheduler
 from server.services import Services
+from server.stations.caster import Caster
 from server.stations.ntrip import ntrip_router
 from server.stations.service import BaseCorrections, caster_authenticator
 from server.telemetry.bulk import OneTrip, PostgresOneTrip, SqliteOneTrip
@@ -109,6 +110,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         await hub.start()
         metrics.watch_hub(hub)
         video = make_gateway(settings)
+        caster = None
+        if settings.ntrip_port is not None:
+            caster = Caster(
+                BaseCorrections(lambda: services), caster_authenticator(lambda: services)
+            )
         services = Services(
             settings=settings,
             passwords=passwords,
@@ -120,8 +126,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             hub=hub,
             session_end_listeners=(hub.sessions_ended,),
             video=video,
+            ntrip=caster,
         )
         set_services(app, services)
+        if caster is not None:  # NTRIP 1 clients, which the HTTP port cannot serve
+            await caster.start(settings.host, settings.ntrip_port or 0)
         runs = RunEngine(services, hub.node)
         scheduler = Scheduler(services, grace_s=settings.schedule_grace_s)
         if settings.run_engine:
@@ -138,6 +147,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 yield
         finally:
             retention.cancel()
+            if caster is not None:
+                await caster.close()
             await video.close()
             await scheduler.stop()
             await runs.stop()

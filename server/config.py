@@ -20,6 +20,13 @@ class Settings(BaseSettings):
     environment: Literal["development", "production", "test"] = "development"
     host: str = "127.0.0.1"
     port: int = 8000
+    ntrip_port: int | None = Field(
+        default=None,
+        ge=0,
+        le=65535,
+        description="TCP port of the NTRIP caster for version 1 and 2 clients (2101 by convention; "
+        "0: any free port); unset: only NTRIP 2 clients, on the HTTP port's /ntrip/",
+    )
     public_url: str | None = Field(
         default=None,
         description="URL daemons use to reach this server; written into asset config files",

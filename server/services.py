@@ -17,6 +17,7 @@ from server.kit.uow import SessionEndListener
 from server.realtime.broker import Broker
 from server.realtime.hub import Hub
 from server.realtime.ingest import Ingest
+from server.stations.caster import Caster
 from server.telemetry.store import TelemetryStore
 from server.video.gateway import MediaGateway
 
@@ -35,3 +36,4 @@ class Services:
     hub: Hub
     session_end_listeners: tuple[SessionEndListener, ...] = ()
     video: MediaGateway | None = None  # the live-video media path (server/video)
+    ntrip: Caster | None = None  # the caster's own port (AEROBASE_NTRIP_PORT), started after this

@@ -176,7 +176,7 @@ class LiveServer:
 @pytest.fixture(scope="session")
 def live_server(database_url: str) -> Iterator[LiveServer]:
     """One server for the session (tests isolate themselves by creating their own organisations)."""
-    server = LiveServer(test_settings(database_url)).start()
+    server = LiveServer(test_settings(database_url, ntrip_port=0)).start()  # 0: any free port
     yield server
     server.stop()
 

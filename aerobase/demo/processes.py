@@ -22,6 +22,16 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
+def port_free(port: int) -> bool:
+    """Whether a TCP port on localhost can be listened on right now."""
+    with socket.socket() as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
 def say(message: str) -> None:
     """One line of the demo's own output, timestamped."""
     print(f"[demo {datetime.now().strftime('%H:%M:%S')}] {message}", flush=True)

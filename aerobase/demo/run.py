@@ -39,7 +39,14 @@ from aerobase.demo.fleet import (
     wait_uav_available,
     watch,
 )
-from aerobase.demo.processes import Processes, free_port, say, serve_until_stopped, wait_http
+from aerobase.demo.processes import (
+    Processes,
+    free_port,
+    port_free,
+    say,
+    serve_until_stopped,
+    wait_http,
+)
 from sim.mavlink_link import BadUrl, parse_url
 
 PASSWORD_LEN = 18
@@ -57,6 +64,8 @@ def prepare(args: argparse.Namespace) -> tuple[Path, dict[str, str], dict[str, s
         "AEROBASE_LOG_FORMAT": "json",
         # everything runs on this machine: WebRTC peers may use loopback (server/video)
         "AEROBASE_VIDEO_ICE_LOOPBACK": "true",
+        # the NTRIP caster for version 1 clients (str2str): 2101 as casters use, if it is free
+        "AEROBASE_NTRIP_PORT": str(2101 if port_free(2101) else free_port()),
     }
     say(f"files, logs and the database go to {folder}")
     create_superuser(ROOT_EMAIL, secrets_["root"], env)
@@ -152,6 +161,7 @@ Aerobase is running on {server_url}  (operator console: {server_url}/, API docs:
   superuser      : {ROOT_EMAIL} / {pw["root"]}
   asset password : in {folder / "asset-password"}
   simulator      : control API http://127.0.0.1:{ports["control"]} (faults, weather, ground truth)
+  NTRIP caster   : ntrip://127.0.0.1:{ports["ntrip"]}/base-porto-1 (the operator login; v1 and v2)
 Press Ctrl-C to stop everything."""
 
 
@@ -164,6 +174,7 @@ async def demo(
         outcome, ports = await run_mission(args, procs, folder, env, pw)
         if args.once:
             return 0 if outcome == "completed" else 1
+        ports = {**ports, "ntrip": int(env["AEROBASE_NTRIP_PORT"])}
         print(banner(args, folder, ports, pw), flush=True)
         await serve_until_stopped(procs)
         return 0

@@ -37,6 +37,11 @@ COMMON_HEADERS = {
 }
 
 Authenticate = Callable[[str, str], Awaitable[Any | None]]
+# what the HTTP route says to a version 1 client, which cannot read an HTTP status line's stream
+V1_HERE = (
+    "this route requires the header Ntrip-Version: Ntrip/2.0; NTRIP 1 clients (RTKLIB's str2str, "
+    "many receivers) connect to the caster's own port (AEROBASE_NTRIP_PORT, 2101 by convention)"
+)
 
 
 @dataclass(frozen=True)
@@ -153,6 +158,39 @@ def visible_to(mountpoints: Iterable[Mountpoint], organisation_id: Any | None) -
     ]
 
 
+def is_version_2(header: str | None) -> bool:
+    """Whether an `Ntrip-Version` header asks for NTRIP 2.0 (absent: a version 1 client)."""
+    return (header or "").strip().lower() == NTRIP_VERSION.lower()
+
+
+async def all_mountpoints(source: CorrectionsSource) -> list[Mountpoint]:
+    """Every mountpoint of `source`, whether it lists them at once or by awaiting."""
+    result = source.mountpoints()
+    if inspect.isawaitable(result):
+        result = await result
+    return list(result)
+
+
+async def identify(authenticate: Authenticate, header: str | None) -> tuple[bool, Any | None]:
+    """(credentials acceptable, organisation id) for an `Authorization` header; no header at all
+    is acceptable, as anonymous (None: public mountpoints only)."""
+    if header is None:
+        return True, None
+    creds = parse_basic_auth(header)
+    if creds is None:
+        return False, None
+    org = await authenticate(*creds)
+    return org is not None, org
+
+
+async def find_mountpoint(
+    source: CorrectionsSource, organisation_id: Any | None, name: str
+) -> Mountpoint | None:
+    """The mountpoint `name` if that organisation may see it."""
+    visible = visible_to(await all_mountpoints(source), organisation_id)
+    return next((m for m in visible if m.name == name), None)
+
+
 def _error(status: int, code: str, message: str, headers: dict[str, str] | None = None) -> Response:
     return JSONResponse(
         {"error": {"code": code, "message": message, "details": None}},
@@ -172,28 +210,11 @@ def ntrip_router(
     router = APIRouter(prefix=prefix, tags=["ntrip"])
     challenge = {"WWW-Authenticate": f'Basic realm="{realm}"'}
 
-    async def all_mountpoints() -> list[Mountpoint]:
-        result = source.mountpoints()
-        if inspect.isawaitable(result):
-            result = await result
-        return list(result)
-
-    async def caller(request: Request) -> tuple[bool, Any | None]:
-        """(credentials acceptable, organisation id); no credentials at all is acceptable as anonymous."""
-        header = request.headers.get("authorization")
-        if header is None:
-            return True, None
-        creds = parse_basic_auth(header)
-        if creds is None:
-            return False, None
-        org = await authenticate(*creds)
-        return org is not None, org
-
     async def table(request: Request) -> Response:
-        ok, org = await caller(request)
+        ok, org = await identify(authenticate, request.headers.get("authorization"))
         if not ok:
             return _error(401, "unauthorized", "bad NTRIP credentials", challenge)
-        body = sourcetable(visible_to(await all_mountpoints(), org))
+        body = sourcetable(visible_to(await all_mountpoints(source), org))
         return Response(
             body, media_type="gnss/sourcetable", headers={**COMMON_HEADERS, "Connection": "close"}
         )
@@ -207,16 +228,12 @@ def ntrip_router(
     @router.get("/{mountpoint}", summary="NTRIP v2 corrections stream (gnss/data, chunked)")
     async def stream(mountpoint: str, request: Request) -> Response:
         """Stream a mountpoint's live RTCM3 frames to an authenticated NTRIP v2 client."""
-        if request.headers.get("ntrip-version", "").strip().lower() != NTRIP_VERSION.lower():
-            return _error(
-                400, "ntrip_version", "this caster requires the header Ntrip-Version: Ntrip/2.0"
-            )
-        ok, org = await caller(request)
+        if not is_version_2(request.headers.get("ntrip-version")):
+            return _error(400, "ntrip_version", V1_HERE)
+        ok, org = await identify(authenticate, request.headers.get("authorization"))
         if not ok or org is None:
             return _error(401, "unauthorized", "NTRIP credentials required", challenge)
-        found = next(
-            (m for m in visible_to(await all_mountpoints(), org) if m.name == mountpoint), None
-        )
+        found = await find_mountpoint(source, org, mountpoint)
         if found is None:
             return _error(404, "not_found", f"no mountpoint {mountpoint!r}")
         log.info(

@@ -3,6 +3,7 @@ base link -> server -> (a) the UAV bound to that base, (b) a third-party NTRIP c
 
 from __future__ import annotations
 
+import asyncio
 import base64
 import queue
 
@@ -13,10 +14,12 @@ from assetlink.configfile import decrypt_config
 from assetlink.link import Link
 from base_station.rtk import RtkConfig, RtkReader
 from protocol.rtcm import frame_ok, message_type
+from server.deps import services_of
 from sim.clock import SimClock
 from sim.gnss.receiver import running_receiver
 from tests.conftest import Tenant
 from tests.polling import eventually
+from tests.server.test_ntrip_caster import frames_in
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
@@ -64,6 +67,25 @@ async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(
                 await eventually(
                     lambda: ntrip_out.qsize() >= 8, what="corrections at the NTRIP client"
                 )
+                # and RTKLIB's str2str, an NTRIP 1 client, on the caster's own port
+                caster = services_of(live_server.app).ntrip
+                assert caster is not None
+                user = (
+                    f"{tenant.emails['viewer']}:{Tenant.PASSWORD}"  # str2str splits at the last @
+                )
+                str2str = await asyncio.create_subprocess_exec(
+                    "str2str", "-in", f"ntrip://{user}@127.0.0.1:{caster.port}/{base['name']}",
+                    "-out", f"file://{tmp_path / 'str2str.rtcm3'}",
+                    stdout=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.DEVNULL,
+                )  # fmt: skip
+                try:
+                    await eventually(
+                        lambda: len(frames_in(tmp_path / "str2str.rtcm3")) >= 8,
+                        what="corrections at str2str",
+                    )
+                finally:
+                    str2str.terminate()
+                    await str2str.wait()
             finally:
                 await reader.stop()
     finally:
@@ -75,3 +97,4 @@ async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(
     assert {message_type(f) for f in at_uav} >= {1005, 1077, 1097}
     pulled = [ntrip_out.get_nowait()[0] for _ in range(ntrip_out.qsize())]
     assert pulled and all(frame_ok(f) for f in pulled)
+    assert {message_type(f) for f in frames_in(tmp_path / "str2str.rtcm3")} >= {1005, 1077}

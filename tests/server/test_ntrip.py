@@ -104,17 +104,22 @@ async def serve(app: FastAPI) -> AsyncIterator[int]:
         sock.close()
 
 
+def mountpoints(rx: GnssReceiver) -> list[Mountpoint]:
+    """Organisation A's base (fed by `rx`), organisation B's, and a public one."""
+    types = dict.fromkeys(rx.model.message_types, 1.0)
+    return [
+        Mountpoint("BASE1", "Porto base", format_details=format_details(types), country="PRT",
+                   latitude=41.178, longitude=-8.598, organisation_id="org-a", asset_id="b-1"),
+        Mountpoint("BASE2", "Other org", organisation_id="org-b", asset_id="b-2"),
+        Mountpoint("PUBLIC", "Open demo", asset_id="b-3"),
+    ]  # fmt: skip
+
+
 @pytest.fixture(params=["broker", "hub"])
 async def caster(request: pytest.FixtureRequest) -> AsyncIterator[Caster]:
     """receiver (sim) -> RtkReader (base station) -> broker or hub -> NTRIP router on uvicorn."""
     async with running_receiver(GnssConfig(seed=21), SimClock(SPEED)) as rx:
-        types = dict.fromkeys(rx.model.message_types, 1.0)
-        mps = [
-            Mountpoint("BASE1", "Porto base", format_details=format_details(types), country="PRT",
-                       latitude=41.178, longitude=-8.598, organisation_id="org-a", asset_id="b-1"),
-            Mountpoint("BASE2", "Other org", organisation_id="org-b", asset_id="b-2"),
-            Mountpoint("PUBLIC", "Open demo", asset_id="b-3"),
-        ]  # fmt: skip
+        mps = mountpoints(rx)
         if request.param == "broker":
             broker = InProcessBroker()
             source = Source(mps, broker=broker)

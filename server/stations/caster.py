@@ -1,0 +1,301 @@
+"""The NTRIP caster on a TCP port of its own (2101 by convention), for version 1 and 2 clients.
+
+NTRIP 1 is not HTTP: a caster answers a stream request with the status line `ICY 200 OK` and the
+raw RTCM3 bytes after it, and a sourcetable with `SOURCETABLE 200 OK`. RTKLIB's str2str, BKG's
+NtripClient and the built-in clients of many receivers speak only that and give up on an
+`HTTP/1.1 200` (str2str reads nothing from one), so an HTTP server cannot serve them. This
+listener speaks both: a request without `Ntrip-Version: Ntrip/2.0` is answered as NTRIP 1, one
+with it as NTRIP 2 (HTTP/1.1, chunked `gnss/data`), as the `/ntrip/` routes of the HTTP port do.
+
+The mountpoints, their visibility to an organisation, the credentials and the live frames are
+the HTTP caster's (ntrip.py); mountpoints are at the root (`/base-porto-1`) and, as on the HTTP
+port, under `/ntrip/`. As version 1 casters do, a request for a mountpoint the caller does not see
+is answered with the sourcetable (NTRIP 2: 404). Whatever the client sends once it streams (a
+rover's GGA sentences) is read and dropped; its leaving ends the stream.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import logging
+from collections.abc import Iterable
+from dataclasses import dataclass
+from email.utils import formatdate
+from typing import Any
+
+from server.stations.ntrip import (
+    SERVER_NAME,
+    Authenticate,
+    CorrectionsSource,
+    Mountpoint,
+    all_mountpoints,
+    find_mountpoint,
+    identify,
+    is_version_2,
+    sourcetable,
+    visible_to,
+)
+
+log = logging.getLogger(__name__)
+HEAD_LIMIT = 8192  # bytes of request line and headers
+HEAD_TIMEOUT_S = 10.0  # a client that has not sent its request by then is closed
+SEND_TIMEOUT_S = 30.0  # a client that takes nothing for this long is closed
+CLOSE_WAIT_S = 1.0  # after our answer, how long a client may take to close its end
+REALM = "Aerobase NTRIP caster"
+MAX_CLIENTS = 1000  # connections at once; the next is answered 503 and closed
+
+
+@dataclass(frozen=True)
+class Request:
+    """An NTRIP request: method, the mountpoint asked for ('' for the sourcetable), headers."""
+
+    method: str
+    mountpoint: str
+    headers: dict[str, str]  # lower-case names
+
+    @property
+    def version_2(self) -> bool:
+        return is_version_2(self.headers.get("ntrip-version"))
+
+
+class BadRequest(ValueError):
+    """The bytes are not an NTRIP request."""
+
+
+def parse_request(head: bytes) -> Request:
+    """The request line and headers (CRLF or LF line ends) of an NTRIP request."""
+    lines = head.decode("latin-1").replace("\r\n", "\n").split("\n")
+    parts = lines[0].split()
+    if len(parts) < 2:
+        raise BadRequest("no request line")
+    path = parts[1].split("?", 1)[0].lstrip("/")
+    if path == "ntrip" or path.startswith("ntrip/"):
+        path = path[len("ntrip") :].lstrip("/")
+    headers: dict[str, str] = {}
+    for line in lines[1:]:
+        name, sep, value = line.partition(":")
+        if sep:
+            headers[name.strip().lower()] = value.strip()
+    return Request(parts[0].upper(), path, headers)
+
+
+def _head(status: str, version_2: bool, fields: Iterable[tuple[str, str]] = ()) -> bytes:
+    common = [("Server", SERVER_NAME), ("Date", formatdate(usegmt=True))]
+    if version_2:
+        common += [("Ntrip-Version", "Ntrip/2.0"), ("Connection", "close")]
+    lines = [status, *(f"{k}: {v}" for k, v in (*common, *fields))]
+    return ("\r\n".join(lines) + "\r\n\r\n").encode("latin-1")
+
+
+def table_response(mountpoints: list[Mountpoint], version_2: bool) -> bytes:
+    """The sourcetable: `SOURCETABLE 200 OK` (NTRIP 1) or an HTTP/1.1 `gnss/sourcetable`."""
+    body = sourcetable(mountpoints).encode()
+    status, kind = (
+        ("HTTP/1.1 200 OK", "gnss/sourcetable")
+        if version_2
+        else ("SOURCETABLE 200 OK", "text/plain")
+    )
+    return (
+        _head(status, version_2, [("Content-Type", kind), ("Content-Length", str(len(body)))])
+        + body
+    )
+
+
+def error_response(status: int, reason: str, code: str, message: str, version_2: bool) -> bytes:
+    """An error: the HTTP API's JSON error body (NTRIP 2), or a line of text (NTRIP 1)."""
+    if version_2:
+        body = json.dumps({"error": {"code": code, "message": message, "details": None}}).encode()
+        kind = "application/json"
+    else:
+        body, kind = f"{status} {reason}: {message}\r\n".encode(), "text/plain"
+    fields = [("Content-Type", kind), ("Content-Length", str(len(body)))]
+    if status == 401:
+        fields.append(("WWW-Authenticate", f'Basic realm="{REALM}"'))
+    http = "HTTP/1.1" if version_2 else "HTTP/1.0"
+    return _head(f"{http} {status} {reason}", version_2, fields) + body
+
+
+def stream_head(version_2: bool) -> bytes:
+    """What precedes a mountpoint's frames: `ICY 200 OK` alone (NTRIP 1: RTKLIB and BKG's client
+    take every byte after it as data, and BKG's wants it in a read of its own), or HTTP headers."""
+    if not version_2:
+        return b"ICY 200 OK\r\n"
+    return _head(
+        "HTTP/1.1 200 OK",
+        True,
+        [
+            ("Content-Type", "gnss/data"),
+            ("Transfer-Encoding", "chunked"),
+            ("Cache-Control", "no-store, no-cache, max-age=0"),
+        ],
+    )
+
+
+class Caster:
+    """Serves NTRIP 1 and 2 clients on a TCP port until `close()`."""
+
+    def __init__(
+        self, source: CorrectionsSource, authenticate: Authenticate, max_clients: int = MAX_CLIENTS
+    ) -> None:
+        self.source, self.authenticate, self.max_clients = source, authenticate, max_clients
+        self._server: asyncio.Server | None = None
+        self._clients: dict[asyncio.Task[Any], asyncio.StreamWriter] = {}
+
+    @property
+    def port(self) -> int:
+        assert self._server is not None, "not started"
+        return int(self._server.sockets[0].getsockname()[1])
+
+    @property
+    def streaming(self) -> int:
+        """Clients connected now."""
+        return len(self._clients)
+
+    async def start(self, host: str, port: int) -> Caster:
+        self._server = await asyncio.start_server(self._connected, host, port)
+        log.info("NTRIP caster (versions 1 and 2) on %s:%d", host, self.port)
+        return self
+
+    async def close(self) -> None:
+        """Stop listening and end every client's connection (its stream ends as if it had left)."""
+        if self._server is not None:
+            self._server.close()
+        for writer in list(self._clients.values()):
+            writer.close()
+        if self._clients:
+            await asyncio.wait(list(self._clients), timeout=SEND_TIMEOUT_S)
+
+    async def _connected(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        task = asyncio.current_task()
+        assert task is not None
+        if len(self._clients) >= self.max_clients:
+            message = "too many NTRIP clients; try again later"
+            writer.write(error_response(503, "Service Unavailable", "busy", message, False))
+            await _close(reader, writer)
+            return
+        self._clients[task] = writer
+        peer = writer.get_extra_info("peername")
+        try:
+            await self._serve(reader, writer, peer[0] if peer else "?")
+        except (ConnectionError, TimeoutError, asyncio.IncompleteReadError):
+            pass  # the client left, or took nothing for SEND_TIMEOUT_S
+        finally:
+            self._clients.pop(task, None)
+            await _close(reader, writer)
+
+    async def _serve(
+        self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter, peer: str
+    ) -> None:
+        try:
+            async with asyncio.timeout(HEAD_TIMEOUT_S):
+                head = await _read_head(reader)
+            request = parse_request(head)
+        except (BadRequest, asyncio.LimitOverrunError, TimeoutError, ValueError):
+            writer.write(
+                error_response(400, "Bad Request", "bad_request", "not an NTRIP request", False)
+            )
+            return await _drain(writer)
+        v2 = request.version_2
+        if request.method != "GET":
+            message = "this caster serves GET (clients); it takes no NTRIP server's SOURCE or POST"
+            writer.write(error_response(405, "Method Not Allowed", "method", message, v2))
+            return await _drain(writer)
+        ok, org = await identify(self.authenticate, request.headers.get("authorization"))
+        if not ok or (request.mountpoint and org is None):
+            writer.write(
+                error_response(
+                    401, "Unauthorized", "unauthorized", "NTRIP credentials required", v2
+                )
+            )
+            return await _drain(writer)
+        found = None
+        if request.mountpoint:
+            found = await find_mountpoint(self.source, org, request.mountpoint)
+        if found is None:
+            if request.mountpoint and v2:
+                message = f"no mountpoint {request.mountpoint!r}"
+                writer.write(error_response(404, "Not Found", "not_found", message, v2))
+            else:  # NTRIP 1: an unknown mountpoint gets the sourcetable
+                visible = visible_to(await all_mountpoints(self.source), org)
+                writer.write(table_response(visible, v2))
+            return await _drain(writer)
+        log.info("ntrip client %s on %s (NTRIP %d)", peer, found.name, 2 if v2 else 1)
+        writer.write(stream_head(v2))
+        await _drain(writer)
+        try:
+            await _stream(self.source, found, reader, writer, v2)
+        finally:
+            log.info("ntrip client %s left %s", peer, found.name)
+
+
+async def _read_head(reader: asyncio.StreamReader) -> bytes:
+    """Bytes up to the blank line ending the request (CRLF or LF)."""
+    head = b""
+    while b"\r\n\r\n" not in head and b"\n\n" not in head:
+        chunk = await reader.read(HEAD_LIMIT)
+        if not chunk:
+            raise BadRequest("closed before the request ended")
+        head += chunk
+        if len(head) > HEAD_LIMIT:
+            raise BadRequest("request head too long")
+    return head
+
+
+async def _close(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+    """Send what is left, then close: after our end, what the client sent and we did not read
+    (a rover's GGA, a request we refused unread) is taken first, for at most CLOSE_WAIT_S; a
+    socket closed with unread data resets the connection, and the client may lose our answer."""
+    with contextlib.suppress(Exception):
+        await _drain(writer)
+        if writer.can_write_eof():
+            writer.write_eof()
+        async with asyncio.timeout(CLOSE_WAIT_S):
+            while await reader.read(HEAD_LIMIT):
+                pass
+    writer.close()
+    with contextlib.suppress(Exception):
+        await writer.wait_closed()
+
+
+async def _drain(writer: asyncio.StreamWriter) -> None:
+    async with asyncio.timeout(SEND_TIMEOUT_S):
+        await writer.drain()
+
+
+async def _stream(
+    source: CorrectionsSource,
+    mountpoint: Mountpoint,
+    reader: asyncio.StreamReader,
+    writer: asyncio.StreamWriter,
+    version_2: bool,
+) -> None:
+    """The mountpoint's live frames until the client leaves (what it sends is dropped)."""
+
+    async def until_gone() -> None:
+        while await reader.read(4096):
+            pass  # GGA sentences and the like: not used
+
+    gone = asyncio.create_task(until_gone())
+    frames = source.subscribe(mountpoint)
+    pending: asyncio.Future[bytes] | None = None
+    try:
+        while True:
+            pending = asyncio.ensure_future(anext(frames))
+            await asyncio.wait({pending, gone}, return_when=asyncio.FIRST_COMPLETED)
+            if not pending.done():
+                break  # the client left
+            frame, pending = pending.result(), None
+            writer.write(b"%x\r\n%b\r\n" % (len(frame), frame) if version_2 else frame)
+            await _drain(writer)
+    finally:
+        gone.cancel()
+        if pending is not None and not pending.done():
+            pending.cancel()  # the subscription ends where it waits (its own finally runs)
+            with contextlib.suppress(asyncio.CancelledError, StopAsyncIteration):
+                await pending
+        aclose = getattr(frames, "aclose", None)
+        if aclose is not None:
+            with contextlib.suppress(Exception):
+                await aclose()
