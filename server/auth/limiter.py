@@ -68,5 +68,8 @@ class LoginLimiter:
         """A successful login takes its attempt back and clears the account's failures (in the
         caller's unit of work; the address keeps its other failures)."""
         repo = LoginFailureRepository(db)
+        # the account's key, as admit takes it: two successes at once (two replicas, two rovers
+        # sharing an account) would otherwise each delete a row the other's clear waits for
+        await repo.lock([f"account:{account_key}"])
         await repo.delete(list(attempt.row_ids))
         await repo.clear(f"account:{account_key}")

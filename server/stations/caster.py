@@ -198,36 +198,42 @@ class Caster:
             )
             return await _drain(writer)
         v2 = request.version_2
-        if request.method != "GET":
-            message = "this caster serves GET (clients); it takes no NTRIP server's SOURCE or POST"
-            writer.write(error_response(405, "Method Not Allowed", "method", message, v2))
+        try:
+            answer = await self._answer(request)
+        except Exception:  # the database or the broker away: say so, never just hang up
+            log.exception("ntrip: could not answer %s", peer)
+            message = "the caster cannot check credentials or mountpoints now; try again"
+            answer = error_response(503, "Service Unavailable", "unavailable", message, v2)
+        if isinstance(answer, bytes):
+            writer.write(answer)
             return await _drain(writer)
-        ok, org = await identify(self.authenticate, request.headers.get("authorization"))
-        if not ok or (request.mountpoint and org is None):
-            writer.write(
-                error_response(
-                    401, "Unauthorized", "unauthorized", "NTRIP credentials required", v2
-                )
-            )
-            return await _drain(writer)
-        found = None
-        if request.mountpoint:
-            found = await find_mountpoint(self.source, org, request.mountpoint)
-        if found is None:
-            if request.mountpoint and v2:
-                message = f"no mountpoint {request.mountpoint!r}"
-                writer.write(error_response(404, "Not Found", "not_found", message, v2))
-            else:  # NTRIP 1: an unknown mountpoint gets the sourcetable
-                visible = visible_to(await all_mountpoints(self.source), org)
-                writer.write(table_response(visible, v2))
-            return await _drain(writer)
-        log.info("ntrip client %s on %s (NTRIP %d)", peer, found.name, 2 if v2 else 1)
+        log.info("ntrip client %s on %s (NTRIP %d)", peer, answer.name, 2 if v2 else 1)
         writer.write(stream_head(v2))
         await _drain(writer)
         try:
-            await _stream(self.source, found, reader, writer, v2)
+            await _stream(self.source, answer, reader, writer, v2)
         finally:
-            log.info("ntrip client %s left %s", peer, found.name)
+            log.info("ntrip client %s left %s", peer, answer.name)
+
+    async def _answer(self, request: Request) -> bytes | Mountpoint:
+        """What a request gets: an answer to send and close with, or the mountpoint to stream."""
+        v2 = request.version_2
+        if request.method != "GET":
+            message = "this caster serves GET (clients); it takes no NTRIP server's SOURCE or POST"
+            return error_response(405, "Method Not Allowed", "method", message, v2)
+        ok, org = await identify(self.authenticate, request.headers.get("authorization"))
+        if not ok or (request.mountpoint and org is None):
+            message = "NTRIP credentials required"
+            return error_response(401, "Unauthorized", "unauthorized", message, v2)
+        if request.mountpoint:
+            found = await find_mountpoint(self.source, org, request.mountpoint)
+            if found is not None:
+                return found
+            if v2:
+                message = f"no mountpoint {request.mountpoint!r}"
+                return error_response(404, "Not Found", "not_found", message, v2)
+        # the sourcetable, asked for or (NTRIP 1) in place of a mountpoint the caller does not see
+        return table_response(visible_to(await all_mountpoints(self.source), org), v2)
 
 
 async def _read_head(reader: asyncio.StreamReader) -> bytes:

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import asyncio
+import functools
+import hmac
+import secrets
 import uuid
 from collections.abc import AsyncIterator, Awaitable, Callable
 
@@ -53,10 +56,31 @@ class BaseCorrections:
 def caster_authenticator(
     services: Callable[[], Services],
 ) -> Callable[[str, str], Awaitable[uuid.UUID | None]]:
-    """`authenticate(username, password)` for the caster: a user's e-mail and password -> organisation."""
+    """`authenticate(username, password)` for the caster: a user's e-mail and password -> organisation.
+
+    Rovers often share one account, and reconnect together when a caster restarts: requests
+    with the same credentials while one is being checked wait for that check instead of each
+    costing a password hash and a place under the account's failed-login limit (which would turn
+    the sixth of them into a 401). Nothing is remembered once the check is answered."""
     from server.auth.limiter import LoginLimiter
 
+    under_way: dict[tuple[str, bytes], asyncio.Task[uuid.UUID | None]] = {}
+    key = secrets.token_bytes(32)  # the credentials' in-flight key: never the password itself
+
+    def done(which: tuple[str, bytes], task: asyncio.Task[uuid.UUID | None]) -> None:
+        under_way.pop(which, None)
+        if not task.cancelled():
+            task.exception()  # retrieved here: every waiter may have gone
+
     async def authenticate(username: str, password: str) -> uuid.UUID | None:
+        which = (username, hmac.digest(key, password.encode(), "sha256"))
+        task = under_way.get(which)
+        if task is None:  # the check runs on its own: a waiter leaving does not cancel it
+            task = under_way[which] = asyncio.create_task(check(username, password))
+            task.add_done_callback(functools.partial(done, which))
+        return await asyncio.shield(task)
+
+    async def check(username: str, password: str) -> uuid.UUID | None:
         state = services()
         limiter = LoginLimiter(state.sessionmaker, state.settings)
         try:

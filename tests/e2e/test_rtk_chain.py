@@ -3,7 +3,6 @@ base link -> server -> (a) the UAV bound to that base, (b) a third-party NTRIP c
 
 from __future__ import annotations
 
-import asyncio
 import base64
 import queue
 
@@ -12,14 +11,11 @@ from pygnssutils import GNSSNTRIPClient
 
 from assetlink.configfile import decrypt_config
 from assetlink.link import Link
-from base_station.rtk import RtkConfig, RtkReader
 from protocol.rtcm import frame_ok, message_type
 from server.deps import services_of
-from sim.clock import SimClock
-from sim.gnss.receiver import running_receiver
 from tests.conftest import Tenant
 from tests.polling import eventually
-from tests.server.test_ntrip_caster import frames_in
+from tests.rtk import base_sending, frames_in, stop, str2str
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
@@ -47,47 +43,32 @@ async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(
     try:
         await base_link.wait_connected(15)
         await uav_link.wait_connected(15)
-        async with running_receiver(clock=SimClock(5.0)) as receiver:
-            reader = RtkReader(
-                RtkConfig(source=f"tcp://127.0.0.1:{receiver.port}"), on_frame=base_link.send_rtcm
+        async with base_sending(base_link):
+            await eventually(lambda: len(at_uav) >= 8, what="corrections at the UAV")
+            client = GNSSNTRIPClient(retries=0, timeout=5, verbosity=0)
+            client.run(
+                server="127.0.0.1",
+                port=live_server.port,
+                mountpoint=f"ntrip/{base['name']}",
+                ntripuser=tenant.emails["viewer"],
+                ntrippassword=Tenant.PASSWORD,
+                version="2.0",
+                output=ntrip_out,
             )
-            reader.start()
+            await eventually(lambda: ntrip_out.qsize() >= 8, what="corrections at the NTRIP client")
+            # and RTKLIB's str2str, an NTRIP 1 client, on the caster's own port
+            caster = services_of(live_server.app).ntrip
+            assert caster is not None
+            user = f"{tenant.emails['viewer']}:{Tenant.PASSWORD}"  # str2str splits at the last @
+            mount = f"ntrip://{user}@127.0.0.1:{caster.port}/{base['name']}"
+            rover = await str2str(mount, tmp_path / "str2str.rtcm3")
             try:
-                await eventually(lambda: len(at_uav) >= 8, what="corrections at the UAV")
-                client = GNSSNTRIPClient(retries=0, timeout=5, verbosity=0)
-                client.run(
-                    server="127.0.0.1",
-                    port=live_server.port,
-                    mountpoint=f"ntrip/{base['name']}",
-                    ntripuser=tenant.emails["viewer"],
-                    ntrippassword=Tenant.PASSWORD,
-                    version="2.0",
-                    output=ntrip_out,
-                )
                 await eventually(
-                    lambda: ntrip_out.qsize() >= 8, what="corrections at the NTRIP client"
+                    lambda: len(frames_in(tmp_path / "str2str.rtcm3")) >= 8,
+                    what="corrections at str2str",
                 )
-                # and RTKLIB's str2str, an NTRIP 1 client, on the caster's own port
-                caster = services_of(live_server.app).ntrip
-                assert caster is not None
-                user = (
-                    f"{tenant.emails['viewer']}:{Tenant.PASSWORD}"  # str2str splits at the last @
-                )
-                str2str = await asyncio.create_subprocess_exec(
-                    "str2str", "-in", f"ntrip://{user}@127.0.0.1:{caster.port}/{base['name']}",
-                    "-out", f"file://{tmp_path / 'str2str.rtcm3'}",
-                    stdout=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.DEVNULL,
-                )  # fmt: skip
-                try:
-                    await eventually(
-                        lambda: len(frames_in(tmp_path / "str2str.rtcm3")) >= 8,
-                        what="corrections at str2str",
-                    )
-                finally:
-                    str2str.terminate()
-                    await str2str.wait()
             finally:
-                await reader.stop()
+                await stop(rover)
     finally:
         if client is not None:
             client.stop()

@@ -9,7 +9,6 @@ import base64
 import contextlib
 import json
 import queue
-import shutil
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +25,7 @@ from server.stations.ntrip import LiveCorrections, Mountpoint, sourcetable
 from sim.clock import SimClock
 from sim.gnss import GnssConfig, GnssReceiver, running_receiver
 from tests.polling import eventually
+from tests.rtk import frames_in, stop, str2str
 from tests.server.test_ntrip import SPEED, Source, authenticate, mountpoints
 
 
@@ -57,10 +57,6 @@ async def ntrip() -> AsyncIterator[Running]:
 
 
 GGA = b"$GPGGA,120000.00,4110.6800,N,00835.8800,W,4,12,0.6,100.0,M,50.0,M,1.0,0000*4B\r\n"
-
-
-def frames_in(path: Path) -> list[bytes]:
-    return list(Reframer().feed(path.read_bytes())) if path.exists() else []
 
 
 def basic(user: str, password: str) -> str:
@@ -96,24 +92,18 @@ def v2(path: str, auth: str | None = basic("alice", "s3cret")) -> str:
 async def test_rtklib_str2str_pulls_the_live_corrections_as_an_ntrip_1_client(
     ntrip: Running, tmp_path: Path
 ):
-    assert shutil.which("str2str"), "RTKLIB's str2str is missing: run .ci/install-system.sh"
     out = tmp_path / "corrections.rtcm3"
-    url = f"ntrip://alice:s3cret@127.0.0.1:{ntrip.caster.port}/BASE1"
-    proc = await asyncio.create_subprocess_exec(
-        "str2str", "-in", url, "-out", f"file://{out}",
-        stdout=asyncio.subprocess.DEVNULL, stderr=asyncio.subprocess.PIPE,
-    )  # fmt: skip
+    rover = await str2str(f"ntrip://alice:s3cret@127.0.0.1:{ntrip.caster.port}/BASE1", out)
     try:
         await eventually(lambda: len(frames_in(out)) >= 24, within=30, what="frames str2str wrote")
     finally:
-        proc.terminate()
-        _, err = await proc.communicate()
+        await stop(rover)
     data = out.read_bytes()
     reframer = Reframer()
     frames = list(reframer.feed(data))
     assert data[0] == 0xD3, data[:40]  # the ICY line stays out of the data: nothing but RTCM3
     assert reframer.skipped_bytes == 0 and reframer.bad_frames == 0
-    assert {message_type(f) for f in frames} == {1005, 1077, 1097, 1230}, err.decode()[-500:]
+    assert {message_type(f) for f in frames} == {1005, 1077, 1097, 1230}
     model = [
         f for e in range(ntrip.receiver.last_epoch + 1) for f in ntrip.receiver.model.frames(e)
     ]
@@ -255,6 +245,20 @@ async def test_a_client_over_the_limit_is_answered_503_and_the_others_keep_strea
         writer.close()
     finally:
         await full.close()
+
+
+async def test_when_the_database_is_away_a_client_is_told_503_not_hung_up_on():
+    async def database_away(username: str, password: str) -> str | None:
+        raise OSError("connection refused")  # what asyncpg raises with PostgreSQL down
+
+    broken = await Caster(Source([]), database_away).start("127.0.0.1", 0)
+    try:
+        for request in (v1("/BASE1"), v2("/BASE1")):
+            answer = await ask(broken.port, request)
+            assert b" 503 Service Unavailable\r\n" in answer.split(b"\r\n", 1)[0] + b"\r\n"
+            assert b"try again" in answer
+    finally:
+        await broken.close()
 
 
 async def test_a_client_that_says_nothing_is_let_go(ntrip: Running, monkeypatch):
