@@ -24,6 +24,8 @@ from tests.polling import wait_for
 REDIS_URL = os.environ.get("REDIS_TEST_URL", "redis://127.0.0.1:6379/0")
 ROOT = Path(__file__).resolve().parent.parent
 NGINX_SERVER_BLOCK = ROOT / "deploy" / "nginx" / "aerobase.conf"
+NGINX_NTRIP_BLOCK = ROOT / "deploy" / "nginx" / "ntrip.conf"  # a stream context file
+DEBIAN_STREAM_MODULE = Path("/usr/lib/nginx/modules/ngx_stream_module.so")
 
 
 def _healthy(url: str) -> bool:
@@ -86,19 +88,28 @@ def stop(procs: list[subprocess.Popen[bytes]]) -> None:
 
 @contextmanager
 def replicas(
-    database_url: str, folder: Path, count: int = 2, settings: dict[str, str] | None = None
+    database_url: str,
+    folder: Path,
+    count: int = 2,
+    settings: dict[str, str] | list[dict[str, str]] | None = None,
 ) -> Iterator[list[tuple[int, subprocess.Popen[bytes]]]]:
-    """`count` replicas on one database and Redis: (port, process) each; stopped on exit."""
+    """`count` replicas on one database and Redis: (port, process) each; stopped on exit.
+    `settings` for all of them, or a list: each replica its own."""
     need_service("Redis", "127.0.0.1", 6379)
     started: list[tuple[int, subprocess.Popen[bytes]]] = []
+    each = settings if isinstance(settings, list) else [settings or {}] * count
     with open(folder / "servers.log", "wb") as log:
         try:
-            for _ in range(count):
+            for i in range(count):
                 port = free_port()
-                started.append((port, start_server(database_url, port, log, settings)))
+                started.append((port, start_server(database_url, port, log, each[i])))
             yield started
         finally:
             stop([p for _, p in started])
+
+
+def _servers(ports: list[int]) -> str:
+    return "".join(f"server 127.0.0.1:{p} max_fails=1 fail_timeout=5s;\n" for p in ports)
 
 
 def nginx_binary() -> str:
@@ -114,17 +125,18 @@ def nginx_binary() -> str:
 
 
 @contextmanager
-def proxy(upstream_ports: list[int], folder: Path) -> Iterator[str]:
+def proxy(
+    upstream_ports: list[int], folder: Path, ntrip: tuple[int, list[int]] | None = None
+) -> Iterator[str]:
     """nginx on a free port running deploy/nginx/aerobase.conf in front of `upstream_ports`;
+    with `ntrip` (a port to listen on, the replicas' caster ports) also deploy/nginx/ntrip.conf;
     yields its base URL."""
     binary = nginx_binary()
     prefix = folder / "nginx"
     (prefix / "aerobase").mkdir(parents=True)
     (prefix / "tmp").mkdir()
     (prefix / "aerobase" / "aerobase.conf").symlink_to(NGINX_SERVER_BLOCK)
-    (prefix / "aerobase" / "upstream.conf").write_text(
-        "".join(f"server 127.0.0.1:{p} max_fails=1 fail_timeout=5s;\n" for p in upstream_ports)
-    )
+    (prefix / "aerobase" / "upstream.conf").write_text(_servers(upstream_ports))
     port = free_port()
     (prefix / "aerobase" / "listen.conf").write_text(f"listen 127.0.0.1:{port};\n")
     user = "user root;\n" if os.geteuid() == 0 else ""
@@ -132,10 +144,19 @@ def proxy(upstream_ports: list[int], folder: Path) -> Iterator[str]:
         f"    {kind}_temp_path tmp/{kind};\n"
         for kind in ("client_body", "proxy", "fastcgi", "uwsgi", "scgi")
     )
+    stream = ""
+    if ntrip is not None:
+        (prefix / "ntrip.conf").symlink_to(NGINX_NTRIP_BLOCK)
+        (prefix / "aerobase" / "ntrip-upstream.conf").write_text(_servers(ntrip[1]))
+        (prefix / "aerobase" / "ntrip-listen.conf").write_text(f"listen 127.0.0.1:{ntrip[0]};\n")
+        stream = "stream {\n    include ntrip.conf;\n}\n"
+        if DEBIAN_STREAM_MODULE.exists():  # Debian builds it as a module (libnginx-mod-stream)
+            user += f"load_module {DEBIAN_STREAM_MODULE};\n"
     (prefix / "nginx.conf").write_text(
         f"{user}daemon off;\npid nginx.pid;\nerror_log error.log info;\n"
         "events { worker_connections 1024; }\n"
         f"http {{\n    access_log access.log;\n{temp}    include aerobase/aerobase.conf;\n}}\n"
+        + stream
     )
     with open(prefix / "nginx.out", "wb") as out:
         proc = subprocess.Popen(

@@ -128,6 +128,17 @@ def test_the_proxy_mounts_the_server_block_the_native_topology_runs_and_points_a
     assert mounts["./deploy/nginx/compose"] == "/etc/nginx/aerobase"
     upstream = (ROOT / "deploy" / "nginx" / "compose" / "upstream.conf").read_text()
     assert re.findall(r"^server (\S+):8000", upstream, re.M) == ["server-1", "server-2"]
+    # NTRIP's TCP: the stream context the native test runs, in the nginx.conf mounted over the
+    # image's, to each replica's caster port
+    assert mounts["./deploy/nginx/ntrip.conf"] == "/etc/nginx/ntrip.conf"
+    assert mounts["./deploy/nginx/nginx.conf"] == "/etc/nginx/nginx.conf"
+    main = (ROOT / "deploy" / "nginx" / "nginx.conf").read_text()
+    assert re.search(r"^stream \{\s*include ntrip\.conf;\s*\}", main, re.M)
+    assert re.search(r"^http \{[^}]*include conf\.d/\*\.conf;", main, re.M)
+    ntrip = (ROOT / "deploy" / "nginx" / "compose" / "ntrip-upstream.conf").read_text()
+    port = compose()["services"]["server-1"]["environment"]["AEROBASE_NTRIP_PORT"]
+    assert re.findall(rf"^server (\S+):{port} ", ntrip, re.M) == ["server-1", "server-2"]
+    assert any(p.endswith(":2101") for p in proxy["ports"])
 
 
 def test_the_replicas_wait_for_the_migration_and_do_not_migrate_themselves():
