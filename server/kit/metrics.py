@@ -89,6 +89,13 @@ VIDEO_PUBLISHERS = Gauge(
     "Assets publishing video to this process's embedded relay",
     registry=REGISTRY,
 )
+NTRIP_CLIENTS = Gauge(
+    "aerobase_ntrip_clients",
+    "Rovers streaming a base's corrections from this process, by NTRIP version (the caster's "
+    "own port serves both; /ntrip/ on the HTTP port serves version 2)",
+    ["version"],
+    registry=REGISTRY,
+)
 BASE_RTK_RATE = Gauge(
     "aerobase_base_rtk_corrections_per_second",
     "RTCM3 correction frames per second a landing base last reported",

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from email.utils import formatdate
 from typing import Any
 
+from server.kit.metrics import NTRIP_CLIENTS
 from server.stations.ntrip import (
     SERVER_NAME,
     Authenticate,
@@ -210,9 +211,12 @@ class Caster:
         log.info("ntrip client %s on %s (NTRIP %d)", peer, answer.name, 2 if v2 else 1)
         writer.write(stream_head(v2))
         await _drain(writer)
+        streaming = NTRIP_CLIENTS.labels("2" if v2 else "1")
+        streaming.inc()
         try:
             await _stream(self.source, answer, reader, writer, v2)
         finally:
+            streaming.dec()
             log.info("ntrip client %s left %s", peer, answer.name)
 
     async def _answer(self, request: Request) -> bytes | Mountpoint:

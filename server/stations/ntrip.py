@@ -24,6 +24,7 @@ from fastapi import APIRouter, Request, Response
 from fastapi.responses import JSONResponse, StreamingResponse
 
 from protocol.rtcm import frame_ok
+from server.kit.metrics import NTRIP_CLIENTS
 
 log = logging.getLogger(__name__)
 
@@ -251,10 +252,12 @@ def ntrip_router(
 
 async def _frames(source: CorrectionsSource, mountpoint: Mountpoint) -> AsyncIterator[bytes]:
     subscription = source.subscribe(mountpoint)
+    NTRIP_CLIENTS.labels("2").inc()
     try:
         async for frame in subscription:
             yield frame
     finally:
+        NTRIP_CLIENTS.labels("2").dec()
         aclose = getattr(subscription, "aclose", None)
         if aclose is not None:
             with contextlib.suppress(Exception):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import base64
 import queue
 
+import httpx
 import pytest
 from pygnssutils import GNSSNTRIPClient
 
@@ -13,7 +14,8 @@ from assetlink.configfile import decrypt_config
 from assetlink.link import Link
 from protocol.rtcm import frame_ok, message_type
 from server.deps import services_of
-from tests.conftest import Tenant
+from tests.conftest import LiveServer, Tenant
+from tests.metrics import value
 from tests.polling import eventually
 from tests.rtk import base_sending, frames_in, stop, str2str
 
@@ -22,6 +24,13 @@ pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lan
 
 def _cfg(asset: dict):  # type: ignore[no-untyped-def]
     return decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
+
+
+def rovers(server: LiveServer) -> tuple[float, float]:
+    """The server's NTRIP clients on /metrics: (version 1, version 2)."""
+    text = httpx.get(f"{server.url}/metrics", timeout=10).text
+    count = "aerobase_ntrip_clients"
+    return value(text, count, version="1"), value(text, count, version="2")
 
 
 async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(
@@ -45,6 +54,7 @@ async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(
         await uav_link.wait_connected(15)
         async with base_sending(base_link):
             await eventually(lambda: len(at_uav) >= 8, what="corrections at the UAV")
+            before = rovers(live_server)
             client = GNSSNTRIPClient(retries=0, timeout=5, verbosity=0)
             client.run(
                 server="127.0.0.1",
@@ -67,8 +77,12 @@ async def test_corrections_reach_the_bound_uav_and_an_ntrip_client(
                     lambda: len(frames_in(tmp_path / "str2str.rtcm3")) >= 8,
                     what="corrections at str2str",
                 )
+                # /metrics counts both rovers, by version (over what the process had before)
+                assert rovers(live_server) == (before[0] + 1, before[1] + 1)
             finally:
                 await stop(rover)
+            client.stop()
+            await eventually(lambda: rovers(live_server) == before, what="the rovers uncounted")
     finally:
         if client is not None:
             client.stop()
