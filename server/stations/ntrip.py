@@ -141,7 +141,7 @@ def parse_basic_auth(header: str | None) -> tuple[str, str] | None:
         return None
     try:
         decoded = base64.b64decode(token.strip(), validate=True).decode("utf-8")
-    except (binascii.Error, UnicodeDecodeError):
+    except (binascii.Error, UnicodeDecodeError, ValueError):  # ValueError: non-ASCII bytes
         return None
     user, sep, password = decoded.partition(":")
     if not sep:

@@ -172,7 +172,15 @@ def test_basic_auth_parsing_and_visibility() -> None:
     assert parse_basic_auth(f"Basic {token}") == ("alice", "pa:ss")
     assert parse_basic_auth(f"basic   {token}") == ("alice", "pa:ss")
     nocolon = base64.b64encode(b"alice").decode()
-    for bad in (None, "", "Bearer abc", "Basic", "Basic !!!", f"Basic {nocolon}"):
+    for bad in (
+        None,
+        "",
+        "Bearer abc",
+        "Basic",
+        "Basic !!!",
+        f"Basic {nocolon}",
+        "Basic \xe9t\xe9",
+    ):
         assert parse_basic_auth(bad) is None
     mps = [Mountpoint("A", organisation_id=1), Mountpoint("B", organisation_id=2), Mountpoint("P")]
     assert [m.name for m in visible_to(mps, 1)] == ["A", "P"]
@@ -300,6 +308,9 @@ async def test_errors_401_404_400_and_anonymous_sourcetable(caster: Caster) -> N
         r = await http.get(
             "/ntrip/BASE1", headers={**ntrip_headers(), "Authorization": "Basic %%%"}
         )
+        assert r.status_code == 401
+        latin1 = {**ntrip_headers(), "Authorization": "Basic \xe9t\xe9".encode("latin-1")}
+        r = await http.get("/ntrip/BASE1", headers=latin1)  # non-ASCII: a 401, not a 500
         assert r.status_code == 401
         r = await http.get("/ntrip/NOPE", headers=ntrip_headers())
         assert r.status_code == 404 and r.json()["error"]["code"] == "not_found"
