@@ -150,8 +150,8 @@ class Caster:
         return int(self._server.sockets[0].getsockname()[1])
 
     @property
-    def streaming(self) -> int:
-        """Clients connected now."""
+    def connected(self) -> int:
+        """Clients connected now (streaming or being answered)."""
         return len(self._clients)
 
     async def start(self, host: str, port: int) -> Caster:
@@ -160,13 +160,21 @@ class Caster:
         return self
 
     async def close(self) -> None:
-        """Stop listening and end every client's connection (its stream ends as if it had left)."""
+        """Stop listening and end every client's connection (its stream ends as if it had left);
+        a client that takes nothing (its unsent frames would hold the close) is cut off after
+        2 x CLOSE_WAIT_S, so a server's shutdown is not held by a stalled rover."""
         if self._server is not None:
             self._server.close()
         for writer in list(self._clients.values()):
             writer.close()
-        if self._clients:
-            await asyncio.wait(list(self._clients), timeout=SEND_TIMEOUT_S)
+        if not self._clients:
+            return
+        _, stalled = await asyncio.wait(list(self._clients), timeout=2 * CLOSE_WAIT_S)
+        for task in stalled:
+            if (stuck := self._clients.get(task)) is not None:
+                stuck.transport.abort()
+        if stalled:
+            await asyncio.wait(stalled, timeout=CLOSE_WAIT_S)
 
     async def _connected(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         task = asyncio.current_task()

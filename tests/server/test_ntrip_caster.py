@@ -220,14 +220,38 @@ async def test_closing_the_caster_ends_its_streams(ntrip: Running):
     writer.write(v1("/BASE1").encode())
     async with asyncio.timeout(10):
         assert await reader.readexactly(12) == b"ICY 200 OK\r\n"
-    await eventually(lambda: ntrip.caster.streaming == 1)
+    await eventually(lambda: ntrip.caster.connected == 1)
     await ntrip.caster.close()
     async with asyncio.timeout(10):
         while await reader.read(65536):
             pass  # frames sent before the close, then the end
-    assert ntrip.caster.streaming == 0 and ntrip.source.open_subscriptions == 0
+    assert ntrip.caster.connected == 0 and ntrip.source.open_subscriptions == 0
     with contextlib.suppress(ConnectionError):
         writer.close()
+
+
+async def test_closing_the_caster_cuts_off_a_rover_that_stopped_reading():
+    class Flood:  # a base sending more than any link takes
+        def mountpoints(self) -> list[Mountpoint]:
+            return [Mountpoint("BASE1", organisation_id="org-a")]
+
+        async def subscribe(self, mountpoint: Mountpoint) -> AsyncIterator[bytes]:
+            while True:
+                yield b"\xd3" + bytes(65535)
+                await asyncio.sleep(0)
+
+    flooded = await Caster(Flood(), authenticate).start("127.0.0.1", 0)
+    reader, writer = await asyncio.open_connection("127.0.0.1", flooded.port)
+    writer.write(v1("/BASE1").encode())
+    async with asyncio.timeout(10):
+        assert await reader.readexactly(12) == b"ICY 200 OK\r\n"
+    # the rover reads no more: the caster's writes back up behind it
+    stalled = next(iter(flooded._clients.values())).transport
+    await eventually(lambda: stalled.get_write_buffer_size() > 0, what="the caster blocked")
+    async with asyncio.timeout(3 * caster_module.CLOSE_WAIT_S + 2):
+        await flooded.close()  # not held for SEND_TIMEOUT_S by the stalled rover
+    assert flooded.connected == 0
+    writer.close()
 
 
 async def test_a_client_over_the_limit_is_answered_503_and_the_others_keep_streaming(
@@ -267,7 +291,7 @@ async def test_a_client_that_says_nothing_is_let_go(ntrip: Running, monkeypatch)
     async with asyncio.timeout(10):
         assert (await reader.read()).startswith(b"HTTP/1.0 400 Bad Request\r\n")
     writer.close()
-    await eventually(lambda: ntrip.caster.streaming == 0)
+    await eventually(lambda: ntrip.caster.connected == 0)
 
 
 def test_requests_parse_with_either_line_end_and_the_ntrip_prefix():
