@@ -113,7 +113,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         caster = None
         if settings.ntrip_port is not None:
             caster = Caster(
-                BaseCorrections(lambda: services), caster_authenticator(lambda: services)
+                BaseCorrections(lambda: services),
+                caster_authenticator(lambda: services),
+                proxy_protocol=settings.ntrip_proxy_protocol,
             )
         services = Services(
             settings=settings,

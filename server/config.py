@@ -27,6 +27,12 @@ class Settings(BaseSettings):
         description="TCP port of the NTRIP caster for version 1 and 2 clients (2101 by convention; "
         "0: any free port); unset: only NTRIP 2 clients, on the HTTP port's /ntrip/",
     )
+    ntrip_proxy_protocol: bool = Field(
+        default=False,
+        description="the caster's connections come through a proxy that starts each with a PROXY "
+        "protocol v1 line (nginx: proxy_protocol on), whose client address is used; a connection "
+        "without one is refused. Off: the client is the connection's peer",
+    )
     public_url: str | None = Field(
         default=None,
         description="URL daemons use to reach this server; written into asset config files",

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import ipaddress
 import json
 import logging
 from collections.abc import Iterable
@@ -82,6 +83,21 @@ def parse_request(head: bytes) -> Request:
     return Request(parts[0].upper(), path, headers)
 
 
+def proxied_client(line: bytes) -> str | None:
+    """The client's address from a PROXY protocol v1 line (`PROXY TCP4 <client> <proxy> <client
+    port> <proxy port>`); None for `PROXY UNKNOWN` (the proxy's own check); BadRequest for
+    anything else."""
+    parts = line.decode("latin-1").split(" ")
+    if parts[:2] == ["PROXY", "UNKNOWN"]:
+        return None
+    if len(parts) != 6 or parts[0] != "PROXY" or parts[1] not in ("TCP4", "TCP6"):
+        raise BadRequest("no PROXY protocol line")
+    try:
+        return str(ipaddress.ip_address(parts[2]))
+    except ValueError as err:
+        raise BadRequest("no client address in the PROXY line") from err
+
+
 def _head(status: str, version_2: bool, fields: Iterable[tuple[str, str]] = ()) -> bytes:
     common = [("Server", SERVER_NAME), ("Date", formatdate(usegmt=True))]
     if version_2:
@@ -138,9 +154,16 @@ class Caster:
     """Serves NTRIP 1 and 2 clients on a TCP port until `close()`."""
 
     def __init__(
-        self, source: CorrectionsSource, authenticate: Authenticate, max_clients: int = MAX_CLIENTS
+        self,
+        source: CorrectionsSource,
+        authenticate: Authenticate,
+        max_clients: int = MAX_CLIENTS,
+        proxy_protocol: bool = False,
     ) -> None:
+        """`proxy_protocol`: every connection comes from a proxy and starts with a PROXY
+        protocol v1 line (nginx's `proxy_protocol on`) naming the client; one without is refused."""
         self.source, self.authenticate, self.max_clients = source, authenticate, max_clients
+        self.proxy_protocol = proxy_protocol
         self._server: asyncio.Server | None = None
         self._clients: dict[asyncio.Task[Any], asyncio.StreamWriter] = {}
 
@@ -200,6 +223,9 @@ class Caster:
         try:
             async with asyncio.timeout(HEAD_TIMEOUT_S):
                 head = await _read_head(reader)
+            if self.proxy_protocol:
+                proxied, _, head = head.partition(b"\r\n")
+                peer = proxied_client(proxied) or peer
             request = parse_request(head)
         except (BadRequest, asyncio.LimitOverrunError, TimeoutError, ValueError):
             writer.write(
@@ -208,7 +234,7 @@ class Caster:
             return await _drain(writer)
         v2 = request.version_2
         try:
-            answer = await self._answer(request)
+            answer = await self._answer(request, peer)
         except Exception:  # the database or the broker away: say so, never just hang up
             log.exception("ntrip: could not answer %s", peer)
             message = "the caster cannot check credentials or mountpoints now; try again"
@@ -227,13 +253,13 @@ class Caster:
             streaming.dec()
             log.info("ntrip client %s left %s", peer, answer.name)
 
-    async def _answer(self, request: Request) -> bytes | Mountpoint:
+    async def _answer(self, request: Request, peer: str) -> bytes | Mountpoint:
         """What a request gets: an answer to send and close with, or the mountpoint to stream."""
         v2 = request.version_2
         if request.method != "GET":
             message = "this caster serves GET (clients); it takes no NTRIP server's SOURCE or POST"
             return error_response(405, "Method Not Allowed", "method", message, v2)
-        ok, org = await identify(self.authenticate, request.headers.get("authorization"))
+        ok, org = await identify(self.authenticate, request.headers.get("authorization"), peer)
         if not ok or (request.mountpoint and org is None):
             message = "NTRIP credentials required"
             return error_response(401, "Unauthorized", "unauthorized", message, v2)

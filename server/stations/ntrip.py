@@ -1,7 +1,7 @@
 """The core of an NTRIP v2 caster: a sourcetable and one live RTCM3 mountpoint per landing base.
 
 Mount with `app.include_router(ntrip_router(source, authenticate))`. `source` lists the
-mountpoints and opens live frame subscriptions; `authenticate(username, password)` returns the
+mountpoints and opens live frame subscriptions; `authenticate(username, password, address)` returns the
 caller's organisation id or None. A mountpoint whose `organisation_id` is set is visible and
 streamable only to that organisation (others get 404, as for any resource of another
 organisation); one whose `organisation_id` is None is public to any authenticated user.
@@ -37,7 +37,8 @@ COMMON_HEADERS = {
     "Pragma": "no-cache",
 }
 
-Authenticate = Callable[[str, str], Awaitable[Any | None]]
+# (username, password, the caller's address or None) -> organisation id, or None: refused
+Authenticate = Callable[[str, str, str | None], Awaitable[Any | None]]
 # what the HTTP route says to a version 1 client, which cannot read an HTTP status line's stream
 V1_HERE = (
     "this route requires the header Ntrip-Version: Ntrip/2.0; NTRIP 1 clients (RTKLIB's str2str, "
@@ -172,7 +173,9 @@ async def all_mountpoints(source: CorrectionsSource) -> list[Mountpoint]:
     return list(result)
 
 
-async def identify(authenticate: Authenticate, header: str | None) -> tuple[bool, Any | None]:
+async def identify(
+    authenticate: Authenticate, header: str | None, address: str | None = None
+) -> tuple[bool, Any | None]:
     """(credentials acceptable, organisation id) for an `Authorization` header; no header at all
     is acceptable, as anonymous (None: public mountpoints only)."""
     if header is None:
@@ -180,7 +183,7 @@ async def identify(authenticate: Authenticate, header: str | None) -> tuple[bool
     creds = parse_basic_auth(header)
     if creds is None:
         return False, None
-    org = await authenticate(*creds)
+    org = await authenticate(*creds, address)
     return org is not None, org
 
 
@@ -212,7 +215,9 @@ def ntrip_router(
     challenge = {"WWW-Authenticate": f'Basic realm="{realm}"'}
 
     async def table(request: Request) -> Response:
-        ok, org = await identify(authenticate, request.headers.get("authorization"))
+        ok, org = await identify(
+            authenticate, request.headers.get("authorization"), _address(request)
+        )
         if not ok:
             return _error(401, "unauthorized", "bad NTRIP credentials", challenge)
         body = sourcetable(visible_to(await all_mountpoints(source), org))
@@ -231,7 +236,9 @@ def ntrip_router(
         """Stream a mountpoint's live RTCM3 frames to an authenticated NTRIP v2 client."""
         if not is_version_2(request.headers.get("ntrip-version")):
             return _error(400, "ntrip_version", V1_HERE)
-        ok, org = await identify(authenticate, request.headers.get("authorization"))
+        ok, org = await identify(
+            authenticate, request.headers.get("authorization"), _address(request)
+        )
         if not ok or org is None:
             return _error(401, "unauthorized", "NTRIP credentials required", challenge)
         found = await find_mountpoint(source, org, mountpoint)
@@ -248,6 +255,11 @@ def ntrip_router(
         )
 
     return router
+
+
+def _address(request: Request) -> str | None:
+    """The caller's address (uvicorn takes it from the proxy's X-Forwarded-For it trusts)."""
+    return request.client.host if request.client else None
 
 
 async def _frames(source: CorrectionsSource, mountpoint: Mountpoint) -> AsyncIterator[bytes]:

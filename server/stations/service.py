@@ -55,8 +55,9 @@ class BaseCorrections:
 
 def caster_authenticator(
     services: Callable[[], Services],
-) -> Callable[[str, str], Awaitable[uuid.UUID | None]]:
-    """`authenticate(username, password)` for the caster: a user's e-mail and password -> organisation.
+) -> Callable[[str, str, str | None], Awaitable[uuid.UUID | None]]:
+    """`authenticate(username, password, address)` for the caster: a user's e-mail and password
+    -> organisation; failures count against the account and the caller's address, as logins do.
 
     Rovers often share one account, and reconnect together when a caster restarts: requests
     with the same credentials while one is being checked wait for that check instead of each
@@ -72,19 +73,21 @@ def caster_authenticator(
         if not task.cancelled():
             task.exception()  # retrieved here: every waiter may have gone
 
-    async def authenticate(username: str, password: str) -> uuid.UUID | None:
+    async def authenticate(
+        username: str, password: str, address: str | None = None
+    ) -> uuid.UUID | None:
         which = (username, hmac.digest(key, password.encode(), "sha256"))
         task = under_way.get(which)
         if task is None:  # the check runs on its own: a waiter leaving does not cancel it
-            task = under_way[which] = asyncio.create_task(check(username, password))
+            task = under_way[which] = asyncio.create_task(check(username, password, address))
             task.add_done_callback(functools.partial(done, which))
         return await asyncio.shield(task)
 
-    async def check(username: str, password: str) -> uuid.UUID | None:
+    async def check(username: str, password: str, address: str | None) -> uuid.UUID | None:
         state = services()
         limiter = LoginLimiter(state.sessionmaker, state.settings)
         try:
-            attempt = await limiter.admit(username, None, utcnow())
+            attempt = await limiter.admit(username, address, utcnow())
         except RateLimited:
             return None
         async with unit_of_work(state.sessionmaker) as uow:

@@ -139,6 +139,11 @@ def test_the_proxy_mounts_the_server_block_the_native_topology_runs_and_points_a
     port = compose()["services"]["server-1"]["environment"]["AEROBASE_NTRIP_PORT"]
     assert re.findall(rf"^server (\S+):{port} ", ntrip, re.M) == ["server-1", "server-2"]
     assert any(p.endswith(":2101") for p in proxy["ports"])
+    # the replicas read the rover's address from the PROXY line the stream proxy sends
+    assert "proxy_protocol on;" in (ROOT / "deploy" / "nginx" / "ntrip.conf").read_text()
+    assert (
+        compose()["services"]["server-1"]["environment"]["AEROBASE_NTRIP_PROXY_PROTOCOL"] == "true"
+    )
 
 
 def test_the_replicas_wait_for_the_migration_and_do_not_migrate_themselves():

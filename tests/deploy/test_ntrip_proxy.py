@@ -2,7 +2,8 @@
 file docker-compose.yml mounts) in front of two replicas' casters, and the HTTP server block's
 `/ntrip/` route. A rover on either door gets its base's corrections, whichever replica it lands
 on (they reach every replica through Redis), and an NTRIP 1 rover goes on getting them after the
-replica it was on is killed."""
+replica it was on is killed. The replicas refuse a connection that does not start with the
+proxy's PROXY line, so the rovers' corrections also show that nginx sends it."""
 
 from __future__ import annotations
 
@@ -33,7 +34,10 @@ async def test_rovers_get_corrections_through_the_proxy_and_across_a_replica_kil
     base = tenant.create_asset("landing_base")
     cfg = decrypt_config(base64.b64decode(base["config_file"]), "asset-password-123")
     casters, listen = [free_port(), free_port()], free_port()
-    settings = [{"AEROBASE_NTRIP_PORT": str(port)} for port in casters]
+    settings = [  # as docker-compose.yml: the proxy names each rover in a PROXY line
+        {"AEROBASE_NTRIP_PORT": str(port), "AEROBASE_NTRIP_PROXY_PROTOCOL": "true"}
+        for port in casters
+    ]
     user = f"{tenant.emails['viewer']}:{Tenant.PASSWORD}"
     with (
         replicas(database_url, tmp_path, settings=settings) as servers,

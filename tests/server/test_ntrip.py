@@ -43,7 +43,7 @@ SPEED = 20.0
 USERS = {"alice": ("s3cret", "org-a"), "bob": ("hunter2", "org-b")}
 
 
-async def authenticate(username: str, password: str) -> str | None:
+async def authenticate(username: str, password: str, address: str | None = None) -> str | None:
     """Organisation users' credentials, as the lead's auth service answers them."""
     known = USERS.get(username)
     return known[1] if known and known[0] == password else None

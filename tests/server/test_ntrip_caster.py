@@ -272,7 +272,7 @@ async def test_a_client_over_the_limit_is_answered_503_and_the_others_keep_strea
 
 
 async def test_when_the_database_is_away_a_client_is_told_503_not_hung_up_on():
-    async def database_away(username: str, password: str) -> str | None:
+    async def database_away(username: str, password: str, address: str | None) -> str | None:
         raise OSError("connection refused")  # what asyncpg raises with PostgreSQL down
 
     broken = await Caster(Source([]), database_away).start("127.0.0.1", 0)
@@ -292,6 +292,34 @@ async def test_a_client_that_says_nothing_is_let_go(ntrip: Running, monkeypatch)
         assert (await reader.read()).startswith(b"HTTP/1.0 400 Bad Request\r\n")
     writer.close()
     await eventually(lambda: ntrip.caster.connected == 0)
+
+
+async def test_behind_a_proxy_the_client_is_the_one_its_proxy_protocol_line_names(
+    ntrip: Running,
+):
+    addresses: list[str | None] = []
+
+    async def recording(username: str, password: str, address: str | None) -> str | None:
+        addresses.append(address)
+        return await authenticate(username, password, address)
+
+    proxied = await Caster(ntrip.source, recording, proxy_protocol=True).start("127.0.0.1", 0)
+    try:
+        line = "PROXY TCP4 203.0.113.9 127.0.0.1 40001 2101\r\n"
+        answer = await ask(proxied.port, line + v1("/"))
+        assert answer.startswith(b"SOURCETABLE 200 OK\r\n") and addresses == ["203.0.113.9"]
+        line6 = "PROXY TCP6 2001:db8::7 ::1 40001 2101\r\n"
+        assert (await ask(proxied.port, line6 + v1("/"))).startswith(b"SOURCETABLE 200")
+        assert addresses[-1] == "2001:db8::7"
+        # the proxy's own health check: no client, the connection's peer stands
+        assert (await ask(proxied.port, "PROXY UNKNOWN\r\n" + v1("/"))).startswith(b"SOURCE")
+        assert addresses[-1] == "127.0.0.1"
+        # straight to the caster, or a forged line: refused
+        for request in (v1("/"), "PROXY TCP4 me 127.0.0.1 1 2\r\n" + v1("/")):
+            assert (await ask(proxied.port, request)).startswith(b"HTTP/1.0 400 Bad Request")
+        assert len(addresses) == 3
+    finally:
+        await proxied.close()
 
 
 def test_requests_parse_with_either_line_end_and_the_ntrip_prefix():
