@@ -33,7 +33,6 @@ from server.stations.ntrip import (
     CorrectionsSource,
     Mountpoint,
     all_mountpoints,
-    find_mountpoint,
     identify,
     is_version_2,
     sourcetable,
@@ -263,15 +262,16 @@ class Caster:
         if not ok or (request.mountpoint and org is None):
             message = "NTRIP credentials required"
             return error_response(401, "Unauthorized", "unauthorized", message, v2)
+        visible = visible_to(await all_mountpoints(self.source), org)
         if request.mountpoint:
-            found = await find_mountpoint(self.source, org, request.mountpoint)
+            found = next((m for m in visible if m.name == request.mountpoint), None)
             if found is not None:
                 return found
             if v2:
                 message = f"no mountpoint {request.mountpoint!r}"
                 return error_response(404, "Not Found", "not_found", message, v2)
         # the sourcetable, asked for or (NTRIP 1) in place of a mountpoint the caller does not see
-        return table_response(visible_to(await all_mountpoints(self.source), org), v2)
+        return table_response(visible, v2)
 
 
 async def _read_head(reader: asyncio.StreamReader) -> bytes:
@@ -321,24 +321,21 @@ async def _stream(
         while await reader.read(4096):
             pass  # GGA sentences and the like: not used
 
-    gone = asyncio.create_task(until_gone())
-    frames = source.subscribe(mountpoint)
-    pending: asyncio.Future[bytes] | None = None
-    try:
-        while True:
-            pending = asyncio.ensure_future(anext(frames))
-            await asyncio.wait({pending, gone}, return_when=asyncio.FIRST_COMPLETED)
-            if not pending.done():
-                break  # the client left
-            frame, pending = pending.result(), None
+    async def pump() -> None:
+        async for frame in frames:
             writer.write(b"%x\r\n%b\r\n" % (len(frame), frame) if version_2 else frame)
             await _drain(writer)
+
+    frames = source.subscribe(mountpoint)
+    pumping, gone = asyncio.create_task(pump()), asyncio.create_task(until_gone())
+    try:
+        await asyncio.wait({pumping, gone}, return_when=asyncio.FIRST_COMPLETED)
+        if pumping.done() and (err := pumping.exception()) is not None:
+            raise err  # the client took nothing (TimeoutError) or reset: as if it had left
     finally:
-        gone.cancel()
-        if pending is not None and not pending.done():
-            pending.cancel()  # the subscription ends where it waits (its own finally runs)
-            with contextlib.suppress(asyncio.CancelledError, StopAsyncIteration):
-                await pending
+        for task in (pumping, gone):
+            task.cancel()  # a cancelled pump ends the subscription where it waits
+        await asyncio.gather(pumping, gone, return_exceptions=True)
         aclose = getattr(frames, "aclose", None)
         if aclose is not None:
             with contextlib.suppress(Exception):

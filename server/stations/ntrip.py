@@ -1,8 +1,8 @@
 """The core of an NTRIP v2 caster: a sourcetable and one live RTCM3 mountpoint per landing base.
 
 Mount with `app.include_router(ntrip_router(source, authenticate))`. `source` lists the
-mountpoints and opens live frame subscriptions; `authenticate(username, password, address)` returns the
-caller's organisation id or None. A mountpoint whose `organisation_id` is set is visible and
+mountpoints and opens live frame subscriptions; `authenticate(username, password, address)`
+returns the caller's organisation id or None. A mountpoint whose `organisation_id` is set is visible and
 streamable only to that organisation (others get 404, as for any resource of another
 organisation); one whose `organisation_id` is None is public to any authenticated user.
 """

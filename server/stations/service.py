@@ -73,9 +73,7 @@ def caster_authenticator(
         if not task.cancelled():
             task.exception()  # retrieved here: every waiter may have gone
 
-    async def authenticate(
-        username: str, password: str, address: str | None = None
-    ) -> uuid.UUID | None:
+    async def authenticate(username: str, password: str, address: str | None) -> uuid.UUID | None:
         which = (username, hmac.digest(key, password.encode(), "sha256"))
         task = under_way.get(which)
         if task is None:  # the check runs on its own: a waiter leaving does not cancel it
