@@ -17,6 +17,7 @@ from server.airspace.endpoints import router as airspace_router
 from server.assets.endpoints import router as assets_router
 from server.audit.endpoints import router as audit_router
 from server.auth.endpoints import router as auth_router
+from server.auth.limiter import LoginLimiter, housekeeping_loop
 from server.commands.endpoints import router as commands_router
 from server.config import Settings
 from server.console.endpoints import console_router
@@ -126,6 +127,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             telemetry=telemetry,
             ingest=ingest,
             hub=hub,
+            limiter=LoginLimiter(sessionmaker, settings),
             session_end_listeners=(hub.sessions_ended,),
             video=video,
             ntrip=caster,
@@ -141,6 +143,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         retention = asyncio.create_task(
             retention_loop(telemetry, settings.telemetry_retention_days)
         )
+        login_housekeeping = asyncio.create_task(housekeeping_loop(sessionmaker, settings))
         log.info(
             "server started", extra={"database": engine.url.render_as_string(hide_password=True)}
         )
@@ -149,6 +152,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 yield
         finally:
             retention.cancel()
+            login_housekeeping.cancel()
             if caster is not None:
                 await caster.close()
             await video.close()

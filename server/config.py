@@ -118,6 +118,8 @@ class Settings(BaseSettings):
     login_window_s: int = Field(default=15 * 60, ge=1)
     login_max_failures_account: int = Field(default=5, ge=1)
     login_max_failures_address: int = Field(default=20, ge=1)
+    # an address the account logged in from within this many days counts its failures apart
+    login_known_client_days: float = Field(default=30, gt=0)
 
     # password hashing (argon2id); defaults are argon2-cffi's RFC 9106 low-memory profile
     argon2_time_cost: int = Field(default=3, ge=1)

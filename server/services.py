@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from sqlalchemy.ext.asyncio import AsyncEngine, AsyncSession, async_sessionmaker
 
+from server.auth.limiter import LoginLimiter
 from server.config import Settings
 from server.kit.security import Passwords
 from server.kit.uow import SessionEndListener
@@ -34,6 +35,7 @@ class Services:
     telemetry: TelemetryStore
     ingest: Ingest
     hub: Hub
+    limiter: LoginLimiter  # failed-login limits, and the wrong passwords already checked
     session_end_listeners: tuple[SessionEndListener, ...] = ()
     video: MediaGateway | None = None  # the live-video media path (server/video)
     ntrip: Caster | None = None  # the caster's own port (AEROBASE_NTRIP_PORT), started after this

@@ -6,7 +6,6 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, Response
 
-from server.auth.limiter import LoginLimiter
 from server.auth.login import IdentityService, LoginService
 from server.auth.schemas import (
     AssetLoginRequest,
@@ -32,8 +31,7 @@ def _token(issued: IssuedToken) -> TokenResponse:
 
 @declares(Unauthorized, Conflict, RateLimited)  # wrong credentials, a live session, throttled
 def _logins(uow: UoW, services: ServicesDep) -> LoginService:
-    limiter = LoginLimiter(services.sessionmaker, services.settings)
-    return LoginService(uow, services.settings, services.passwords, limiter)
+    return LoginService(uow, services.settings, services.passwords, services.limiter)
 
 
 Logins = Annotated[LoginService, Depends(_logins)]

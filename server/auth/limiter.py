@@ -7,20 +7,39 @@ in the window with its own, and commit — or, past the limit, roll back and ans
 admission counts every earlier one: however many wrong passwords arrive together, exactly the
 first `limit` are checked. A checked attempt that fails leaves its rows as its failures; a
 successful login takes them back and clears the account's.
+
+Failures are counted against the account as a whole only from addresses the account has not
+logged in from (within `login_known_client_days`). From an address where it has, they count
+against the account *at that address*: wrong passwords sent from anywhere else fill the
+account-wide count, which a known client does not read, so they cannot lock out the user or the
+rovers that hold the right password (SECURITY.md's threat model). A guesser gets the account
+limit per window from unknown addresses, all of them together, plus the limit at each address
+the account really uses. The per-address limit applies to every attempt.
+
+A wrong password that was checked already, for the same account from the same address, is
+answered again without being counted or hashed (`RepeatedGuesses`, in the process): a rover or a
+script retrying stale credentials tells a guesser nothing new, and so costs no place under the
+limits that the clients with the right password share with it.
 """
 
 from __future__ import annotations
 
+import asyncio
+import logging
 import uuid
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
+from server.auth.guesses import RepeatedGuesses
 from server.auth.repository import LoginFailureRepository
 from server.config import Settings
 from server.kit.errors import RateLimited
+from server.kit.time import utcnow
 from server.kit.uow import unit_of_work
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -28,29 +47,39 @@ class Attempt:
     """The rows an admitted attempt holds, taken back if it succeeds."""
 
     row_ids: tuple[uuid.UUID, ...]
+    # the account key it counted against: the account's, or the account's at an address
+    account: str
 
 
 class LoginLimiter:
-    """Failed logins per key over a sliding window, admitted atomically."""
+    """Failed logins per key over a sliding window, admitted atomically; one per running app
+    (`Services.limiter`), which keeps the wrong passwords already checked (`guesses`)."""
 
     def __init__(self, sessionmaker: async_sessionmaker[AsyncSession], settings: Settings) -> None:
         self.sessionmaker = sessionmaker
+        self.guesses = RepeatedGuesses(ttl_s=settings.login_window_s)
         self.window = timedelta(seconds=settings.login_window_s)
         self.account_limit = settings.login_max_failures_account
         self.address_limit = settings.login_max_failures_address
+        self.known_for = timedelta(days=settings.login_known_client_days)
 
-    def keys(self, account_key: str, addr: str | None) -> list[tuple[str, int]]:
-        """The keys an attempt counts against, each with its limit."""
-        keys = [(f"account:{account_key}", self.account_limit)]
+    def keys(self, account_key: str, addr: str | None, *, known: bool) -> list[tuple[str, int]]:
+        """The keys an attempt counts against, each with its limit; the account's first."""
+        account = f"account:{account_key}" + (f"|at:{addr}" if known else "")
+        keys = [(account, self.account_limit)]
         if addr:
             keys.append((f"addr:{addr}", self.address_limit))
         return keys
 
     async def admit(self, account_key: str, addr: str | None, now: datetime) -> Attempt:
-        """Count an attempt; RateLimited (and not counted) when a key is over its limit."""
-        keys = self.keys(account_key, addr)
+        """Count an attempt; RateLimited (and not counted) when a key is over its limit. The
+        account is named as its login names it, in any case: the key is the lower-case name, as
+        the user lookup matches it (else each spelling would have a limit of its own)."""
+        account_key = account_key.lower()
         async with unit_of_work(self.sessionmaker) as uow:
             repo = LoginFailureRepository(uow.db)
+            known = addr is not None and await repo.known(account_key, addr, now - self.known_for)
+            keys = self.keys(account_key, addr, known=known)
             await repo.lock(sorted(k for k, _ in keys))
             ids = await repo.add([k for k, _ in keys], now)
             for key, limit in keys:
@@ -62,14 +91,50 @@ class LoginLimiter:
                         f"too many failed logins for {what}; try again in {retry} s",
                         retry_after_s=retry,
                     )
-        return Attempt(tuple(ids))
+        return Attempt(tuple(ids), keys[0][0])
 
-    async def succeeded(self, db: AsyncSession, account_key: str, attempt: Attempt) -> None:
-        """A successful login takes its attempt back and clears the account's failures (in the
-        caller's unit of work; the address keeps its other failures)."""
+    async def succeeded(
+        self, db: AsyncSession, account_key: str, addr: str | None, attempt: Attempt
+    ) -> None:
+        """A successful login takes its attempt back, clears the failures of the account key it
+        counted against and marks `addr` known for the account (in the caller's unit of work;
+        the address keeps its other failures). A success at a known address leaves the
+        account-wide count alone: else each login of the user would give a guesser elsewhere
+        a new allowance."""
         repo = LoginFailureRepository(db)
+        account_key = account_key.lower()
         # the account's key, as admit takes it: two successes at once (two replicas, two rovers
         # sharing an account) would otherwise each delete a row the other's clear waits for
-        await repo.lock([f"account:{account_key}"])
+        await repo.lock([attempt.account])
         await repo.delete(list(attempt.row_ids))
-        await repo.clear(f"account:{account_key}")
+        await repo.clear(attempt.account)
+        if addr and len(addr) <= 64:
+            await repo.remember(account_key, addr, utcnow())
+
+
+async def housekeeping(sessionmaker: async_sessionmaker[AsyncSession], settings: Settings) -> int:
+    """Drop the failures older than the window and the clients not seen for
+    `login_known_client_days`; how many rows went (none of them counts any more)."""
+    now = utcnow()
+    async with unit_of_work(sessionmaker) as uow:
+        repo = LoginFailureRepository(uow.db)
+        failures = await repo.prune(now - timedelta(seconds=settings.login_window_s))
+        known = await repo.forget_known(now - timedelta(days=settings.login_known_client_days))
+    return failures + known
+
+
+async def housekeeping_loop(
+    sessionmaker: async_sessionmaker[AsyncSession], settings: Settings, every_s: float = 600.0
+) -> None:
+    """`housekeeping` now and every `every_s` seconds, until cancelled; a failed round is logged
+    and the next one tried (the tables only grow meanwhile; no limit depends on it)."""
+    while True:
+        try:
+            removed = await housekeeping(sessionmaker, settings)
+            if removed:
+                log.info("login housekeeping removed %d rows", removed)
+        except asyncio.CancelledError:
+            raise
+        except Exception:
+            log.exception("login housekeeping failed")
+        await asyncio.sleep(every_s)

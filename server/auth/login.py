@@ -22,6 +22,11 @@ from server.organizations.models import Membership, Organization, User
 from server.organizations.repository import UserRepository
 
 DISABLED = "this account is disabled; ask an administrator of the organisation"
+WRONG_PASSWORD = "wrong e-mail or password"
+
+
+def _hash(user: User | None) -> str | None:
+    return user.password_hash if user else None
 
 
 def _organisation(
@@ -56,18 +61,25 @@ class LoginService:
     async def user(
         self, email: str, password: str, *, force: bool, organization_id: uuid.UUID | None
     ) -> IssuedToken:
-        """A user's login: at most the limit of concurrent wrong passwords is ever checked."""
-        attempt = await self.limiter.admit(email, self.uow.client_addr, utcnow())
+        """A user's login: at most the limit of concurrent wrong passwords is ever checked, and
+        a wrong one repeated from the same address is not counted again."""
+        addr = self.uow.client_addr
+        # a session of its own, returned before the next is taken: the request's would be held
+        # while the limiter's waits for the pool (under a burst of logins, none would come)
+        async with self.limiter.sessionmaker() as db:
+            known = await UserRepository(db).by_email(email)
+        if self.limiter.guesses.known_wrong(email, addr, password, _hash(known)):
+            raise Unauthorized(WRONG_PASSWORD, code="invalid_credentials")
+        attempt = await self.limiter.admit(email, addr, utcnow())
         users = UserRepository(self.uow.db)
         user = await users.by_email(email, lock=True)
         # argon2 is deliberately slow: keep it off the event loop
-        ok = await asyncio.to_thread(
-            self.passwords.verify, user.password_hash if user else None, password
-        )
+        ok = await asyncio.to_thread(self.passwords.verify, _hash(user), password)
         if not ok or user is None:
-            raise Unauthorized("wrong e-mail or password", code="invalid_credentials")
+            self.limiter.guesses.remember(email, addr, password, _hash(user))
+            raise Unauthorized(WRONG_PASSWORD, code="invalid_credentials")
         # the password was right: this is no failed attempt, whatever follows
-        await self.limiter.succeeded(self.uow.db, email, attempt)
+        await self.limiter.succeeded(self.uow.db, email, addr, attempt)
         if not user.is_active:
             raise Unauthorized(DISABLED, code="account_disabled")
         org_id = _organisation(user, await users.memberships(user.id), organization_id)

@@ -1,11 +1,11 @@
-"""Tables of sessions and failed login attempts."""
+"""Tables of sessions, failed login attempts and the clients known to have logged in."""
 
 from __future__ import annotations
 
 import uuid
 from datetime import datetime
 
-from sqlalchemy import ForeignKey, Index, String
+from sqlalchemy import ForeignKey, Index, PrimaryKeyConstraint, String
 from sqlalchemy.orm import Mapped, mapped_column
 
 from server.kit.db import Base, IdMixin
@@ -51,3 +51,16 @@ class LoginFailure(IdMixin, Base):
 
     key: Mapped[str] = mapped_column(String(400))  # "account:<email|asset name>" or "addr:<ip>"
     at: Mapped[datetime] = mapped_column(default=utcnow)
+
+
+class KnownLoginClient(Base):
+    """An address from which an account last gave the right password, and when. Failed logins
+    from there count against the account at that address, not the account as a whole, so that
+    wrong passwords sent from anywhere else cannot lock it out (server/auth/limiter.py)."""
+
+    __tablename__ = "login_known_clients"
+    __table_args__ = (PrimaryKeyConstraint("account_key", "addr"),)
+
+    account_key: Mapped[str] = mapped_column(String(320))  # an e-mail, as logins name it
+    addr: Mapped[str] = mapped_column(String(64))
+    last_success_at: Mapped[datetime] = mapped_column(default=utcnow, index=True)

@@ -1,14 +1,15 @@
-"""All SQL of sessions and failed logins (identity lookups: not organisation-scoped)."""
+"""All SQL of sessions, failed logins and known login clients (identity lookups: not
+organisation-scoped)."""
 
 from __future__ import annotations
 
 import uuid
-from datetime import datetime, timedelta
+from datetime import datetime
 
 from sqlalchemy import delete, func, select, update
 from sqlalchemy.ext.asyncio import AsyncSession
 
-from server.auth.models import AuthSession, LoginFailure
+from server.auth.models import AuthSession, KnownLoginClient, LoginFailure
 
 
 class SessionRepository:
@@ -101,6 +102,38 @@ class LoginFailureRepository:
         """Forget the failures of one key (after a successful login)."""
         await self.db.execute(delete(LoginFailure).where(LoginFailure.key == key))
 
-    async def prune(self, before: datetime) -> None:
-        """Drop failures older than every window."""
-        await self.db.execute(delete(LoginFailure).where(LoginFailure.at < before - timedelta(0)))
+    async def prune(self, before: datetime) -> int:
+        """Drop failures older than every window; how many went."""
+        result = await self.db.execute(delete(LoginFailure).where(LoginFailure.at < before))
+        return int(result.rowcount or 0)  # type: ignore[attr-defined]
+
+    async def known(self, account_key: str, addr: str, since: datetime) -> bool:
+        """Whether `account_key` logged in from `addr` since `since`."""
+        stmt = select(KnownLoginClient.last_success_at).where(  # unscoped: rate limiting
+            KnownLoginClient.account_key == account_key,
+            KnownLoginClient.addr == addr,
+            KnownLoginClient.last_success_at >= since,
+        )
+        return (await self.db.execute(stmt)).first() is not None
+
+    async def remember(self, account_key: str, addr: str, at: datetime) -> None:
+        """Note a login of `account_key` from `addr` at `at` (one row per pair, the latest)."""
+        dialect = self.db.get_bind().dialect.name
+        if dialect == "postgresql":
+            from sqlalchemy.dialects.postgresql import insert
+        else:
+            from sqlalchemy.dialects.sqlite import insert  # type: ignore[assignment]
+        stmt = insert(KnownLoginClient).values(
+            account_key=account_key, addr=addr, last_success_at=at
+        )
+        await self.db.execute(
+            stmt.on_conflict_do_update(
+                index_elements=["account_key", "addr"], set_={"last_success_at": at}
+            )
+        )
+
+    async def forget_known(self, before: datetime) -> int:
+        """Drop the clients not seen since `before`; how many went."""
+        stale = KnownLoginClient.last_success_at < before
+        result = await self.db.execute(delete(KnownLoginClient).where(stale))
+        return int(result.rowcount or 0)  # type: ignore[attr-defined]

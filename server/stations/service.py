@@ -62,9 +62,9 @@ def caster_authenticator(
     Rovers often share one account, and reconnect together when a caster restarts: requests
     with the same credentials while one is being checked wait for that check instead of each
     costing a password hash and a place under the account's failed-login limit (which would turn
-    the sixth of them into a 401). Nothing is remembered once the check is answered."""
-    from server.auth.limiter import LoginLimiter
-
+    the sixth of them into a 401). Once the check is answered, only a wrong password is
+    remembered, per address, by the limiter (`server/auth/guesses.py`): a rover retrying it is
+    answered 401 at once and not counted again."""
     under_way: dict[tuple[str, bytes], asyncio.Task[uuid.UUID | None]] = {}
     key = secrets.token_bytes(32)  # the credentials' in-flight key: never the password itself
 
@@ -83,20 +83,25 @@ def caster_authenticator(
 
     async def check(username: str, password: str, address: str | None) -> uuid.UUID | None:
         state = services()
-        limiter = LoginLimiter(state.sessionmaker, state.settings)
+        limiter, valid = state.limiter, "\x00" not in username
+        async with unit_of_work(state.sessionmaker) as uow:
+            known = await UserRepository(uow.db).by_email(username) if valid else None
+        stored = known.password_hash if known else None
+        if limiter.guesses.known_wrong(username, address, password, stored):
+            return None  # a rover retrying a stale password: not counted again
         try:
             attempt = await limiter.admit(username, address, utcnow())
         except RateLimited:
             return None
         async with unit_of_work(state.sessionmaker) as uow:
             users = UserRepository(uow.db)
-            user = await users.by_email(username) if "\x00" not in username else None
-            ok = await asyncio.to_thread(
-                state.passwords.verify, user.password_hash if user else None, password
-            )
+            user = await users.by_email(username) if valid else None
+            stored = user.password_hash if user else None
+            ok = await asyncio.to_thread(state.passwords.verify, stored, password)
             if not ok or user is None:
+                limiter.guesses.remember(username, address, password, stored)
                 return None  # the attempt stays counted as a failure
-            await limiter.succeeded(uow.db, username, attempt)
+            await limiter.succeeded(uow.db, username, address, attempt)
             if not user.is_active:
                 return None
             active = [o.id for m, o in await users.memberships(user.id) if m.is_active]

@@ -119,10 +119,14 @@ def test_wrong_asset_secrets_from_many_addresses_never_lock_out_the_right_one(ap
 
 async def test_30_concurrent_wrong_passwords_check_at_most_the_limit(live_server, tenant: Tenant):
     limit = live_server.settings.login_max_failures_account
-    body = {"email": tenant.emails["viewer"], "password": "wrong-password-000"}
+    email = tenant.emails["viewer"]
     async with httpx.AsyncClient(base_url=live_server.url, timeout=60) as c:
+        # 30 guesses, each another password (one repeated is not counted again: test_login_lockout)
         answers = await asyncio.gather(
-            *(c.post("/api/v1/auth/login", json=body) for _ in range(30))
+            *(
+                c.post("/api/v1/auth/login", json={"email": email, "password": f"wrong-{i:03d}"})
+                for i in range(30)
+            )
         )
         codes = [r.status_code for r in answers]
         checked = codes.count(401)
@@ -169,14 +173,11 @@ def test_a_reissue_that_cannot_answer_rotates_nothing(api, tenant: Tenant):
 
 def test_a_user_logs_in_after_the_concurrent_burst_clears(api, tenant: Tenant):
     """A successful login clears the account's failures (the limiter's rows are taken back)."""
-    for _ in range(3):
-        api.post(
-            "/api/v1/auth/login", json={"email": tenant.emails["operator"], "password": "nope-nope"}
-        )
-    token = login(api, tenant.emails["operator"], Tenant.PASSWORD, force=True)
+    email = tenant.emails["operator"]
+    for i in range(3):  # distinct guesses: the same wrong password again is not counted
+        api.post("/api/v1/auth/login", json={"email": email, "password": f"nope-nope-{i}"})
+    token = login(api, email, Tenant.PASSWORD, force=True)
     assert api.get("/api/v1/auth/me", headers=auth(token)).status_code == 200
-    for _ in range(4):  # four more failures after the success: still under the limit of 5
-        r = api.post(
-            "/api/v1/auth/login", json={"email": tenant.emails["operator"], "password": "nope-nope"}
-        )
+    for i in range(4):  # four more failures after the success: still under the limit of 5
+        r = api.post("/api/v1/auth/login", json={"email": email, "password": f"nope-again-{i}"})
         assert r.status_code == 401

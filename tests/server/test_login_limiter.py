@@ -25,13 +25,13 @@ async def test_successes_of_one_account_at_once_each_clear_without_a_deadlock(da
 
             async def succeed(attempt):  # type: ignore[no-untyped-def]
                 async with unit_of_work(limiter.sessionmaker) as uow:
-                    await limiter.succeeded(uow.db, account, attempt)
+                    await limiter.succeeded(uow.db, account, None, attempt)
 
             results = await asyncio.gather(*(succeed(a) for a in attempts), return_exceptions=True)
             assert [r for r in results if r is not None] == []
             again = await limiter.admit(account, None, utcnow())  # the account starts clean
             async with unit_of_work(limiter.sessionmaker) as uow:
                 assert len(again.row_ids) == 1
-                await limiter.succeeded(uow.db, account, again)
+                await limiter.succeeded(uow.db, account, None, again)
     finally:
         await engine.dispose()

@@ -58,8 +58,8 @@ async def test_failed_rover_logins_count_against_the_address_its_proxy_names(
                 caster.port, proxy_line + v1("/", basic(tenant.emails["viewer"], password))
             )
 
-        for _ in range(3):
-            assert (await rover("203.0.113.77", "wrong")).startswith(b"HTTP/1.0 401")
+        for i in range(3):  # three guesses (one repeated would not count again)
+            assert (await rover("203.0.113.77", f"wrong-{i}")).startswith(b"HTTP/1.0 401")
         # that address is over its limit: even the right password is refused from it
         assert (await rover("203.0.113.77", Tenant.PASSWORD)).startswith(b"HTTP/1.0 401")
         # a rover at another address, on the same account, is not
