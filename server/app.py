@@ -42,7 +42,7 @@ from server.schedules.service import Scheduler
 from server.services import Services
 from server.stations.caster import Caster
 from server.stations.ntrip import ntrip_router
-from server.stations.service import BaseCorrections, caster_authenticator
+from server.stations.service import BaseCorrections, caster_authenticator, caster_recheck
 from server.telemetry.bulk import OneTrip, PostgresOneTrip, SqliteOneTrip
 from server.telemetry.endpoints import router as telemetry_router
 from server.telemetry.sql import SqlTelemetryStore
@@ -117,6 +117,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 BaseCorrections(lambda: services),
                 caster_authenticator(lambda: services),
                 proxy_protocol=settings.ntrip_proxy_protocol,
+                recheck=caster_recheck(lambda: services),
+                recheck_s=settings.ntrip_recheck_s,
             )
         services = Services(
             settings=settings,
@@ -235,7 +237,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     # NTRIP is its own protocol (basic auth, gnss/* content types): served beside the REST API
     app.include_router(
-        ntrip_router(BaseCorrections(services), caster_authenticator(services)),
+        ntrip_router(
+            BaseCorrections(services),
+            caster_authenticator(services),
+            recheck=caster_recheck(services),
+            recheck_s=settings.ntrip_recheck_s,
+        ),
         include_in_schema=False,
     )
     return app

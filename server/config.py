@@ -33,6 +33,12 @@ class Settings(BaseSettings):
         "protocol v1 line (nginx: proxy_protocol on), whose client address is used; a connection "
         "without one is refused. Off: the client is the connection's peer",
     )
+    ntrip_recheck_s: float = Field(
+        default=30.0,
+        gt=0,
+        description="how often an NTRIP stream's account is checked again: one disabled, or no "
+        "longer an active member of the organisation, gets no frame after the next check",
+    )
     public_url: str | None = Field(
         default=None,
         description="URL daemons use to reach this server; written into asset config files",

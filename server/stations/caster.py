@@ -21,21 +21,25 @@ import contextlib
 import ipaddress
 import json
 import logging
-from collections.abc import Iterable
+from collections.abc import AsyncGenerator, Awaitable, Callable, Iterable
 from dataclasses import dataclass
 from email.utils import formatdate
 from typing import Any
 
 from server.kit.metrics import NTRIP_CLIENTS
 from server.stations.ntrip import (
+    RECHECK_S,
     SERVER_NAME,
     Authenticate,
     CorrectionsSource,
     Mountpoint,
+    Recheck,
     all_mountpoints,
     identify,
     is_version_2,
+    rechecked,
     sourcetable,
+    still_allowed,
     visible_to,
 )
 
@@ -46,6 +50,7 @@ SEND_TIMEOUT_S = 30.0  # a client that takes nothing for this long is closed
 CLOSE_WAIT_S = 1.0  # after our answer, how long a client may take to close its end
 REALM = "Aerobase NTRIP caster"
 MAX_CLIENTS = 1000  # connections at once; the next is answered 503 and closed
+Still = Callable[[], Awaitable[bool]] | None  # a stream's account: may it still take the frames?
 
 
 @dataclass(frozen=True)
@@ -158,11 +163,16 @@ class Caster:
         authenticate: Authenticate,
         max_clients: int = MAX_CLIENTS,
         proxy_protocol: bool = False,
+        recheck: Recheck | None = None,
+        recheck_s: float = RECHECK_S,
     ) -> None:
         """`proxy_protocol`: every connection comes from a proxy and starts with a PROXY
-        protocol v1 line (nginx's `proxy_protocol on`) naming the client; one without is refused."""
+        protocol v1 line (nginx's `proxy_protocol on`) naming the client; one without is refused.
+        `recheck`: asked every `recheck_s` seconds of a stream whether its account may still take
+        it (ntrip.py's `rechecked`)."""
         self.source, self.authenticate, self.max_clients = source, authenticate, max_clients
         self.proxy_protocol = proxy_protocol
+        self.recheck, self.recheck_s = recheck, recheck_s
         self._server: asyncio.Server | None = None
         self._clients: dict[asyncio.Task[Any], asyncio.StreamWriter] = {}
 
@@ -241,19 +251,22 @@ class Caster:
         if isinstance(answer, bytes):
             writer.write(answer)
             return await _drain(writer)
-        log.info("ntrip client %s on %s (NTRIP %d)", peer, answer.name, 2 if v2 else 1)
+        mountpoint, still = answer
+        log.info("ntrip client %s on %s (NTRIP %d)", peer, mountpoint.name, 2 if v2 else 1)
         writer.write(stream_head(v2))
         await _drain(writer)
         streaming = NTRIP_CLIENTS.labels("2" if v2 else "1")
         streaming.inc()
         try:
-            await _stream(self.source, answer, reader, writer, v2)
+            frames = rechecked(self.source.subscribe(mountpoint), still, self.recheck_s)
+            await _stream(frames, reader, writer, v2)
         finally:
             streaming.dec()
-            log.info("ntrip client %s left %s", peer, answer.name)
+            log.info("ntrip client %s left %s", peer, mountpoint.name)
 
-    async def _answer(self, request: Request, peer: str) -> bytes | Mountpoint:
-        """What a request gets: an answer to send and close with, or the mountpoint to stream."""
+    async def _answer(self, request: Request, peer: str) -> bytes | tuple[Mountpoint, Still]:
+        """What a request gets: an answer to send and close with, or the mountpoint to stream
+        with what to ask of it again."""
         v2 = request.version_2
         if request.method != "GET":
             message = "this caster serves GET (clients); it takes no NTRIP server's SOURCE or POST"
@@ -266,7 +279,8 @@ class Caster:
         if request.mountpoint:
             found = next((m for m in visible if m.name == request.mountpoint), None)
             if found is not None:
-                return found
+                header = request.headers.get("authorization")
+                return found, still_allowed(self.recheck, header, org)
             if v2:
                 message = f"no mountpoint {request.mountpoint!r}"
                 return error_response(404, "Not Found", "not_found", message, v2)
@@ -309,13 +323,12 @@ async def _drain(writer: asyncio.StreamWriter) -> None:
 
 
 async def _stream(
-    source: CorrectionsSource,
-    mountpoint: Mountpoint,
+    frames: AsyncGenerator[bytes, None],
     reader: asyncio.StreamReader,
     writer: asyncio.StreamWriter,
     version_2: bool,
 ) -> None:
-    """The mountpoint's live frames until the client leaves (what it sends is dropped)."""
+    """`frames` until the client leaves or they end (what the client sends is dropped)."""
 
     async def until_gone() -> None:
         while await reader.read(4096):
@@ -326,7 +339,6 @@ async def _stream(
             writer.write(b"%x\r\n%b\r\n" % (len(frame), frame) if version_2 else frame)
             await _drain(writer)
 
-    frames = source.subscribe(mountpoint)
     pumping, gone = asyncio.create_task(pump()), asyncio.create_task(until_gone())
     try:
         await asyncio.wait({pumping, gone}, return_when=asyncio.FIRST_COMPLETED)
@@ -336,7 +348,5 @@ async def _stream(
         for task in (pumping, gone):
             task.cancel()  # a cancelled pump ends the subscription where it waits
         await asyncio.gather(pumping, gone, return_exceptions=True)
-        aclose = getattr(frames, "aclose", None)
-        if aclose is not None:
-            with contextlib.suppress(Exception):
-                await aclose()
+        with contextlib.suppress(Exception):
+            await frames.aclose()

@@ -108,3 +108,19 @@ def caster_authenticator(
             return active[0] if active else None
 
     return authenticate
+
+
+def caster_recheck(services: Callable[[], Services]) -> Callable[[str, uuid.UUID], Awaitable[bool]]:
+    """`recheck(username, organisation)` for streams: whether that user is still active and an
+    active member of the organisation the stream was opened for (no password hash: a query)."""
+
+    async def still(username: str, organisation_id: uuid.UUID) -> bool:
+        async with unit_of_work(services().sessionmaker) as uow:
+            users = UserRepository(uow.db)
+            user = await users.by_email(username)
+            if user is None or not user.is_active:
+                return False
+            memberships = await users.memberships(user.id)
+        return any(o.id == organisation_id and m.is_active for m, o in memberships)
+
+    return still

@@ -32,6 +32,7 @@ from server.stations.ntrip import (
     mountpoint_name,
     ntrip_router,
     parse_basic_auth,
+    rechecked,
     sourcetable,
     visible_to,
 )
@@ -374,3 +375,22 @@ async def test_broker_frames_skip_malformed_and_bad_crc_messages() -> None:
     assert await first == good
     await frames.aclose()
     assert watched.handlers == 0
+
+
+async def test_a_stream_ends_when_its_check_says_no_and_goes_on_when_the_check_fails() -> None:
+    async def frames() -> AsyncIterator[bytes]:
+        for i in range(5):
+            yield bytes([i])
+
+    answers = iter([True, False])
+
+    async def allowed() -> bool:
+        return next(answers)
+
+    async def broken() -> bool:
+        raise ConnectionError("the database is away")
+
+    # every_s 0: asked before each frame after the first check's moment
+    assert [f async for f in rechecked(frames(), allowed, 0.0)] == [b"\x00"]
+    assert [f async for f in rechecked(frames(), broken, 0.0)] == [bytes([i]) for i in range(5)]
+    assert [f async for f in rechecked(frames(), None, 0.0)] == [bytes([i]) for i in range(5)]
