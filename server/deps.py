@@ -13,7 +13,7 @@ from starlette.requests import HTTPConnection
 from server.auth.models import AuthSession
 from server.auth.service import SessionService
 from server.config import Settings
-from server.kit.errors import Forbidden, Unauthorized
+from server.kit.errors import Forbidden, Unauthorized, Unavailable
 from server.kit.openapi import declares
 from server.kit.principal import Principal, Role
 from server.kit.security import Passwords
@@ -44,6 +44,7 @@ def get_services(conn: HTTPConnection) -> Services:
 ServicesDep = Annotated[Services, Depends(get_services)]
 
 
+@declares(Unavailable)
 async def get_uow(request: Request) -> AsyncIterator[UnitOfWork]:
     """One unit of work per request: committed once when the endpoint succeeds (then its
     after-commit hooks run), rolled back otherwise. Endpoints and services never commit."""

@@ -121,6 +121,41 @@ class RateLimited(AppError):
         self.headers = {"Retry-After": str(self.retry_after_s)}
 
 
+class Unavailable(AppError):
+    """The database cannot be reached now; retry after the seconds in `Retry-After`."""
+
+    status, code = 503, "unavailable"
+    RETRY_AFTER_S = 5
+
+    def __init__(
+        self,
+        message: str = "the server cannot reach its database now; try again shortly",
+        **kw: Any,
+    ) -> None:
+        super().__init__(message, **kw)
+        self.headers = {"Retry-After": str(self.RETRY_AFTER_S)}
+
+
+def unreachable(exc: BaseException) -> bool:
+    """Whether `exc` (or what it was raised from) says a connection to the database failed: refused,
+    reset or timed out while connecting (asyncpg raises these unwrapped), a connection found dead
+    (SQLAlchemy's `connection_invalidated`), or no connection from the pool in time."""
+    from sqlalchemy import exc as sa
+
+    seen: BaseException | None = exc
+    for _ in range(4):  # the error and what it was raised from, a few links deep
+        if seen is None:
+            return False
+        if isinstance(seen, ConnectionError | TimeoutError | sa.TimeoutError):
+            return True
+        if isinstance(seen, sa.DBAPIError) and (
+            seen.connection_invalidated or isinstance(seen, sa.OperationalError | sa.InterfaceError)
+        ):
+            return True
+        seen = seen.__cause__
+    return False
+
+
 def error_body(code: str, message: str, details: Any = None) -> dict[str, Any]:
     """The one JSON shape of every error response."""
     return {"error": {"code": code, "message": message, "details": details}}
@@ -248,6 +283,14 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
+        if unreachable(exc):  # an outage, not a fault of ours: say so, and when to come back
+            log.warning("database unreachable on %s %s: %s", request.method, request.url.path, exc)
+            away = Unavailable()
+            return ErrorResponse(
+                error_body(away.code, away.message),
+                status_code=away.status,
+                headers={**away.headers, "Connection": "close"},
+            )
         log.exception("unhandled error on %s %s", request.method, request.url.path)
         # the server drops the connection after an unhandled error (the exception is re-raised to
         # it): say so, or a keep-alive client sends its next request into a closed socket
