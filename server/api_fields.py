@@ -30,6 +30,8 @@ FIELDS: dict[str, tuple[str, Any]] = {
     "description": ("free text for people", "weekly fence inspection"),
     "email": ("an e-mail address, the user's login (unique on the platform)", "ops@example.com"),
     "password": ("a password (12 characters or more where it is set)", "correct horse battery"),
+    "current_password": ("the caller's password now, checked as a login checks it", None),
+    "new_password": ("the password to set: 12 characters or more", "correct horse battery staple"),
     "role": ("the role in the organisation: viewer < operator < admin", "operator"),
     "is_active": ("false when the account is disabled in this organisation", True),
     "is_superuser": ("a platform superuser (creates organisations)", False),

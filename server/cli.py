@@ -128,7 +128,7 @@ async def _with_db(settings: Settings, fn):  # type: ignore[no-untyped-def]
 
 
 def admin_main(argv: Sequence[str] | None = None) -> int:
-    """`aerobase admin migrate|create-org|create-user|create-superuser|token`."""
+    """`aerobase admin migrate|create-org|create-user|create-superuser|set-password|token`."""
     parser = argparse.ArgumentParser(prog="aerobase admin")
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("migrate", help="apply database migrations")
@@ -140,6 +140,11 @@ def admin_main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--role", required=True, choices=[r.value for r in Role])
     p.add_argument("--password")
     p = sub.add_parser("create-superuser", help="create a platform superuser")
+    p.add_argument("--email", required=True)
+    p.add_argument("--password")
+    p = sub.add_parser(
+        "set-password", help="give a user a new password and end every session of theirs"
+    )
     p.add_argument("--email", required=True)
     p.add_argument("--password")
     p = sub.add_parser("token", help="print a session token for scripts")
@@ -193,6 +198,15 @@ async def _admin(db, args, settings: Settings, passwords: Passwords) -> str:  # 
             is_superuser=True,
         )
         return str(user.id)
+    if args.command == "set-password":  # the way back in for a superuser, or anyone, from a shell
+        user = await UserRepository(db).by_email(args.email, lock=True)
+        if user is None:
+            raise AppError(f"no user with e-mail {args.email}")
+        user.password_hash = passwords.hash(_checked(_password(args.password)))
+        ended = await SessionService(UnitOfWork(db), settings).end_all_for_user(
+            user.id, "password_reset"
+        )
+        return f"password of {user.email} set; {len(ended)} session(s) ended"
     if args.command == "token":
         users = UserRepository(db)
         user = await users.by_email(args.email)

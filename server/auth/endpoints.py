@@ -1,4 +1,4 @@
-"""HTTP routes of login, logout, renewal and identity."""
+"""HTTP routes of login, logout, renewal, identity and the caller's password."""
 
 from __future__ import annotations
 
@@ -7,16 +7,18 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Response
 
 from server.auth.login import IdentityService, LoginService
+from server.auth.password import PasswordService
 from server.auth.schemas import (
     AssetLoginRequest,
     LoginRequest,
     MeResponse,
+    PasswordChange,
     TokenResponse,
 )
 from server.auth.service import IssuedToken, SessionService
 from server.deps import CurrentPrincipal, CurrentSession, ServicesDep, SettingsDep, UoW
-from server.kit.errors import Conflict, RateLimited, Unauthorized
-from server.kit.openapi import declares
+from server.kit.errors import Conflict, Forbidden, RateLimited, Unauthorized, Unprocessable
+from server.kit.openapi import declares, errors
 
 router = APIRouter(tags=["auth"])
 
@@ -75,6 +77,27 @@ async def renew(session: CurrentSession, uow: UoW, settings: SettingsDep) -> Tok
 async def logout(session: CurrentSession, uow: UoW, settings: SettingsDep) -> Response:
     """End the caller's session (its sockets close once this commits)."""
     await SessionService(uow, settings).end(session, "logout")
+    return Response(status_code=204)
+
+
+@router.post(
+    "/api/v1/auth/password",
+    status_code=204,
+    response_class=Response,
+    responses=errors(Forbidden, Unprocessable, RateLimited),
+)
+async def change_password(
+    body: PasswordChange,
+    principal: CurrentPrincipal,
+    session: CurrentSession,
+    uow: UoW,
+    services: ServicesDep,
+) -> Response:
+    """Change the caller's password (a user's); the caller's session goes on, every other
+    session of the user ends. A wrong `current_password` counts as a failed login."""
+    await PasswordService(uow, services.settings, services.passwords, services.limiter).change(
+        principal, session, body.current_password, body.new_password
+    )
     return Response(status_code=204)
 
 

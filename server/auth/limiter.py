@@ -17,7 +17,7 @@ limit per window from unknown addresses, all of them together, plus the limit at
 the account really uses. The per-address limit applies to every attempt.
 
 A wrong password that was checked already, for the same account from the same address, is
-answered again without being counted or hashed (`RepeatedGuesses`, in the process): a rover or a
+answered again without being counted or hashed (`guesses`, kept in the process): a rover or a
 script retrying stale credentials tells a guesser nothing new, and so costs no place under the
 limits that the clients with the right password share with it.
 """
@@ -32,7 +32,7 @@ from datetime import datetime, timedelta
 
 from sqlalchemy.ext.asyncio import AsyncSession, async_sessionmaker
 
-from server.auth.guesses import RepeatedGuesses
+from server.auth.guesses import CheckedPasswords
 from server.auth.repository import LoginFailureRepository
 from server.config import Settings
 from server.kit.errors import RateLimited
@@ -40,6 +40,7 @@ from server.kit.time import utcnow
 from server.kit.uow import unit_of_work
 
 log = logging.getLogger(__name__)
+VERIFIED_S = 24 * 3600.0  # a password that matched a hash is taken as matching it for a day
 
 
 @dataclass(frozen=True)
@@ -53,11 +54,13 @@ class Attempt:
 
 class LoginLimiter:
     """Failed logins per key over a sliding window, admitted atomically; one per running app
-    (`Services.limiter`), which keeps the wrong passwords already checked (`guesses`)."""
+    (`Services.limiter`), which keeps the passwords already checked: the wrong ones (`guesses`)
+    and the right ones (`verified`)."""
 
     def __init__(self, sessionmaker: async_sessionmaker[AsyncSession], settings: Settings) -> None:
         self.sessionmaker = sessionmaker
-        self.guesses = RepeatedGuesses(ttl_s=settings.login_window_s)
+        self.guesses = CheckedPasswords(ttl_s=settings.login_window_s)  # the wrong ones
+        self.verified = CheckedPasswords(ttl_s=VERIFIED_S)  # the right ones, for NTRIP streams
         self.window = timedelta(seconds=settings.login_window_s)
         self.account_limit = settings.login_max_failures_account
         self.address_limit = settings.login_max_failures_address

@@ -68,7 +68,7 @@ class LoginService:
         # while the limiter's waits for the pool (under a burst of logins, none would come)
         async with self.limiter.sessionmaker() as db:
             known = await UserRepository(db).by_email(email)
-        if self.limiter.guesses.known_wrong(email, addr, password, _hash(known)):
+        if self.limiter.guesses.known(email, addr, password, _hash(known)):
             raise Unauthorized(WRONG_PASSWORD, code="invalid_credentials")
         attempt = await self.limiter.admit(email, addr, utcnow())
         users = UserRepository(self.uow.db)

@@ -8,7 +8,7 @@ import uuid
 from pydantic import BaseModel, ConfigDict
 
 from server.kit.principal import Role
-from server.kit.types import Email, LoginPassword, Name, Text, Timestamp
+from server.kit.types import Email, LoginPassword, Name, Password, Text, Timestamp
 
 
 class PrincipalKind(enum.StrEnum):
@@ -16,6 +16,14 @@ class PrincipalKind(enum.StrEnum):
 
     user = "user"
     asset = "asset"
+
+
+class PasswordChange(BaseModel):
+    """The caller's current password and the one to replace it (12 characters or more)."""
+
+    model_config = ConfigDict(extra="forbid")
+    current_password: LoginPassword
+    new_password: Password
 
 
 class LoginRequest(BaseModel):

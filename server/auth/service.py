@@ -26,6 +26,8 @@ END_REASONS = {
     "asset_deleted": "the asset was deleted",
     "disabled": "the account was disabled",
     "removed": "the user was removed from the organisation",
+    "password_changed": "the account's password was changed",
+    "password_reset": "the account's password was reset by an administrator",
 }
 
 
@@ -176,11 +178,19 @@ class SessionService:
         return ended
 
     async def end_all_for_user(
-        self, user_id: uuid.UUID, reason: str, organization_id: uuid.UUID | None = None
+        self,
+        user_id: uuid.UUID,
+        reason: str,
+        organization_id: uuid.UUID | None = None,
+        *,
+        keep: uuid.UUID | None = None,
     ) -> list[uuid.UUID]:
-        """End every open session of a user, optionally only those in one organisation."""
+        """End every open session of a user, optionally only those in one organisation, and
+        but the one `keep` names."""
         ended = []
         for s in await self.repo.open_for(user_id=user_id):
+            if s.id == keep:
+                continue
             if organization_id is None or s.organization_id == organization_id:
                 await self.end(s, reason)
                 ended.append(s.id)

@@ -26,6 +26,7 @@ from server.organizations.models import Membership, User
 from server.organizations.schemas import (
     OrganizationCreate,
     OrganizationOut,
+    PasswordReset,
     UserCreate,
     UserOut,
     UserUpdate,
@@ -158,6 +159,22 @@ async def update_user(
     )
     tag(response, m.version)
     return _user_out(m, user)
+
+
+@router.post(
+    "/api/v1/users/{user_id}/password",
+    status_code=204,
+    response_class=Response,
+    responses=errors(Conflict, Forbidden),
+)
+async def reset_user_password(
+    user_id: uuid.UUID, body: PasswordReset, orgs: OrgsAdmin, passwords: PasswordsDep
+) -> Response:
+    """Give a member a new password (admins only); every session of theirs ends. Not for
+    oneself (`POST /api/v1/auth/password`), nor, but by a superuser, for a superuser or a member
+    of other organisations too."""
+    await orgs.reset_password(passwords, user_id, body.new_password)
+    return Response(status_code=204)
 
 
 @router.delete(

@@ -43,6 +43,13 @@ class UserUpdate(BaseModel):
     is_active: bool | None = None
 
 
+class PasswordReset(BaseModel):
+    """A member's new password, set by an administrator (12 characters or more)."""
+
+    model_config = ConfigDict(extra="forbid")
+    new_password: Password
+
+
 class UserOut(BaseModel):
     """A member of the caller's organisation."""
 

@@ -10,7 +10,7 @@ from sqlalchemy.ext.asyncio import AsyncSession
 from server.audit.service import record
 from server.auth.service import SessionService
 from server.config import Settings
-from server.kit.errors import Conflict, NotFound
+from server.kit.errors import Conflict, Forbidden, NotFound
 from server.kit.etag import NO_PRECONDITION, IfMatch
 from server.kit.paging import Page, Paged, page_of
 from server.kit.principal import Principal, Role
@@ -157,6 +157,40 @@ class OrganizationService(Service):
         await record(self.uow, self.principal, "user.updated", target=u.email, changes=changes)
         await self.db.flush()
         return m, u
+
+    async def reset_password(self, passwords: Passwords, user_id: uuid.UUID, new: str) -> int:
+        """Give a member a new password (an administrator's reset: no current password asked);
+        every session of theirs ends; how many did. Refused for oneself (the change route asks
+        for the current password), for a platform superuser and for a member of another
+        organisation too, unless the caller is a superuser: an organisation's admin must not
+        take over an account that opens more than their own organisation."""
+        m, u = await self.user(user_id, lock=True)
+        if u.id == self.principal.user_id:
+            raise Conflict(
+                "change your own password with POST /api/v1/auth/password (it asks for the "
+                "current one)",
+                code="self_reset",
+            )
+        if not self.principal.is_superuser:
+            if u.is_superuser:
+                raise Forbidden(
+                    "a platform superuser's password is theirs to change", code="superuser"
+                )
+            others = [o for _, o in await UserRepository(self.db).memberships(u.id)]
+            if any(o.id != m.organization_id for o in others):
+                raise Forbidden(
+                    f"{u.email} is a member of other organisations too: their password is theirs "
+                    "to change, or a platform superuser's to reset",
+                    code="other_organisations",
+                )
+        u.password_hash = await asyncio.to_thread(passwords.hash, new)
+        ended = await SessionService(self.uow, self.settings).end_all_for_user(
+            u.id, "password_reset"
+        )
+        await record(
+            self.uow, self.principal, "user.password_reset", target=u.email, sessions=len(ended)
+        )
+        return len(ended)
 
     async def remove_user(self, user_id: uuid.UUID, expect: IfMatch = NO_PRECONDITION) -> None:
         """Remove a member from the caller's organisation and end their sessions there."""

@@ -40,8 +40,9 @@ COMMON_HEADERS = {
 
 # (username, password, the caller's address or None) -> organisation id, or None: refused
 Authenticate = Callable[[str, str, str | None], Awaitable[Any | None]]
-# (username, organisation id) -> whether that account may still take that organisation's frames
-Recheck = Callable[[str, Any], Awaitable[bool]]
+# (username, password, organisation id) -> whether those credentials still open that
+# organisation's frames
+Recheck = Callable[[str, str, Any], Awaitable[bool]]
 RECHECK_S = 30.0  # how often a stream's credentials are checked again
 # what the HTTP route says to a version 1 client, which cannot read an HTTP status line's stream
 V1_HERE = (
@@ -207,8 +208,8 @@ def still_allowed(
     creds = parse_basic_auth(header)
     if recheck is None or creds is None or organisation_id is None:
         return None
-    username = creds[0]
-    return lambda: recheck(username, organisation_id)
+    username, password = creds
+    return lambda: recheck(username, password, organisation_id)
 
 
 async def rechecked(

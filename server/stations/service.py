@@ -87,7 +87,7 @@ def caster_authenticator(
         async with unit_of_work(state.sessionmaker) as uow:
             known = await UserRepository(uow.db).by_email(username) if valid else None
         stored = known.password_hash if known else None
-        if limiter.guesses.known_wrong(username, address, password, stored):
+        if limiter.guesses.known(username, address, password, stored):
             return None  # a rover retrying a stale password: not counted again
         try:
             attempt = await limiter.admit(username, address, utcnow())
@@ -102,6 +102,7 @@ def caster_authenticator(
                 limiter.guesses.remember(username, address, password, stored)
                 return None  # the attempt stays counted as a failure
             await limiter.succeeded(uow.db, username, address, attempt)
+            limiter.verified.remember(username, None, password, stored)
             if not user.is_active:
                 return None
             active = [o.id for m, o in await users.memberships(user.id) if m.is_active]
@@ -110,17 +111,30 @@ def caster_authenticator(
     return authenticate
 
 
-def caster_recheck(services: Callable[[], Services]) -> Callable[[str, uuid.UUID], Awaitable[bool]]:
-    """`recheck(username, organisation)` for streams: whether that user is still active and an
-    active member of the organisation the stream was opened for (no password hash: a query)."""
+def caster_recheck(
+    services: Callable[[], Services],
+) -> Callable[[str, str, uuid.UUID], Awaitable[bool]]:
+    """`recheck(username, password, organisation)` for streams: whether that user is still
+    active, an active member of the organisation the stream was opened for, and the password
+    still theirs. The password is verified again only when the account's hash has changed since
+    it last matched (`LoginLimiter.verified`): a query per check, a password hash per change."""
 
-    async def still(username: str, organisation_id: uuid.UUID) -> bool:
-        async with unit_of_work(services().sessionmaker) as uow:
+    async def still(username: str, password: str, organisation_id: uuid.UUID) -> bool:
+        state = services()
+        async with unit_of_work(state.sessionmaker) as uow:
             users = UserRepository(uow.db)
             user = await users.by_email(username)
             if user is None or not user.is_active:
                 return False
             memberships = await users.memberships(user.id)
-        return any(o.id == organisation_id and m.is_active for m, o in memberships)
+        if not any(o.id == organisation_id and m.is_active for m, o in memberships):
+            return False
+        verified, stored = state.limiter.verified, user.password_hash
+        if verified.known(username, None, password, stored):
+            return True
+        if not await asyncio.to_thread(state.passwords.verify, stored, password):
+            return False  # changed or reset: this stream's password is no longer the account's
+        verified.remember(username, None, password, stored)
+        return True
 
     return still

@@ -1,6 +1,7 @@
 """A rover's stream ends once its account may no longer take it: the user disabled in the
 organisation, on either door (the caster's own port, NTRIP 1; the HTTP port's /ntrip/, NTRIP 2),
-while another user's rover on the same base keeps its corrections."""
+or its password reset to another, while other users' rovers on the same base keep their
+corrections (and a reset to the very same password ends nothing)."""
 
 from __future__ import annotations
 
@@ -73,6 +74,19 @@ async def _v2(url: str, mountpoint: str, email: str) -> Rover:
     return rover
 
 
+async def _fed(rovers: list[Rover], checks: int = 1) -> None:
+    """Each rover gets more corrections over several recheck periods, and none was cut off."""
+    before = [r.received for r in rovers]
+    for _ in range(checks):
+        now = [r.received for r in rovers]
+        await eventually(
+            lambda now=now: all(r.received > n + 2000 for r, n in zip(rovers, now, strict=True)),
+            what="corrections going on",
+        )
+    assert not any(r.ended for r in rovers), rovers
+    assert all(r.received > b for r, b in zip(rovers, before, strict=True))
+
+
 async def test_a_disabled_users_streams_end_and_the_others_go_on(
     database_url, api, superuser_email, tmp_path
 ):
@@ -94,6 +108,7 @@ async def test_a_disabled_users_streams_end_and_the_others_go_on(
                 await _v1(caster.port, base["name"], viewer),
                 await _v2(server.url, base["name"], viewer),
                 await _v1(caster.port, base["name"], operator),
+                await _v1(caster.port, base["name"], tenant.emails["admin"]),
             ]
             await eventually(
                 lambda: all(r.received > 2000 for r in rovers), what="corrections at every rover"
@@ -106,9 +121,16 @@ async def test_a_disabled_users_streams_end_and_the_others_go_on(
             )
             assert r.status_code == 200, r.text
             await eventually(lambda: rovers[0].ended and rovers[1].ended, what="viewer cut off")
-            going = rovers[2].received
-            await eventually(lambda: rovers[2].received > going + 2000, what="operator fed")
-            assert not rovers[2].ended
+            await _fed(rovers[2:])
+            reset = f"/api/v1/users/{tenant.user_ids['operator']}/password"
+            # the same password again: a new hash, one password check, and the stream goes on
+            r = api.post(reset, json={"new_password": Tenant.PASSWORD}, headers=tenant.h())
+            assert r.status_code == 204, r.text
+            await _fed(rovers[2:], checks=3)
+            r = api.post(reset, json={"new_password": "another-password-9"}, headers=tenant.h())
+            assert r.status_code == 204, r.text
+            await eventually(lambda: rovers[2].ended, what="the operator's rover cut off")
+            await _fed(rovers[3:])
     finally:
         for rover in rovers:
             if rover.task is not None:

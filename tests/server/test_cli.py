@@ -80,7 +80,15 @@ def test_admin_bootstrap_and_token(database_url, api):
     # the one-session rule holds for scripts too
     r = _run(["admin", "token", "--email", email], env)
     assert r.returncode == 1 and "live session" in r.stderr
-    assert _run(["admin", "token", "--email", email, "--force"], env).returncode == 0
+    token = _run(["admin", "token", "--email", email, "--force"], env).stdout.strip()
+    # a new password from the shell: the user's sessions end, the new password logs in
+    r = _run(["admin", "set-password", "--email", email, "--password", "cli-password-456"], env)
+    assert r.returncode == 0 and "1 session(s) ended" in r.stdout, (r.stdout, r.stderr)
+    assert api.get("/api/v1/auth/me", headers=auth(token)).status_code == 401
+    body = {"email": email, "password": "cli-password-456"}
+    assert api.post("/api/v1/auth/login", json=body).status_code == 200
+    r = _run(["admin", "set-password", "--email", "nobody@x.test", "--password", "x" * 12], env)
+    assert r.returncode == 1 and "no user" in r.stderr and "Traceback" not in r.stderr
 
 
 def test_asset_decrypt(tenant: Tenant):
