@@ -21,27 +21,25 @@ import contextlib
 import ipaddress
 import json
 import logging
-from collections.abc import AsyncGenerator, Awaitable, Callable, Iterable
+from collections.abc import AsyncGenerator, Iterable
 from dataclasses import dataclass
 from email.utils import formatdate
 from typing import Any
 
 from server.kit.metrics import NTRIP_CLIENTS
 from server.stations.ntrip import (
-    RECHECK_S,
     SERVER_NAME,
     Authenticate,
     CorrectionsSource,
     Mountpoint,
-    Recheck,
     all_mountpoints,
     identify,
     is_version_2,
-    rechecked,
+    parse_basic_auth,
     sourcetable,
-    still_allowed,
     visible_to,
 )
+from server.stations.recheck import RECHECK_S, Recheck, Still, rechecked, still_allowed
 
 log = logging.getLogger(__name__)
 HEAD_LIMIT = 8192  # bytes of request line and headers
@@ -50,7 +48,6 @@ SEND_TIMEOUT_S = 30.0  # a client that takes nothing for this long is closed
 CLOSE_WAIT_S = 1.0  # after our answer, how long a client may take to close its end
 REALM = "Aerobase NTRIP caster"
 MAX_CLIENTS = 1000  # connections at once; the next is answered 503 and closed
-Still = Callable[[], Awaitable[bool]] | None  # a stream's account: may it still take the frames?
 
 
 @dataclass(frozen=True)
@@ -264,7 +261,7 @@ class Caster:
             streaming.dec()
             log.info("ntrip client %s left %s", peer, mountpoint.name)
 
-    async def _answer(self, request: Request, peer: str) -> bytes | tuple[Mountpoint, Still]:
+    async def _answer(self, request: Request, peer: str) -> bytes | tuple[Mountpoint, Still | None]:
         """What a request gets: an answer to send and close with, or the mountpoint to stream
         with what to ask of it again."""
         v2 = request.version_2
@@ -279,8 +276,8 @@ class Caster:
         if request.mountpoint:
             found = next((m for m in visible if m.name == request.mountpoint), None)
             if found is not None:
-                header = request.headers.get("authorization")
-                return found, still_allowed(self.recheck, header, org)
+                creds = parse_basic_auth(request.headers.get("authorization"))
+                return found, still_allowed(self.recheck, creds, org)
             if v2:
                 message = f"no mountpoint {request.mountpoint!r}"
                 return error_response(404, "Not Found", "not_found", message, v2)

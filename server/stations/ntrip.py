@@ -12,12 +12,10 @@ from __future__ import annotations
 import asyncio
 import base64
 import binascii
-import contextlib
 import inspect
 import logging
-import time
 from collections import defaultdict
-from collections.abc import AsyncGenerator, AsyncIterator, Awaitable, Callable, Iterable, Sequence
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -26,6 +24,7 @@ from fastapi.responses import JSONResponse, StreamingResponse
 
 from protocol.rtcm import frame_ok
 from server.kit.metrics import NTRIP_CLIENTS
+from server.stations.recheck import RECHECK_S, Recheck, Still, rechecked, still_allowed
 
 log = logging.getLogger(__name__)
 
@@ -40,10 +39,6 @@ COMMON_HEADERS = {
 
 # (username, password, the caller's address or None) -> organisation id, or None: refused
 Authenticate = Callable[[str, str, str | None], Awaitable[Any | None]]
-# (username, password, organisation id) -> whether those credentials still open that
-# organisation's frames
-Recheck = Callable[[str, str, Any], Awaitable[bool]]
-RECHECK_S = 30.0  # how often a stream's credentials are checked again
 # what the HTTP route says to a version 1 client, which cannot read an HTTP status line's stream
 V1_HERE = (
     "this route requires the header Ntrip-Version: Ntrip/2.0; NTRIP 1 clients (RTKLIB's str2str, "
@@ -200,48 +195,6 @@ async def find_mountpoint(
     return next((m for m in visible if m.name == name), None)
 
 
-def still_allowed(
-    recheck: Recheck | None, header: str | None, organisation_id: Any | None
-) -> Callable[[], Awaitable[bool]] | None:
-    """What `rechecked` asks of a stream opened with this `Authorization` header: nothing for an
-    anonymous caller (public mountpoints only) or without a `recheck`."""
-    creds = parse_basic_auth(header)
-    if recheck is None or creds is None or organisation_id is None:
-        return None
-    username, password = creds
-    return lambda: recheck(username, password, organisation_id)
-
-
-async def rechecked(
-    frames: AsyncIterator[bytes], still: Callable[[], Awaitable[bool]] | None, every_s: float
-) -> AsyncGenerator[bytes, None]:
-    """`frames` until `still()` says no: asked at the first frame after each `every_s` seconds, so
-    an account disabled (or removed from the organisation) gets no frame a check later. A check
-    that fails (the database away) keeps the stream going: the corrections of a landing UAV do not
-    stop for it. Closing this closes `frames`."""
-    try:
-        next_at = time.monotonic() + every_s
-        async for frame in frames:
-            if still is not None and time.monotonic() >= next_at:
-                try:
-                    allowed = await still()
-                except Exception:
-                    log.warning(
-                        "ntrip: could not check a stream's credentials again", exc_info=True
-                    )
-                    allowed = True
-                if not allowed:
-                    log.info("ntrip: a stream's account may no longer take it; ended")
-                    return
-                next_at = time.monotonic() + every_s
-            yield frame
-    finally:
-        aclose = getattr(frames, "aclose", None)
-        if aclose is not None:
-            with contextlib.suppress(Exception):
-                await aclose()
-
-
 def _error(status: int, code: str, message: str, headers: dict[str, str] | None = None) -> Response:
     return JSONResponse(
         {"error": {"code": code, "message": message, "details": None}},
@@ -297,7 +250,8 @@ def ntrip_router(
         log.info(
             "ntrip client %s on %s", request.client.host if request.client else "?", found.name
         )
-        still = still_allowed(recheck, request.headers.get("authorization"), org)
+        creds = parse_basic_auth(request.headers.get("authorization"))
+        still = still_allowed(recheck, creds, org)
         return StreamingResponse(
             _frames(source, found, still, recheck_s),
             media_type="gnss/data",
@@ -316,7 +270,7 @@ def _address(request: Request) -> str | None:
 async def _frames(
     source: CorrectionsSource,
     mountpoint: Mountpoint,
-    still: Callable[[], Awaitable[bool]] | None,
+    still: Still | None,
     recheck_s: float,
 ) -> AsyncIterator[bytes]:
     subscription = rechecked(source.subscribe(mountpoint), still, recheck_s)

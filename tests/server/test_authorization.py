@@ -23,7 +23,12 @@ PUBLIC = {
     ("GET", "/api/ready"),
 }
 # Routes every role may call on its own session (not organisation data).
-SELF = {("POST", "/api/v1/auth/logout"), ("POST", "/api/v1/auth/renew"), ("GET", "/api/v1/auth/me")}
+SELF = {
+    ("POST", "/api/v1/auth/logout"),
+    ("POST", "/api/v1/auth/renew"),
+    ("GET", "/api/v1/auth/me"),
+    ("POST", "/api/v1/auth/password"),
+}
 # Management of users and of assets' credentials: admins only.
 ADMIN_ONLY = [
     (r"POST|PATCH|DELETE", r"^/api/v1/users"),

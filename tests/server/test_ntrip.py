@@ -32,10 +32,10 @@ from server.stations.ntrip import (
     mountpoint_name,
     ntrip_router,
     parse_basic_auth,
-    rechecked,
     sourcetable,
     visible_to,
 )
+from server.stations.recheck import rechecked
 from sim.clock import SimClock
 from sim.gnss import BaseStationModel, GnssConfig, GnssReceiver, running_receiver
 from tests.polling import eventually

@@ -11,6 +11,7 @@ const PAGES = {
   history: () => import("./history.js"),
   report: () => import("./report.js"),
   replay: () => import("./replay.js"),
+  account: () => import("./account.js"),
 };
 
 const main = document.getElementById("main");
@@ -73,7 +74,8 @@ async function boot() {
   };
   const org = (me.memberships || []).find((m) => m.organization_id === me.organization_id);
   clear(document.getElementById("who"),
-    h("span", {}, `${me.email} · ${org ? org.organization_name : "platform"} · ${me.role || "superuser"}`),
+    h("a", { href: "#/account", title: "Your account and password" },
+      `${me.email} · ${org ? org.organization_name : "platform"} · ${me.role || "superuser"}`),
     h("button", { type: "button", onclick: signOut }, "Sign out"));
   document.getElementById("nav").hidden = false;
   follow(assets.map((a) => a.id));
