@@ -8,15 +8,9 @@ import asyncio
 import pytest
 
 from tests.conftest import Tenant, login
-from tests.console.browser import launch, open_page, shot, sign_in
+from tests.console.browser import open_page, shot, sign_in
 
 pytestmark = pytest.mark.slow  # a browser: not in the fast lane
-
-
-@pytest.fixture(scope="module")
-async def browser():
-    async for b in launch():
-        yield b
 
 
 async def test_a_user_changes_their_password_on_the_account_page(

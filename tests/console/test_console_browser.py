@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import Tenant
-from tests.console.browser import launch, open_page, shot, sign_in
+from tests.console.browser import open_page, shot, sign_in
 from tests.e2e.harness import platform
 from tests.polling import eventually
 
@@ -21,12 +21,6 @@ pytestmark = pytest.mark.slow  # a browser and the whole platform: not in the fa
 
 PAGE_WEIGHT_LIMIT = 300_000  # bytes transferred, compressed, for the first load (issue 18)
 CAMERA = {"width": 320, "height": 240, "fps": 15}  # the UAV's camera: the world's render, scaled
-
-
-@pytest.fixture(scope="module")
-async def browser():
-    async for b in launch():
-        yield b
 
 
 def _bad_plan(lat: float, lon: float) -> bytes:

@@ -15,7 +15,7 @@ from assetlink.configfile import decrypt_config
 from assetlink.link import Link
 from protocol.telemetry_payloads import Battery, Position, UavTelemetry
 from tests.conftest import LiveServer, Tenant, test_settings
-from tests.console.browser import launch, open_page, sign_in, whep_offers
+from tests.console.browser import open_page, sign_in, whep_offers
 from tests.polling import eventually
 from tests.video.peers import publisher
 from tests.video.test_video_api import uav_with_camera
@@ -25,12 +25,6 @@ pytestmark = pytest.mark.slow  # a browser: not in the fast lane
 BASE = (41.0, -8.6)
 UAVS = 6  # the last card is far below a 1280×800 screen
 M_PER_DEG_LAT = 111_320.0  # the console's metres() is equirectangular; 20 m north reads as 20
-
-
-@pytest.fixture(scope="module")
-async def browser():
-    async for b in launch():
-        yield b
 
 
 async def test_an_off_screen_card_draws_its_uavs_map_as_it_comes_into_view(

@@ -11,18 +11,12 @@ import httpx
 import pytest
 
 from tests.conftest import LiveServer, Tenant, test_settings
-from tests.console.browser import launch, open_page, shot, sign_in, video_panel, whep_offers
+from tests.console.browser import open_page, shot, sign_in, video_panel, whep_offers
 from tests.polling import eventually
 from tests.video.peers import publisher
 from tests.video.test_video_api import uav_with_camera
 
 pytestmark = pytest.mark.slow  # a browser: not in the fast lane
-
-
-@pytest.fixture(scope="module")
-async def browser():
-    async for b in launch():
-        yield b
 
 
 async def test_a_fleet_panel_holds_no_session_for_an_idle_uav_and_opens_one_when_it_publishes(
