@@ -36,6 +36,7 @@ from server.auth.guesses import CheckedPasswords
 from server.auth.repository import LoginFailureRepository
 from server.config import Settings
 from server.kit.errors import RateLimited
+from server.kit.metrics import LOGINS
 from server.kit.time import utcnow
 from server.kit.uow import unit_of_work
 
@@ -74,11 +75,26 @@ class LoginLimiter:
             keys.append((f"addr:{addr}", self.address_limit))
         return keys
 
-    async def admit(self, account_key: str, addr: str | None, now: datetime) -> Attempt:
-        """Count an attempt; RateLimited (and not counted) when a key is over its limit. The
-        account is named as its login names it, in any case: the key is the lower-case name, as
-        the user lookup matches it (else each spelling would have a limit of its own)."""
-        account_key = account_key.lower()
+    @staticmethod
+    def outcome(door: str, outcome: str) -> None:
+        """Count a check on `/metrics` (`aerobase_logins_total`): door user, asset, ntrip or
+        password_change; outcome ok, wrong, repeated or limited."""
+        LOGINS.labels(door, outcome).inc()
+
+    async def admit(
+        self, account_key: str, addr: str | None, now: datetime, *, door: str = "user"
+    ) -> Attempt:
+        """Count an attempt; RateLimited (and not counted, but as `limited` at `door` on
+        `/metrics`) when a key is over its limit. The account is named as its login names it, in
+        any case: the key is the lower-case name, as the user lookup matches it (else each
+        spelling would have a limit of its own)."""
+        try:
+            return await self._admit(account_key.lower(), addr, now)
+        except RateLimited:
+            self.outcome(door, "limited")
+            raise
+
+    async def _admit(self, account_key: str, addr: str | None, now: datetime) -> Attempt:
         async with unit_of_work(self.sessionmaker) as uow:
             repo = LoginFailureRepository(uow.db)
             known = addr is not None and await repo.known(account_key, addr, now - self.known_for)

@@ -69,6 +69,7 @@ class LoginService:
         async with self.limiter.sessionmaker() as db:
             known = await UserRepository(db).by_email(email)
         if self.limiter.guesses.known(email, addr, password, _hash(known)):
+            self.limiter.outcome("user", "repeated")
             raise Unauthorized(WRONG_PASSWORD, code="invalid_credentials")
         attempt = await self.limiter.admit(email, addr, utcnow())
         users = UserRepository(self.uow.db)
@@ -77,9 +78,11 @@ class LoginService:
         ok = await asyncio.to_thread(self.passwords.verify, _hash(user), password)
         if not ok or user is None:
             self.limiter.guesses.remember(email, addr, password, _hash(user))
+            self.limiter.outcome("user", "wrong")
             raise Unauthorized(WRONG_PASSWORD, code="invalid_credentials")
         # the password was right: this is no failed attempt, whatever follows
         await self.limiter.succeeded(self.uow.db, email, addr, attempt)
+        self.limiter.outcome("user", "ok")
         if not user.is_active:
             raise Unauthorized(DISABLED, code="account_disabled")
         org_id = _organisation(user, await users.memberships(user.id), organization_id)
@@ -92,8 +95,10 @@ class LoginService:
         wrong ones are counted by source and by asset name, and answered 429 past the limits."""
         asset = await AssetRepository.by_name_for_login(self.uow.db, name)
         if asset is None or not same_hash(asset.secret_hash, token_hash(secret)):
-            await self.limiter.admit(f"asset:{name}", self.uow.client_addr, utcnow())
+            await self.limiter.admit(f"asset:{name}", self.uow.client_addr, utcnow(), door="asset")
+            self.limiter.outcome("asset", "wrong")
             raise Unauthorized("wrong asset name or secret", code="invalid_credentials")
+        self.limiter.outcome("asset", "ok")
         return await SessionService(self.uow, self.settings).open(
             Account("asset", asset.id, asset.organization_id, asset.name),
             force=force,

@@ -19,6 +19,7 @@ from server.kit.uow import UnitOfWork
 from server.organizations.models import User
 
 WRONG = "the current password is wrong"
+DOOR = "password_change"  # on /metrics (aerobase_logins_total)
 
 
 class PasswordService:
@@ -46,12 +47,15 @@ class PasswordService:
         assert user is not None  # the session's user: a deleted user has no live session
         addr, guesses = self.uow.client_addr, self.limiter.guesses
         if guesses.known(user.email, addr, current, user.password_hash):
+            self.limiter.outcome(DOOR, "repeated")
             raise Unprocessable(WRONG, code="wrong_password")
-        attempt = await self.limiter.admit(user.email, addr, utcnow())
+        attempt = await self.limiter.admit(user.email, addr, utcnow(), door=DOOR)
         if not await asyncio.to_thread(self.passwords.verify, user.password_hash, current):
             guesses.remember(user.email, addr, current, user.password_hash)
+            self.limiter.outcome(DOOR, "wrong")
             raise Unprocessable(WRONG, code="wrong_password")
         await self.limiter.succeeded(self.uow.db, user.email, addr, attempt)
+        self.limiter.outcome(DOOR, "ok")
         user.password_hash = await asyncio.to_thread(self.passwords.hash, new)
         ended = await SessionService(self.uow, self.settings).end_all_for_user(
             user.id, "password_changed", keep=session.id

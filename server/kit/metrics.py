@@ -96,6 +96,14 @@ NTRIP_CLIENTS = Gauge(
     ["version"],
     registry=REGISTRY,
 )
+LOGINS = Counter(
+    "aerobase_logins_total",
+    "Password and secret checks by door (user, asset, ntrip, password_change) and outcome: ok "
+    "(the right one), wrong, repeated (a wrong password sent again: answered, not counted), "
+    "limited (refused by the failed-login limits)",
+    ["door", "outcome"],
+    registry=REGISTRY,
+)
 BASE_RTK_RATE = Gauge(
     "aerobase_base_rtk_corrections_per_second",
     "RTCM3 correction frames per second a landing base last reported",

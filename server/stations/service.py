@@ -88,9 +88,10 @@ def caster_authenticator(
             known = await UserRepository(uow.db).by_email(username) if valid else None
         stored = known.password_hash if known else None
         if limiter.guesses.known(username, address, password, stored):
+            limiter.outcome("ntrip", "repeated")
             return None  # a rover retrying a stale password: not counted again
         try:
-            attempt = await limiter.admit(username, address, utcnow())
+            attempt = await limiter.admit(username, address, utcnow(), door="ntrip")
         except RateLimited:
             return None
         async with unit_of_work(state.sessionmaker) as uow:
@@ -100,9 +101,11 @@ def caster_authenticator(
             ok = await asyncio.to_thread(state.passwords.verify, stored, password)
             if not ok or user is None:
                 limiter.guesses.remember(username, address, password, stored)
+                limiter.outcome("ntrip", "wrong")
                 return None  # the attempt stays counted as a failure
             await limiter.succeeded(uow.db, username, address, attempt)
             limiter.verified.remember(username, None, password, stored)
+            limiter.outcome("ntrip", "ok")
             if not user.is_active:
                 return None
             active = [o.id for m, o in await users.memberships(user.id) if m.is_active]

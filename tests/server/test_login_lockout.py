@@ -6,12 +6,14 @@ account as a whole. The limiter's tables are pruned of what no longer counts."""
 from __future__ import annotations
 
 import asyncio
+import base64
 import uuid
 from datetime import timedelta
 
 import httpx
 from sqlalchemy import select
 
+from assetlink.configfile import decrypt_config
 from server.auth.limiter import LoginLimiter, housekeeping
 from server.auth.models import KnownLoginClient, LoginFailure
 from server.auth.repository import LoginFailureRepository
@@ -22,6 +24,7 @@ from server.kit.time import utcnow
 from server.kit.uow import unit_of_work
 from server.organizations.repository import UserRepository
 from tests.conftest import LiveServer, Tenant, auth, test_settings
+from tests.metrics import value
 from tests.server.test_ntrip_caster import ask, basic, v1
 
 HOME = {"X-Forwarded-For": "192.0.2.10"}
@@ -172,3 +175,47 @@ async def test_housekeeping_drops_what_no_longer_counts(database_url):
         assert attempt.account == f"account:old-{tag}"
     finally:
         await engine.dispose()
+
+
+def test_password_checks_are_counted_on_metrics_by_door_and_outcome(api, tenant: Tenant):
+    """What an operator alerts on (a guesser at work, rovers with stale passwords): every check
+    of a password or secret, by door and outcome, on `/metrics`."""
+
+    def counts() -> dict[tuple[str, str], float]:
+        text = api.get("/metrics").text
+        doors = ("user", "asset", "password_change")
+        outcomes = ("ok", "wrong", "repeated", "limited")
+        return {
+            (d, o): value(text, "aerobase_logins_total", door=d, outcome=o)
+            for d in doors
+            for o in outcomes
+        }
+
+    email, where = tenant.emails["viewer"], "192.0.2.77"
+    asset = tenant.create_asset("uav")
+    cfg = decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
+    before = counts()
+    assert _login(api, email, Tenant.PASSWORD, where).status_code == 200  # user ok
+    assert _login(api, email, "wrong-0000", where).status_code == 401  # user wrong
+    assert _login(api, email, "wrong-0000", where).status_code == 401  # user repeated
+    for i in range(1, 5):
+        assert _login(api, email, f"wrong-{i:04d}", where).status_code == 401  # user wrong x4
+    assert _login(api, email, "wrong-0005", where).status_code == 429  # user limited
+    r = api.post("/api/v1/assets/login", json={"name": cfg.name, "secret": "not-it"})
+    assert r.status_code == 401  # asset wrong
+    r = api.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret})
+    assert r.status_code == 200  # asset ok
+    body = {"current_password": "not-mine-at-all", "new_password": "x" * 12}
+    r = api.post("/api/v1/auth/password", json=body, headers=tenant.h("operator"))
+    assert r.status_code == 422  # password_change wrong
+    after = counts()
+    delta = {k: after[k] - before[k] for k in after if after[k] != before[k]}
+    assert delta == {
+        ("user", "ok"): 1,
+        ("user", "wrong"): 5,
+        ("user", "repeated"): 1,
+        ("user", "limited"): 1,
+        ("asset", "wrong"): 1,
+        ("asset", "ok"): 1,
+        ("password_change", "wrong"): 1,
+    }, delta
