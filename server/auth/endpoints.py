@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Response
 
 from server.auth.login import IdentityService, LoginService
-from server.auth.password import PasswordService
+from server.auth.password import PasswordService, WrongPassword
 from server.auth.schemas import (
     AssetLoginRequest,
     LoginRequest,
@@ -17,7 +17,14 @@ from server.auth.schemas import (
 )
 from server.auth.service import IssuedToken, SessionService
 from server.deps import CurrentPrincipal, CurrentSession, ServicesDep, SettingsDep, UoW
-from server.kit.errors import Conflict, Forbidden, RateLimited, Unauthorized, Unprocessable
+from server.kit.errors import (
+    Conflict,
+    Forbidden,
+    RateLimited,
+    Unauthorized,
+    Unprocessable,
+    answer,
+)
 from server.kit.openapi import declares, errors
 
 router = APIRouter(tags=["auth"])
@@ -95,9 +102,11 @@ async def change_password(
 ) -> Response:
     """Change the caller's password (a user's); the caller's session goes on, every other
     session of the user ends. A wrong `current_password` counts as a failed login."""
-    await PasswordService(uow, services.settings, services.passwords, services.limiter).change(
-        principal, session, body.current_password, body.new_password
-    )
+    passwords = PasswordService(uow, services.settings, services.passwords, services.limiter)
+    try:
+        await passwords.change(principal, session, body.current_password, body.new_password)
+    except WrongPassword as wrong:  # answered, not raised: its failed attempt is committed
+        return answer(wrong)
     return Response(status_code=204)
 
 

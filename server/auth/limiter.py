@@ -88,28 +88,39 @@ class LoginLimiter:
         `/metrics`) when a key is over its limit. The account is named as its login names it, in
         any case: the key is the lower-case name, as the user lookup matches it (else each
         spelling would have a limit of its own)."""
-        try:
-            return await self._admit(account_key.lower(), addr, now)
-        except RateLimited:
-            self.outcome(door, "limited")
-            raise
-
-    async def _admit(self, account_key: str, addr: str | None, now: datetime) -> Attempt:
         async with unit_of_work(self.sessionmaker) as uow:
-            repo = LoginFailureRepository(uow.db)
-            known = addr is not None and await repo.known(account_key, addr, now - self.known_for)
-            keys = self.keys(account_key, addr, known=known)
-            await repo.lock(sorted(k for k, _ in keys))
-            ids = await repo.add([k for k, _ in keys], now)
-            for key, limit in keys:
-                count, oldest = await repo.window(key, now - self.window)
-                if count > limit:  # leaving the block with the error rolls this attempt back
-                    retry = int(((oldest or now) + self.window - now).total_seconds()) + 1
-                    what = "this account" if key.startswith("account:") else "your address"
-                    raise RateLimited(
-                        f"too many failed logins for {what}; try again in {retry} s",
-                        retry_after_s=retry,
-                    )
+            return await self.admit_in(uow.db, account_key, addr, now, door=door)
+
+    async def admit_in(
+        self,
+        db: AsyncSession,
+        account_key: str,
+        addr: str | None,
+        now: datetime,
+        *,
+        door: str = "user",
+    ) -> Attempt:
+        """`admit` in the caller's transaction, for a caller that already holds a connection
+        (taking a second one from the pool while holding the first deadlocks a burst of such
+        callers until the pool's timeout). The attempt counts once that transaction commits, and
+        the keys stay locked until then: the caller answers a failure without raising, so that
+        the transaction commits it."""
+        account_key = account_key.lower()
+        repo = LoginFailureRepository(db)
+        known = addr is not None and await repo.known(account_key, addr, now - self.known_for)
+        keys = self.keys(account_key, addr, known=known)
+        await repo.lock(sorted(k for k, _ in keys))
+        ids = await repo.add([k for k, _ in keys], now)
+        for key, limit in keys:
+            count, oldest = await repo.window(key, now - self.window)
+            if count > limit:  # the error rolls the caller's transaction, and this attempt, back
+                self.outcome(door, "limited")
+                retry = int(((oldest or now) + self.window - now).total_seconds()) + 1
+                what = "this account" if key.startswith("account:") else "your address"
+                raise RateLimited(
+                    f"too many failed logins for {what}; try again in {retry} s",
+                    retry_after_s=retry,
+                )
         return Attempt(tuple(ids), keys[0][0])
 
     async def succeeded(

@@ -93,7 +93,15 @@ class LoginService:
     async def asset(self, name: str, secret: str, *, force: bool) -> IssuedToken:
         """An asset's login. The right secret always gets in (256 random bits: nothing to guess);
         wrong ones are counted by source and by asset name, and answered 429 past the limits."""
-        asset = await AssetRepository.by_name_for_login(self.uow.db, name)
+        # a session of its own, returned before the limiter takes one (as for users): a burst of
+        # wrong secrets would otherwise hold the pool, each request waiting for a second one
+        async with self.limiter.sessionmaker() as db:
+            found = await AssetRepository.by_name_for_login(db, name)
+        asset = None
+        if found is not None and same_hash(found.secret_hash, token_hash(secret)):
+            # the right secret: the asset locked for this login's transaction, checked again (its
+            # credentials may have been rotated between the two reads)
+            asset = await AssetRepository.by_name_for_login(self.uow.db, name)
         if asset is None or not same_hash(asset.secret_hash, token_hash(secret)):
             await self.limiter.admit(f"asset:{name}", self.uow.client_addr, utcnow(), door="asset")
             self.limiter.outcome("asset", "wrong")

@@ -18,7 +18,17 @@ from server.kit.time import utcnow
 from server.kit.uow import UnitOfWork
 from server.organizations.models import User
 
-WRONG = "the current password is wrong"
+
+class WrongPassword(Unprocessable):
+    """The current password given is not the caller's. Its failed attempt is written in the
+    request's transaction: the route answers it without raising, so that it is committed."""
+
+    code = "wrong_password"
+
+    def __init__(self) -> None:
+        super().__init__("the current password is wrong")
+
+
 DOOR = "password_change"  # on /metrics (aerobase_logins_total)
 
 
@@ -35,7 +45,8 @@ class PasswordService:
     ) -> int:
         """Replace the caller's password; how many of their other sessions ended. A wrong
         `current` counts as a failed login of the account from the caller's address (429 past
-        the limit), so a stolen session cannot guess its way to the password."""
+        the limit), so a stolen session cannot guess its way to the password: `WrongPassword`,
+        which the route answers without raising, so that the attempt is committed."""
         if principal.kind != "user" or principal.user_id is None:
             raise Forbidden(
                 "an asset has no password: reissue its configuration to rotate its secret",
@@ -48,12 +59,13 @@ class PasswordService:
         addr, guesses = self.uow.client_addr, self.limiter.guesses
         if guesses.known(user.email, addr, current, user.password_hash):
             self.limiter.outcome(DOOR, "repeated")
-            raise Unprocessable(WRONG, code="wrong_password")
-        attempt = await self.limiter.admit(user.email, addr, utcnow(), door=DOOR)
+            raise WrongPassword()
+        # in the request's transaction: it holds a connection already (see admit_in)
+        attempt = await self.limiter.admit_in(self.uow.db, user.email, addr, utcnow(), door=DOOR)
         if not await asyncio.to_thread(self.passwords.verify, user.password_hash, current):
             guesses.remember(user.email, addr, current, user.password_hash)
             self.limiter.outcome(DOOR, "wrong")
-            raise Unprocessable(WRONG, code="wrong_password")
+            raise WrongPassword()
         await self.limiter.succeeded(self.uow.db, user.email, addr, attempt)
         self.limiter.outcome(DOOR, "ok")
         user.password_hash = await asyncio.to_thread(self.passwords.hash, new)

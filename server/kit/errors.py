@@ -201,6 +201,14 @@ class ErrorResponse(JSONResponse):
         ).encode("utf-8")
 
 
+def answer(exc: AppError) -> JSONResponse:
+    """The response an AppError gets. A route returns it itself, instead of raising, when what
+    the request wrote must be committed with the refusal (a failed attempt that must count)."""
+    return ErrorResponse(
+        error_body(exc.code, exc.message, exc.details), status_code=exc.status, headers=exc.headers
+    )
+
+
 CLIENT_CLOSED_REQUEST = 499  # nginx's status for a client that hung up before the answer
 
 _STATUS_CODES = {
@@ -236,11 +244,7 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(AppError)
     async def _app_error(_: Request, exc: AppError) -> JSONResponse:
-        return ErrorResponse(
-            error_body(exc.code, exc.message, exc.details),
-            status_code=exc.status,
-            headers=exc.headers,
-        )
+        return answer(exc)
 
     @app.exception_handler(RequestValidationError)
     async def _validation(_: Request, exc: RequestValidationError) -> JSONResponse:
