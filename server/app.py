@@ -80,15 +80,25 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             path.parent.mkdir(parents=True, exist_ok=True)
         if settings.migrate_on_start:
             await asyncio.to_thread(migrate.upgrade, settings.database_url)
-        engine = make_engine(settings.database_url)
+        in_memory = settings.database_url.startswith("sqlite") and path is None
+        pool = {"pool_size": settings.db_pool_size, "max_overflow": settings.db_max_overflow}
+        sqlite = settings.database_url.startswith("sqlite")  # SQLite keeps its own pool sizes
+        engine = make_engine(settings.database_url, **({} if sqlite else pool))
         sessionmaker = make_sessionmaker(engine)
         broker = make_broker(settings.redis_url)
         await broker.start()
-        telemetry = make_telemetry_store(settings, sessionmaker, engine.dialect.name)
+        # the ingest's writes and the telemetry store's reads go through small pools of their
+        # own, except in an in-memory SQLite database, which another engine would not see. A
+        # request holds a connection of the requests' pool while it reads telemetry: a read from
+        # that same pool would wait for a second one, and a burst of reads (~30) would deadlock
+        # the pool until its timeout, every other request of the process with it
+        reads_engine = (
+            engine if in_memory else make_engine(settings.database_url, pool_size=5, max_overflow=5)
+        )
+        telemetry = make_telemetry_store(
+            settings, make_sessionmaker(reads_engine), engine.dialect.name
+        )
         await telemetry.start()
-        # the ingest writes through a small pool of its own (one batch at a time), except in an
-        # in-memory SQLite database, which another engine would not see
-        in_memory = settings.database_url.startswith("sqlite") and path is None
         ingest_engine = (
             engine
             if in_memory
@@ -166,8 +176,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 await one_trip.close()
             await telemetry.close()
             await broker.close()
-            if ingest_engine is not engine:
-                await ingest_engine.dispose()
+            for own in {ingest_engine, reads_engine} - {engine}:
+                await own.dispose()
             await engine.dispose()
 
     app = FastAPI(

@@ -50,6 +50,15 @@ class Settings(BaseSettings):
     redis_url: str | None = Field(
         default=None, validation_alias=AliasChoices("REDIS_URL", "AEROBASE_REDIS_URL")
     )
+    db_pool_size: int = Field(
+        default=10,
+        ge=1,
+        description="PostgreSQL connections the requests' pool keeps per server process (each "
+        "process also has the ingest's 2 and the telemetry reads' pool)",
+    )
+    db_max_overflow: int = Field(
+        default=20, ge=0, description="connections the requests' pool may open past its size"
+    )
     influxdb_url: str | None = Field(
         default=None, validation_alias=AliasChoices("INFLUXDB_URL", "AEROBASE_INFLUXDB_URL")
     )
