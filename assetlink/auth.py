@@ -7,7 +7,8 @@ Failures raise the typed errors below, translated from httpx at this edge:
     ├── SessionGone         401 on renew: the session ended; log in again
     ├── SessionActive       409: another live session of this asset exists
     ├── RateLimited         429: wait `retry_after` seconds
-    └── ServerUnavailable   network error, timeout, 5xx or an unreadable answer
+    └── ServerUnavailable   network error, timeout, 5xx or an unreadable answer (a 503's
+                            `Retry-After`, the server's database away, in `retry_after`)
 """
 
 from __future__ import annotations
@@ -49,7 +50,13 @@ class RateLimited(AuthError):
 
 
 class ServerUnavailable(AuthError):
-    """The server could not be reached or answered with an error of its own."""
+    """The server could not be reached or answered with an error of its own; `retry_after`:
+    the seconds a 503 asked to wait (0 when it named none)."""
+
+    def __init__(self, message: str, retry_after: float = 0.0):
+        """Keep the server's Retry-After, if it sent one."""
+        super().__init__(message)
+        self.retry_after = retry_after
 
 
 def parse_expiry(value: str) -> float:
@@ -118,8 +125,9 @@ class SessionClient:
         if response.status_code == 429:
             raise RateLimited("rate limited by the server", _retry_after(response))
         if response.status_code >= 300:
+            wait = _retry_after(response) if response.status_code == 503 else 0.0
             raise ServerUnavailable(
-                f"POST {response.request.url.path} answered {response.status_code}"
+                f"POST {response.request.url.path} answered {response.status_code}", wait
             )
 
     def _token(self, response: httpx.Response) -> Token:

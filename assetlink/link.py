@@ -307,6 +307,9 @@ class Link:
             except (auth.SessionGone, SessionEnded) as err:
                 log.info("session ended (%s): logging in again", err)
                 await self._set_token(None)
+            except auth.ServerUnavailable as err:
+                log.warning("session call failed: %s", err)
+                floor = err.retry_after  # the server's database away: as long as it asks
             except auth.AuthError as err:
                 log.warning("session call failed: %s", err)
             except LinkClosed as err:

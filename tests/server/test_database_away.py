@@ -8,8 +8,11 @@ import asyncio
 import base64
 
 import httpx
+import pytest
 from sqlalchemy.engine import make_url
 
+from assetlink.auth import ServerUnavailable, SessionClient
+from assetlink.configfile import decrypt_config
 from tests.conftest import LiveServer, Tenant, auth, login, test_settings
 from tests.netproxy import TcpProxy
 from tests.polling import eventually
@@ -25,6 +28,8 @@ async def test_the_database_out_of_reach_is_503_with_retry_after_then_back(
     # started from a thread: the proxy to PostgreSQL runs in this test's event loop
     server = await asyncio.to_thread(LiveServer(test_settings(proxied)).start)
     creds = base64.b64encode(f"{tenant.emails['viewer']}:{Tenant.PASSWORD}".encode()).decode()
+    asset = tenant.create_asset("landing_base")
+    cfg = decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
     try:
         async with httpx.AsyncClient(base_url=server.url, timeout=60) as c:
             token = await asyncio.to_thread(
@@ -47,6 +52,10 @@ async def test_the_database_out_of_reach_is_503_with_retry_after_then_back(
                 assert r.status_code == 503, (path, r.status_code, r.text)
                 assert r.json()["error"]["code"] == "unavailable", (path, r.text)
                 assert int(r.headers["Retry-After"]) > 0, path
+            # a daemon's login is told how long to wait (its link then waits at least that long)
+            with pytest.raises(ServerUnavailable) as refused:
+                await SessionClient(server.url, cfg.name, cfg.secret, c).login()
+            assert refused.value.retry_after == 5
             link.restore()
 
             async def back() -> bool:
