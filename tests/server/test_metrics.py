@@ -30,6 +30,7 @@ FAMILIES = {
     "aerobase_connected_operators",
     "aerobase_telemetry_messages_received",
     "aerobase_telemetry_messages_sent",
+    "aerobase_logins",
 }
 
 
