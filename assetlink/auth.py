@@ -25,7 +25,9 @@ log = logging.getLogger(__name__)
 
 
 class AuthError(Exception):
-    """A session call failed."""
+    """A session call failed; `retry_after`: seconds the server asked to wait (0: none)."""
+
+    retry_after: float = 0.0
 
 
 class BadCredentials(AuthError):

@@ -1,13 +1,12 @@
 """The resilient link of a daemon to the server: session, WebSocket, outbox, commands.
 
-`Link` logs in with the asset's name and secret, keeps its token (persisted next to the
-outbox so a restarted daemon resumes its session instead of being refused with 409),
-renews it before expiry, connects to `/ws/asset`, and reconnects with exponential backoff
-and full jitter. Each connection is a `Conversation`: hello, welcome with the server's last
-acked seq, replay of the outbox past it, then live traffic with heartbeats.
-
-Durable messages (telemetry, events, command results) go through the on-disk outbox and
-carry seq >= 1; RTCM frames, hello and error replies are sent only while connected, seq 0.
+`Link` logs in with the asset's name and secret, keeps its token (persisted next to the outbox so a
+restarted daemon resumes its session instead of being refused with 409), renews it before expiry,
+connects to `/ws/asset`, and reconnects with exponential backoff and full jitter. Each connection
+is a `Conversation`: hello, welcome with the server's last acked seq, replay of the outbox past it,
+then live traffic with heartbeats. Durable messages (telemetry, events, command results) go through
+the on-disk outbox and carry seq >= 1; RTCM frames, hello and error replies are sent only while
+connected, seq 0.
 """
 
 from __future__ import annotations
@@ -307,11 +306,9 @@ class Link:
             except (auth.SessionGone, SessionEnded) as err:
                 log.info("session ended (%s): logging in again", err)
                 await self._set_token(None)
-            except auth.ServerUnavailable as err:
+            except auth.AuthError as err:  # unreachable, or a 503's Retry-After: as long as it asks
                 log.warning("session call failed: %s", err)
-                floor = err.retry_after  # the server's database away: as long as it asks
-            except auth.AuthError as err:
-                log.warning("session call failed: %s", err)
+                floor = err.retry_after
             except LinkClosed as err:
                 log.info("link closed: %s", err)
                 if err.code in TOKEN_DEAD_CODES:
