@@ -81,6 +81,24 @@ class LoginLimiter:
         password_change; outcome ok, wrong, repeated or limited."""
         LOGINS.labels(door, outcome).inc()
 
+    def repeated(
+        self, door: str, account: str, addr: str | None, password: str, stored: str | None
+    ) -> bool:
+        """Whether this wrong password was checked against the account's hash `stored` from
+        `addr` already (`guesses`): then it is answered wrong at once, counted only as
+        `repeated` on `/metrics`."""
+        if not self.guesses.known(account, addr, password, stored):
+            return False
+        self.outcome(door, "repeated")
+        return True
+
+    def wrong(
+        self, door: str, account: str, addr: str | None, password: str, stored: str | None
+    ) -> None:
+        """A password checked and found wrong against `stored` (None: no such account)."""
+        self.guesses.remember(account, addr, password, stored)
+        self.outcome(door, "wrong")
+
     async def admit(
         self, account_key: str, addr: str | None, now: datetime, *, door: str = "user"
     ) -> Attempt:

@@ -68,8 +68,7 @@ class LoginService:
         # while the limiter's waits for the pool (under a burst of logins, none would come)
         async with self.limiter.sessionmaker() as db:
             known = await UserRepository(db).by_email(email)
-        if self.limiter.guesses.known(email, addr, password, _hash(known)):
-            self.limiter.outcome("user", "repeated")
+        if self.limiter.repeated("user", email, addr, password, _hash(known)):
             raise Unauthorized(WRONG_PASSWORD, code="invalid_credentials")
         attempt = await self.limiter.admit(email, addr, utcnow())
         users = UserRepository(self.uow.db)
@@ -77,8 +76,7 @@ class LoginService:
         # argon2 is deliberately slow: keep it off the event loop
         ok = await asyncio.to_thread(self.passwords.verify, _hash(user), password)
         if not ok or user is None:
-            self.limiter.guesses.remember(email, addr, password, _hash(user))
-            self.limiter.outcome("user", "wrong")
+            self.limiter.wrong("user", email, addr, password, _hash(user))
             raise Unauthorized(WRONG_PASSWORD, code="invalid_credentials")
         # the password was right: this is no failed attempt, whatever follows
         await self.limiter.succeeded(self.uow.db, email, addr, attempt)

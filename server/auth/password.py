@@ -56,15 +56,13 @@ class PasswordService:
             raise Unprocessable("the new password is the current one", code="same_password")
         user = await self.uow.db.get(User, principal.user_id, with_for_update=True)
         assert user is not None  # the session's user: a deleted user has no live session
-        addr, guesses = self.uow.client_addr, self.limiter.guesses
-        if guesses.known(user.email, addr, current, user.password_hash):
-            self.limiter.outcome(DOOR, "repeated")
+        addr = self.uow.client_addr
+        if self.limiter.repeated(DOOR, user.email, addr, current, user.password_hash):
             raise WrongPassword()
         # in the request's transaction: it holds a connection already (see admit_in)
         attempt = await self.limiter.admit_in(self.uow.db, user.email, addr, utcnow(), door=DOOR)
         if not await asyncio.to_thread(self.passwords.verify, user.password_hash, current):
-            guesses.remember(user.email, addr, current, user.password_hash)
-            self.limiter.outcome(DOOR, "wrong")
+            self.limiter.wrong(DOOR, user.email, addr, current, user.password_hash)
             raise WrongPassword()
         await self.limiter.succeeded(self.uow.db, user.email, addr, attempt)
         self.limiter.outcome(DOOR, "ok")

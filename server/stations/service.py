@@ -83,33 +83,31 @@ def caster_authenticator(
 
     async def check(username: str, password: str, address: str | None) -> uuid.UUID | None:
         state = services()
-        limiter, valid = state.limiter, "\x00" not in username
-        async with unit_of_work(state.sessionmaker) as uow:
-            known = await UserRepository(uow.db).by_email(username) if valid else None
-        stored = known.password_hash if known else None
-        if limiter.guesses.known(username, address, password, stored):
-            limiter.outcome("ntrip", "repeated")
+        limiter = state.limiter
+        async with unit_of_work(state.sessionmaker) as uow:  # "\x00": no e-mail, nothing to read
+            user = (
+                await UserRepository(uow.db).by_email(username) if "\x00" not in username else None
+            )
+        stored = user.password_hash if user else None
+        if limiter.repeated("ntrip", username, address, password, stored):
             return None  # a rover retrying a stale password: not counted again
         try:
             attempt = await limiter.admit(username, address, utcnow(), door="ntrip")
         except RateLimited:
             return None
+        # the hash checked with no connection held: argon2 takes its time
+        if not await asyncio.to_thread(state.passwords.verify, stored, password) or user is None:
+            limiter.wrong("ntrip", username, address, password, stored)
+            return None  # the attempt stays counted as a failure
         async with unit_of_work(state.sessionmaker) as uow:
-            users = UserRepository(uow.db)
-            user = await users.by_email(username) if valid else None
-            stored = user.password_hash if user else None
-            ok = await asyncio.to_thread(state.passwords.verify, stored, password)
-            if not ok or user is None:
-                limiter.guesses.remember(username, address, password, stored)
-                limiter.outcome("ntrip", "wrong")
-                return None  # the attempt stays counted as a failure
             await limiter.succeeded(uow.db, username, address, attempt)
             limiter.verified.remember(username, None, password, stored)
             limiter.outcome("ntrip", "ok")
             if not user.is_active:
                 return None
-            active = [o.id for m, o in await users.memberships(user.id) if m.is_active]
-            return active[0] if active else None
+            memberships = await UserRepository(uow.db).memberships(user.id)
+        active = [o.id for m, o in memberships if m.is_active]
+        return active[0] if active else None
 
     return authenticate
 
