@@ -4,7 +4,10 @@
 # stage has no compiler and runs as an unprivileged user. Nothing secret is baked in: every
 # setting comes from the environment (docker-compose.yml reads .env; see .env.example).
 
-FROM python:3.11-slim-bookworm AS build
+# the base: CPython 3.11 on Debian bookworm; a site without Docker Hub passes its own
+# (tests/deploy/test_images.py builds one with debootstrap)
+ARG PYTHON_IMAGE=python:3.11-slim-bookworm
+FROM ${PYTHON_IMAGE} AS build
 RUN apt-get update \
     && apt-get install -y --no-install-recommends gcc libc6-dev \
     && rm -rf /var/lib/apt/lists/*
@@ -29,9 +32,12 @@ COPY bench bench
 # editable: the migrations folder stays beside server/ where server/migrate.py looks for it
 RUN /opt/venv/bin/pip install --no-deps -e .
 
-FROM python:3.11-slim-bookworm AS runtime
+FROM ${PYTHON_IMAGE} AS runtime
+# state/: the daemons' link state files; a named volume mounted there (compose's demo-state)
+# takes the folder's owner from the image, so the unprivileged user can write it
 RUN groupadd --system aerobase \
-    && useradd --system --gid aerobase --home-dir /var/lib/aerobase --create-home aerobase
+    && useradd --system --gid aerobase --home-dir /var/lib/aerobase --create-home aerobase \
+    && install -d -o aerobase -g aerobase -m 0700 /var/lib/aerobase/state
 COPY --from=build /opt/venv /opt/venv
 COPY --from=build /app /app
 ENV PATH=/opt/venv/bin:$PATH \

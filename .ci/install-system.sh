@@ -1,14 +1,19 @@
 #!/usr/bin/env bash
 # System packages the tests run as real programs: nginx (the reverse proxy of the deployment
-# topology), docker-compose (validates docker-compose.yml; no image is pulled), chromium (the
-# console's and the video viewer's browser tests drive Debian's headless Chromium; no browser is
-# downloaded), janus and coturn (the media services, started with the very configuration files
-# compose mounts, and by the video tests), rtklib (str2str, a real NTRIP 1 client). Idempotent.
+# topology), docker-compose and docker.io (validate docker-compose.yml and run it as containers;
+# no image is pulled), chromium (the console's and the video viewer's browser tests drive
+# Debian's headless Chromium; no browser is downloaded), janus and coturn (the media services,
+# started with the very configuration files compose mounts, and by the video tests), rtklib
+# (str2str, a real NTRIP 1 client). Idempotent.
 set -euo pipefail
 need=()
 command -v nginx >/dev/null 2>&1 || [ -x /usr/sbin/nginx ] || need+=(nginx)
 [ -f /usr/lib/nginx/modules/ngx_stream_module.so ] || need+=(libnginx-mod-stream)  # NTRIP's TCP
 command -v docker-compose >/dev/null 2>&1 || need+=(docker-compose)
+# the compose stack as containers (tests/deploy/test_stack.py): Docker's daemon, and debootstrap
+# for the Debian base every image is built on (no image registry is reached)
+[ -x /usr/sbin/dockerd ] || need+=(docker.io)
+command -v debootstrap >/dev/null 2>&1 || need+=(debootstrap)
 [ -x /usr/bin/chromium ] || need+=(chromium)
 command -v janus >/dev/null 2>&1 || need+=(janus)
 command -v turnserver >/dev/null 2>&1 || need+=(coturn)

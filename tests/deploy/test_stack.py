@@ -1,0 +1,277 @@
+"""docker-compose.yml started as README's "docker compose up" tells an operator, in containers:
+the images build, `migrate` runs once, both replicas become healthy behind nginx, the first user
+is made with `docker-compose run`, the demo profile's simulated site connects through the proxy
+and flies a whole run, a rover gets the base's corrections on the NTRIP port, and stopping a
+replica is graceful while the other goes on serving (tests/deploy/docker_stack.py says how the
+images are built on a machine that reaches no registry)."""
+
+from __future__ import annotations
+
+import base64
+import socket
+import time
+import uuid
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from tests.conftest import free_port
+from tests.deploy.docker_stack import Stack, base_image, docker_daemon, run
+from tests.e2e.harness import mission_items
+from tests.polling import wait_for
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(1800)]
+
+ROOT_EMAIL = "root@stack.test"
+OPS_EMAIL = "ops@stack.test"
+PASSWORDS = {"root": "stack-root-password-1", "ops": "stack-ops-password-1"}
+ASSET_PASSWORD = "stack-asset-password-1"
+RTCM3_PREAMBLE = 0xD3
+
+
+@dataclass
+class Site:
+    """The running stack and where an operator reaches it."""
+
+    stack: Stack
+    url: str  # the proxy: AEROBASE_PUBLIC_URL
+    ntrip_port: int  # the proxy's caster port
+    assets: Path  # where the demo profile's daemons read their asset files
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
+    """The stack built and up (without the demo profile), torn down with its volumes after."""
+    tmp = tmp_path_factory.mktemp("stack")
+    assets = tmp / "assets"
+    assets.mkdir()
+    # README step 7 saves the asset files in deploy/demo/assets; here they go to this test's folder
+    override = tmp / "demo-assets.yml"
+    mount = f"      - {assets}:/run/aerobase:ro\n"
+    override.write_text(
+        "services:\n"
+        + "".join(f"  {svc}:\n    volumes:\n{mount}" for svc in ("base-station", "agent"))
+    )
+    port = free_port()
+    env = {
+        "AEROBASE_PUBLIC_URL": f"http://127.0.0.1:{port}",
+        "AEROBASE_HTTP_PORT": str(port),
+        "AEROBASE_NTRIP_PUBLIC_PORT": str(free_port()),
+        "POSTGRES_PASSWORD": "stack-pg-" + uuid.uuid4().hex[:12],
+        "REDIS_PASSWORD": "stack-redis-" + uuid.uuid4().hex[:12],
+        "AEROBASE_LOG_LEVEL": "INFO",
+        "AEROBASE_TELEMETRY_RETENTION_DAYS": "90",
+        "MEDIA_PUBLIC_IP": "127.0.0.1",
+        "TURN_SECRET": "stack-turn-" + uuid.uuid4().hex[:12],
+        "AEROBASE_ASSET_PASSWORD": ASSET_PASSWORD,
+    }
+    with docker_daemon(tmp / "dockerd.log"):
+        base_image()
+        s = Stack(f"aerobase-test-{uuid.uuid4().hex[:8]}", env, [override])
+        s.compose("build", timeout=1500)  # README step 2
+        try:
+            s.compose("up", "-d", "--no-build", timeout=600)  # step 3
+            yield Site(
+                s, env["AEROBASE_PUBLIC_URL"], int(env["AEROBASE_NTRIP_PUBLIC_PORT"]), assets
+            )
+        finally:
+            s.down()
+
+
+def _login(api: httpx.Client, email: str, password: str, **extra: Any) -> dict[str, str]:
+    r = api.post("/api/v1/auth/login", json={"email": email, "password": password, **extra})
+    assert r.status_code == 200, r.text
+    return {"Authorization": f"Bearer {r.json()['access_token']}"}
+
+
+def _post(api: httpx.Client, path: str, h: dict[str, str], body: dict[str, Any]) -> Any:
+    r = api.post(path, json=body, headers=h)
+    assert r.status_code == 201, f"{path}: {r.status_code} {r.text}"
+    return r.json()
+
+
+def _replicas_answer(stack: Stack, api: httpx.Client) -> None:
+    """Requests through the proxy reach both replicas: each request id shows in one replica's
+    access log."""
+    ids = []
+    for _ in range(8):
+        r = api.get("/api/ready")
+        assert r.status_code == 200, r.text
+        assert r.json()["checks"] == {
+            "database": "ok",
+            "broker": "ok",
+            "influxdb": "ok",
+            "janus": "ok",
+        }
+        ids.append(r.headers["x-request-id"])
+    seen = {
+        svc: {i for i in ids if i in stack.compose("logs", "--no-color", svc).stdout}
+        for svc in ("server-1", "server-2")
+    }
+    assert seen["server-1"] and seen["server-2"], seen
+    assert seen["server-1"] | seen["server-2"] == set(ids), seen
+
+
+def _fleet(api: httpx.Client, assets: Path) -> tuple[dict[str, str], dict[str, Any], Any]:
+    """README steps 5 and 7: an organisation, its admin, a base and a UAV bound to it, their
+    asset files saved where the demo profile's daemons read them."""
+    root = _login(api, ROOT_EMAIL, PASSWORDS["root"], force=True)
+    org = _post(api, "/api/v1/organizations", root, {"name": "Stack Fleet"})
+    root = _login(api, ROOT_EMAIL, PASSWORDS["root"], force=True, organization_id=org["id"])
+    _post(
+        api,
+        "/api/v1/users",
+        root,
+        {"email": OPS_EMAIL, "password": PASSWORDS["ops"], "role": "admin"},
+    )
+    ops = _login(api, OPS_EMAIL, PASSWORDS["ops"])
+    base = _post(
+        api,
+        "/api/v1/assets",
+        ops,
+        {"name": "base-stack-1", "kind": "landing_base", "password": ASSET_PASSWORD},
+    )
+    uav = _post(
+        api,
+        "/api/v1/assets",
+        ops,
+        {
+            "name": "uav-stack-1",
+            "kind": "uav",
+            "password": ASSET_PASSWORD,
+            "base_id": base["id"],
+            "attributes": {"mass_g": 1450},
+        },
+    )
+    (assets / "base.abcf").write_bytes(base64.b64decode(base["config_file"]))
+    (assets / "uav.abcf").write_bytes(base64.b64decode(uav["config_file"]))
+    return ops, base, uav
+
+
+def _reporting(
+    api: httpx.Client, ops: dict[str, str], base: Any, uav: Any, after: datetime | None = None
+) -> Any:
+    """Both daemons' telemetry through the stack: the base's PLC up with the UAV on its scale,
+    the UAV with a fix and a position, both sampled after `after` if given; returns the UAV's
+    latest sample."""
+    b = api.get(f"/api/v1/assets/{base['id']}/telemetry/latest", headers=ops)
+    u = api.get(f"/api/v1/assets/{uav['id']}/telemetry/latest", headers=ops)
+    if b.status_code != 200 or u.status_code != 200:
+        return None
+    bt, ut = b.json(), u.json()
+    if after is not None and min(_when(bt["ts"]), _when(ut["ts"])) <= after:
+        return None
+    ok = (
+        bt.get("plc_link") == "up"
+        and bt.get("uav_present")
+        and ut.get("gnss.fix") in ("3d", "dgps", "rtk_float", "rtk_fixed")
+        and ut.get("position.lat") is not None
+    )
+    return ut if ok else None
+
+
+def _when(ts: str) -> datetime:
+    return datetime.fromisoformat(ts.replace("Z", "+00:00"))
+
+
+def _ntrip_v1(port: int, mountpoint: str, email: str, password: str) -> bytes:
+    """An NTRIP 1 rover on the proxy's caster port: the first bytes after `ICY 200 OK`."""
+    creds = base64.b64encode(f"{email}:{password}".encode()).decode()
+    request = (
+        f"GET /{mountpoint} HTTP/1.0\r\nUser-Agent: NTRIP stack-test/1.0\r\n"
+        f"Authorization: Basic {creds}\r\n\r\n"
+    )
+    with socket.create_connection(("127.0.0.1", port), timeout=20) as sock:
+        sock.sendall(request.encode())
+        got = b""
+        while b"\r\n" not in got or len(got) < got.find(b"\r\n") + 64:
+            chunk = sock.recv(4096)
+            if not chunk:
+                break
+            got += chunk
+    return got
+
+
+def test_the_stack_starts_as_the_readme_says_and_flies_the_demo_through_the_proxy(site: Site):
+    stack, url, assets = site.stack, site.url, site.assets
+    try:
+        wait_for(
+            lambda: stack.health("server-1") == stack.health("server-2") == "healthy",
+            within=180,
+            what="both replicas healthy",
+            interval=1,
+        )
+        migrate = stack.container("migrate")
+        code = run(["docker", "inspect", "-f", "{{.State.ExitCode}}", migrate], timeout=30)
+        assert code.stdout.strip() == "0"
+        user = run(["docker", "exec", stack.container("server-1"), "id", "-un"], timeout=30)
+        assert user.stdout.strip() == "aerobase"  # the image's unprivileged user
+
+        # step 4: the first user, with the password in the environment (no terminal here)
+        stack.compose(
+            "run", "--rm", "-T", "-e", f"AEROBASE_PASSWORD={PASSWORDS['root']}",
+            "migrate", "admin", "create-superuser", "--email", ROOT_EMAIL,
+        )  # fmt: skip
+        with httpx.Client(base_url=url, timeout=30) as api:
+            _replicas_answer(stack, api)
+            ops, base, uav = _fleet(api, assets)
+
+            # step 7: the demo profile's world and daemons connect through the proxy
+            stack.compose("--profile", "demo", "up", "-d", "--no-build", timeout=600)
+            sample = wait_for(
+                lambda: _reporting(api, ops, base, uav), within=180, what="both daemons reporting"
+            )
+            lat, lon = float(sample["position.lat"]), float(sample["position.lon"])
+            r = api.patch(
+                f"/api/v1/assets/{base['id']}",
+                json={"attributes": {"latitude": lat, "longitude": lon}},
+                headers=ops,
+            )
+            assert r.status_code == 200, r.text
+            mission = _post(
+                api,
+                "/api/v1/missions",
+                ops,
+                {"name": "pad square", "items": mission_items(lat, lon)},
+            )
+            ids = {"mission_id": mission["id"], "uav_id": uav["id"], "base_id": base["id"]}
+            run_id = _post(api, "/api/v1/runs", ops, ids)["id"]
+
+            # step 6: a rover on the proxy's caster port gets the base's RTCM3 while the run goes on
+            got = _ntrip_v1(site.ntrip_port, base["name"], OPS_EMAIL, PASSWORDS["ops"])
+            assert got.startswith(b"ICY 200 OK\r\n"), got[:80]
+            assert got[len(b"ICY 200 OK\r\n")] == RTCM3_PREAMBLE, got[:80]
+
+            def final() -> Any:
+                body = api.get(f"/api/v1/runs/{run_id}", headers=ops).json()
+                return body if body["state"] in ("completed", "aborted", "failed") else None
+
+            done = wait_for(final, within=420, what="the run to end", interval=1)
+            assert done["state"] == "completed", done
+
+            # step 8: a replica stopped is a graceful stop; the other goes on serving
+            t0 = time.monotonic()
+            stack.compose("stop", "server-1", timeout=60)
+            stopped_in, stopped_at = time.monotonic() - t0, datetime.now(UTC)
+            one = stack.container("server-1")
+            code = run(["docker", "inspect", "-f", "{{.State.ExitCode}}", one], timeout=30)
+            assert code.stdout.strip() == "0", stack.compose(
+                "logs", "--tail", "30", "server-1"
+            ).stdout
+            assert stopped_in < 10, stopped_in
+            for _ in range(4):
+                assert api.get("/api/ready").status_code == 200
+            wait_for(
+                lambda: _reporting(api, ops, base, uav, after=stopped_at),
+                within=90,
+                what="both daemons' telemetry again, through server-2",
+                interval=0.5,
+            )
+    except BaseException:
+        print(stack.logs())
+        raise
