@@ -38,6 +38,7 @@ from assetlink.configfile_cli import PasswordSourceError, load_config
 from assetlink.link import Link
 from assetlink.metrics import DaemonMetrics, MetricsServer
 from assetlink.settings import LinkSettings
+from assetlink.statefile import StateFileError
 from asynckit.tasks import cancel_and_wait
 
 log = logging.getLogger("asset_agent")
@@ -199,5 +200,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             loop.add_signal_handler(sig, stop.set)
         await run(agent, stop)
 
-    asyncio.run(_main())
+    try:
+        asyncio.run(_main())
+    except StateFileError as err:
+        print(f"aerobase agent: {err}", file=sys.stderr)
+        return 1
     return 0

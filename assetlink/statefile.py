@@ -35,6 +35,10 @@ CREATE TABLE IF NOT EXISTS commands (
 """
 
 
+class StateFileError(OSError):
+    """The state file cannot be opened or created: a deployment's mistake, said in one line."""
+
+
 class StateFile:
     """The SQLite file of one link, its transactions and its key/values; one thread only."""
 
@@ -44,8 +48,14 @@ class StateFile:
             raise ValueError(f"bad synchronous mode {synchronous!r}")
         # It holds the session token: readable by its owner only (SQLite gives the
         # -wal and -shm files the database file's permissions).
-        os.close(os.open(path, os.O_CREAT | os.O_RDWR, 0o600))
-        os.chmod(path, 0o600)
+        try:
+            os.close(os.open(path, os.O_CREAT | os.O_RDWR, 0o600))
+            os.chmod(path, 0o600)
+        except OSError as err:
+            raise StateFileError(
+                f"cannot open the state file {path}: {err.strerror}"
+                " (its folder must exist and be writable by the daemon's user)"
+            ) from err
         self._db = sqlite3.connect(str(path), isolation_level=None, check_same_thread=False)
         self._db.execute("PRAGMA journal_mode=WAL")
         self._db.execute(f"PRAGMA synchronous={synchronous.upper()}")

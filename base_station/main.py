@@ -17,6 +17,7 @@ import signal
 from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass
 
+from assetlink.statefile import StateFileError
 from asynckit.tasks import cancel_and_wait
 from base_station.config import StationConfig, load_config
 from base_station.coordinator import Coordinator
@@ -119,5 +120,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 loop.add_signal_handler(sig, stop.set)
         await run(app, stop, link)
 
-    asyncio.run(_main())
+    try:
+        asyncio.run(_main())
+    except StateFileError as err:
+        log.error("%s", err)
+        return 1
     return 0

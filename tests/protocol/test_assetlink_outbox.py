@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from assetlink.outbox import AsyncOutbox, Outbox, Token
+from assetlink.statefile import StateFileError
 from protocol import messages as m
 from protocol import telemetry_payloads as t
 from protocol.codec import decode
@@ -211,3 +212,13 @@ async def test_async_outbox_runs_on_its_own_thread(path: Path) -> None:
         assert len(box.sync) == 0
     finally:
         await box.close()
+
+
+def test_a_state_file_that_cannot_be_created_is_one_clear_error_naming_it(tmp_path: Path):
+    """A deployment whose state folder is missing (or not the daemon user's) gets one line that
+    names the file and what it needs, which the daemons print before exiting 1."""
+    path = tmp_path / "no-such-folder" / "agent-link.db"
+    with pytest.raises(StateFileError) as err:
+        Outbox(path, 10)
+    assert str(path) in str(err.value) and "writable" in str(err.value)
+    assert isinstance(err.value, OSError)
