@@ -10,6 +10,9 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
+from sqlalchemy import make_url
+from sqlalchemy.exc import DBAPIError
+
 from server import migrate
 from server.auth.service import Account, SessionService
 from server.config import Settings
@@ -171,6 +174,11 @@ def admin_main(argv: Sequence[str] | None = None) -> int:
         return 0
     except AppError as err:
         print(f"aerobase admin {args.command}: {err.message}", file=sys.stderr)
+        return 1
+    except (OSError, DBAPIError) as err:  # the database refused, is away, or has no such database
+        where = make_url(settings.database_url).render_as_string(hide_password=True)
+        said = getattr(err, "orig", None) or err
+        print(f"aerobase admin {args.command}: the database {where}: {said}", file=sys.stderr)
         return 1
 
 

@@ -143,3 +143,23 @@ def test_precland_eval_route_works_outside_the_checkout(tmp_path):
     )
     assert r.returncode == 0, r.stderr
     assert '"fused"' in r.stdout.splitlines()[-1]
+
+
+@pytest.mark.parametrize(
+    ("database", "said"),
+    [
+        ("127.0.0.1:5432/no_such_database_here", 'database "no_such_database_here" does not exist'),
+        ("127.0.0.1:1/test", "Connect call failed"),
+    ],
+)
+def test_admin_on_a_database_it_cannot_use_says_so_in_one_line_without_the_password(
+    database: str, said: str
+):
+    """An operator's first `docker compose run ... migrate` against a wrong DATABASE_URL reads one
+    line naming the database (password hidden) and what it said, not a traceback."""
+    env = {"DATABASE_URL": f"postgresql+asyncpg://postgres:hunter2-secret@{database}"}
+    r = _run(["admin", "migrate"], env)
+    assert r.returncode == 1
+    assert r.stderr.strip().count("\n") == 0 and "Traceback" not in r.stderr, r.stderr
+    assert r.stderr.startswith("aerobase admin migrate: the database postgresql+asyncpg://")
+    assert said in r.stderr and "hunter2-secret" not in r.stderr and "***" in r.stderr
