@@ -41,5 +41,6 @@ def configure_logging(fmt: str = "auto", level: str = "INFO") -> None:
     root = logging.getLogger()
     root.handlers[:] = [handler]
     root.setLevel(level.upper())
-    for noisy in ("uvicorn.access", "aiosqlite", "sqlalchemy.engine"):
+    # httpx: a line per call to InfluxDB or Janus (two per readiness check, one per history read)
+    for noisy in ("uvicorn.access", "aiosqlite", "sqlalchemy.engine", "httpx"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
