@@ -200,7 +200,11 @@ class JanusGateway:
         if known is not None and known[2] == camera:
             port = known[1]
         else:
-            port = await self._create_mount(session, admin, asset_id, camera)
+            try:
+                port = await self._create_mount(session, admin, asset_id, camera)
+            except JanusError as err:  # its configuration refuses ours: say so, not a 500
+                log.error("Janus refused a mountpoint for asset %s: %s", asset_id, err)
+                raise GatewayUnavailable(f"the media gateway refused the stream: {err}") from err
         return RtpTarget(self.rtp_host, port, PAYLOAD_TYPE, camera.codec)
 
     async def publish(

@@ -20,6 +20,10 @@ from tests.polling import wait_for
 JANUS_LIBS = Path("/usr/lib/x86_64-linux-gnu/janus")
 NETNS_ADDRESS = "198.18.0.1"
 RTP_PORTS = (21000, 21100)
+DEPLOYED_STREAMING = (
+    Path(__file__).resolve().parents[3] / "deploy/janus/janus.plugin.streaming.jcfg"
+)
+DEPLOYED_RANGE = 'rtp_port_range = "20100-20199"'
 
 
 def in_private_network() -> bool:
@@ -75,9 +79,11 @@ class Janus:
             f'  port = {self.http_port}\n  ip = "127.0.0.1"\n  https = false\n'
             "}\nadmin: {\n  admin_http = false\n}\n"
         )
-        (cfg / "janus.plugin.streaming.jcfg").write_text(
-            f'general: {{\n  rtp_port_range = "{RTP_PORTS[0]}-{RTP_PORTS[1]}"\n}}\n'
-        )
+        # the deployment's own streaming configuration, only its port range changed
+        deployed = DEPLOYED_STREAMING.read_text()
+        assert DEPLOYED_RANGE in deployed, f"{DEPLOYED_STREAMING} no longer sets {DEPLOYED_RANGE}"
+        ours = f'rtp_port_range = "{RTP_PORTS[0]}-{RTP_PORTS[1]}"'
+        (cfg / "janus.plugin.streaming.jcfg").write_text(deployed.replace(DEPLOYED_RANGE, ours))
 
     def start(self) -> Janus:
         """Start Janus and wait until its HTTP API answers."""
