@@ -7,7 +7,10 @@ images are built on a machine that reaches no registry)."""
 
 from __future__ import annotations
 
+import asyncio
 import base64
+import contextlib
+import re
 import socket
 import time
 import uuid
@@ -20,10 +23,15 @@ from typing import Any
 import httpx
 import pytest
 
+from asset_agent.video.rtp import RtpPublisher
+from asset_agent.video.source import CameraTrack
+from assetlink.configfile import decrypt_config
 from tests.conftest import free_port
 from tests.deploy.docker_stack import Stack, base_image, docker_daemon, run
 from tests.e2e.harness import mission_items
-from tests.polling import wait_for
+from tests.polling import eventually, wait_for
+from tests.video.netns.janus_cases import JanusViewer
+from tests.video.peers import pattern
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(1800)]
 
@@ -117,9 +125,9 @@ def _replicas_answer(stack: Stack, api: httpx.Client) -> None:
     assert seen["server-1"] | seen["server-2"] == set(ids), seen
 
 
-def _fleet(api: httpx.Client, assets: Path) -> tuple[dict[str, str], dict[str, Any], Any]:
+def _fleet(api: httpx.Client, assets: Path) -> tuple[dict[str, str], Any, Any, Any]:
     """README steps 5 and 7: an organisation, its admin, a base and a UAV bound to it, their
-    asset files saved where the demo profile's daemons read them."""
+    asset files saved where the demo profile's daemons read them; and a UAV with a camera."""
     root = _login(api, ROOT_EMAIL, PASSWORDS["root"], force=True)
     org = _post(api, "/api/v1/organizations", root, {"name": "Stack Fleet"})
     root = _login(api, ROOT_EMAIL, PASSWORDS["root"], force=True, organization_id=org["id"])
@@ -148,9 +156,20 @@ def _fleet(api: httpx.Client, assets: Path) -> tuple[dict[str, str], dict[str, A
             "attributes": {"mass_g": 1450},
         },
     )
+    camera = _post(
+        api,
+        "/api/v1/assets",
+        ops,
+        {
+            "name": "uav-camera-1",
+            "kind": "uav",
+            "password": ASSET_PASSWORD,
+            "attributes": {"camera": {"width": 320, "height": 240, "fps": 20}},
+        },
+    )
     (assets / "base.abcf").write_bytes(base64.b64decode(base["config_file"]))
     (assets / "uav.abcf").write_bytes(base64.b64decode(uav["config_file"]))
-    return ops, base, uav
+    return ops, base, uav, camera
 
 
 def _reporting(
@@ -173,6 +192,47 @@ def _reporting(
         and ut.get("position.lat") is not None
     )
     return ut if ok else None
+
+
+async def _live_video(url: str, ops: dict[str, str], uav: Any, token: str) -> int:
+    """A UAV on this host sends its camera as RTP where the server says (MEDIA_PUBLIC_IP and the
+    Janus mountpoint's port, published by the compose file) until the server reports the stream
+    live. Then, through the proxy, every read of the stream's state says live, and a viewer's
+    WHEP exchange (an empty POST for Janus's offer, the answer PATCHed to its Location, DELETE)
+    is answered, whichever replica each request would have reached. Returns the RTP port."""
+    track = CameraTrack(pattern(320, 240), 320, 240, 20)
+    publisher = RtpPublisher(url, uav["id"], lambda: token, track, recheck_s=2.0)
+    sending = asyncio.create_task(publisher.run())
+    viewer = JanusViewer(url, uav["id"], ops["Authorization"].removeprefix("Bearer "))
+    try:
+        async with httpx.AsyncClient(base_url=url, timeout=30) as api:
+
+            async def state() -> str:
+                r = await api.get(f"/api/v1/assets/{uav['id']}/video", headers=ops)
+                assert r.status_code == 200, r.text
+                return str(r.json()["state"])
+
+            async def live() -> bool:
+                return await state() == "live"
+
+            await eventually(live, within=60, what="the UAV's RTP live in Janus", interval=0.5)
+            assert [await state() for _ in range(6)] == ["live"] * 6
+            offered = await viewer.start()  # asserts the PATCH's 204
+            assert offered.status_code == 201, offered.text
+        assert publisher.target is not None
+        return publisher.target[1]
+    finally:
+        await viewer.close()
+        sending.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await sending
+        await track.aclose()  # type: ignore[attr-defined]
+
+
+def _published_udp(stack: Stack, service: str) -> set[int]:
+    """The host's UDP ports that reach `service`'s container (`docker port`)."""
+    out = run(["docker", "port", stack.container(service)], timeout=30).stdout
+    return {int(m) for m in re.findall(r"^\d+/udp -> [^\n]*:(\d+)$", out, re.MULTILINE)}
 
 
 def _when(ts: str) -> datetime:
@@ -219,7 +279,15 @@ def test_the_stack_starts_as_the_readme_says_and_flies_the_demo_through_the_prox
         )  # fmt: skip
         with httpx.Client(base_url=url, timeout=30) as api:
             _replicas_answer(stack, api)
-            ops, base, uav = _fleet(api, assets)
+            ops, base, uav, camera = _fleet(api, assets)
+
+            # live video: a UAV's RTP reaches Janus in its container on a published port, and viewers
+            # are brokered through the proxy
+            cfg = decrypt_config(base64.b64decode(camera["config_file"]), ASSET_PASSWORD)
+            r = api.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret})
+            assert r.status_code == 200, r.text
+            port = asyncio.run(_live_video(url, ops, camera, r.json()["access_token"]))
+            assert port in _published_udp(stack, "janus"), port
 
             # step 7: the demo profile's world and daemons connect through the proxy
             stack.compose("--profile", "demo", "up", "-d", "--no-build", timeout=600)
