@@ -8,13 +8,19 @@ Janus 1.2, meetecho/janus-gateway#3199), so on this path `POST .../whep` carries
 answers Janus's offer, and the viewer `PATCH`es its answer. Nothing is transcoded: Janus forwards
 the asset's packets. Janus restarting is noticed by the event long-poll (the session is gone) and
 the session and every mountpoint this process knows are made again.
+
+A mountpoint outlives its replica: its id comes from the asset's, its `metadata` holds the camera
+and when it was made, and another replica (restarted, or given the asset by the proxy's hash)
+adopts it as it is, RTP port and viewers kept, instead of destroying and making it again.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import logging
+import time
 import uuid
 from collections.abc import Callable
 from typing import Any
@@ -31,6 +37,7 @@ log = logging.getLogger(__name__)
 PAYLOAD_TYPE = 96
 LIVE_AGE_MS = 3000  # a mountpoint whose last packet is older than this is offline
 EVENT_TIMEOUT_S = 10.0
+Mount = tuple[int, int, CameraDescription, float]  # mountpoint id, RTP port, camera, made (Unix s)
 
 
 class JanusError(Exception):
@@ -109,8 +116,7 @@ class JanusGateway:
         self._lock = asyncio.Lock()
         self._poller: asyncio.Task[None] | None = None
         self._inboxes: dict[int, asyncio.Queue[dict[str, Any]]] = {}
-        # asset → (mountpoint id, RTP port, camera, when it was made: loop time)
-        self._mounts: dict[uuid.UUID, tuple[int, int, CameraDescription, float]] = {}
+        self._mounts: dict[uuid.UUID, Mount] = {}
         self._viewers: dict[uuid.UUID, tuple[uuid.UUID, int]] = {}
         self._on_end: dict[uuid.UUID, Callable[[], None]] = {}  # per viewer: called once it ends
 
@@ -170,11 +176,13 @@ class JanusGateway:
         self, session: int, admin: int, asset_id: uuid.UUID, camera: CameraDescription
     ) -> int:
         mid = mountpoint_id(asset_id)
+        made = time.time()
         body = {
             "request": "create",
             "type": "rtp",
             "id": mid,
             "description": f"asset {asset_id}",
+            "metadata": json.dumps({"camera": camera.model_dump(), "made": made}),
             "media": [
                 {"type": "video", "mid": "v", "port": 0, "pt": PAYLOAD_TYPE, "codec": camera.codec}
             ],
@@ -189,14 +197,14 @@ class JanusGateway:
             await self.client.post(path, {"janus": "message", "body": destroy})
             data = await self.client.post(path, {"janus": "message", "body": body})
         port = int(data["plugindata"]["data"]["stream"]["ports"][0]["port"])
-        self._mounts[asset_id] = (mid, port, camera, asyncio.get_running_loop().time())
+        self._mounts[asset_id] = (mid, port, camera, made)
         log.info("Janus mountpoint %d for asset %s on RTP port %d", mid, asset_id, port)
         return port
 
     async def rtp_target(self, asset_id: uuid.UUID, camera: CameraDescription) -> RtpTarget:
         """Where the asset sends its RTP: the mountpoint's port (made when missing)."""
         session, admin = await self._ensure()
-        known = self._mounts.get(asset_id)
+        known = await self._mount(asset_id)
         if known is not None and known[2] == camera:
             port = known[1]
         else:
@@ -226,14 +234,38 @@ class JanusGateway:
 
     # ---- viewers
     async def _info(self, asset_id: uuid.UUID) -> dict[str, Any] | None:
-        known = self._mounts.get(asset_id)
-        if known is None:
-            return None
+        """Janus's `info` of the asset's mountpoint; None when there is none."""
         try:
-            data = await self._request({"request": "info", "id": known[0]})
+            data = await self._request({"request": "info", "id": mountpoint_id(asset_id)})
         except JanusError:
             return None
         return dict(data.get("info") or {})
+
+    async def _mount(self, asset_id: uuid.UUID) -> Mount | None:
+        """The asset's mountpoint as this process knows it, else as Janus has it (adopted)."""
+        known = self._mounts.get(asset_id)
+        return known if known is not None else self._adopt(asset_id, await self._info(asset_id))
+
+    def _adopt(self, asset_id: uuid.UUID, info: dict[str, Any] | None) -> Mount | None:
+        """The mountpoint Janus describes in `info` (port; the camera and time of making its
+        metadata says, whichever replica made it), remembered; None when it is not one of ours."""
+        if not info:
+            return None
+        try:
+            meta = json.loads(str(info.get("metadata") or ""))
+            port, made = int(info["media"][0]["port"]), float(meta["made"])
+            mount = (
+                mountpoint_id(asset_id),
+                port,
+                CameraDescription.model_validate(meta["camera"]),
+                made,
+            )
+        except (ValueError, KeyError, IndexError, TypeError):
+            return None  # from before the metadata, or not ours: made again when the UAV asks
+        if self._mounts.get(asset_id) != mount:
+            log.info("Janus mountpoint %d of asset %s on RTP port %d", mount[0], asset_id, port)
+        self._mounts[asset_id] = mount
+        return mount
 
     def _ended(self, viewer_id: uuid.UUID) -> None:
         on_end = self._on_end.pop(viewer_id, None)
@@ -254,7 +286,7 @@ class JanusGateway:
                 "the answer (application/sdp) to the Location",
                 code="offer_not_accepted",
             )
-        known = self._mounts.get(asset_id)
+        known = await self._mount(asset_id)
         if known is None:
             raise Conflict("the asset has not started streaming yet", code="stream_offline")
         info = await self._info(asset_id)
@@ -347,10 +379,10 @@ class JanusGateway:
         Janus's `age_ms` counts from the mountpoint's creation until a first packet arrives, so a
         young mountpoint's age is not yet evidence of media: it must be clearly below its life."""
         info = await self._info(asset_id)
-        known = self._mounts.get(asset_id)
+        known = self._adopt(asset_id, info) or self._mounts.get(asset_id)
         if info is None or known is None:
             return StreamStatus(live=False, viewers=0)
-        life_ms = (asyncio.get_running_loop().time() - known[3]) * 1000
+        life_ms = (time.time() - known[3]) * 1000
         ages = [m.get("age_ms") for m in info.get("media", []) if m.get("age_ms") is not None]
         live = bool(ages) and min(ages) < min(LIVE_AGE_MS, life_ms - 500)
         return StreamStatus(live=live, viewers=int(info.get("viewers", 0)))

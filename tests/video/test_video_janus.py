@@ -13,7 +13,10 @@ import pytest
 
 pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[2]
-CASES = "tests/video/netns/janus_cases.py tests/video/netns/janus_console_cases.py"
+CASES = (
+    "tests/video/netns/janus_cases.py tests/video/netns/janus_console_cases.py "
+    "tests/video/netns/janus_replica_cases.py"
+)
 # a veth pair inside a new network namespace: 198.18.0.1 (v0, Janus's) and 198.18.0.2 (v1)
 NETWORK = (
     "ip link set lo up && ip link add v0 type veth peer name v1 && "
