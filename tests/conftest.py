@@ -7,7 +7,7 @@ import socket
 import tempfile
 import threading
 import uuid
-from collections.abc import Iterator
+from collections.abc import AsyncIterator, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -204,6 +204,37 @@ async def create_superuser(database_url: str, email: str) -> None:
         )
         await db.commit()
     await engine.dispose()
+
+
+OWN_DATABASE_ROOT = "root@deploy.test"
+
+
+@pytest.fixture
+async def own_database() -> AsyncIterator[str]:
+    """A PostgreSQL database of this test alone, whatever the suite's database is (several
+    replicas, or a link to it that the test cuts, need PostgreSQL; the session's own server must
+    not drive this test's runs), migrated, with the superuser OWN_DATABASE_ROOT."""
+    import asyncio
+
+    from sqlalchemy import text
+    from sqlalchemy.ext.asyncio import create_async_engine
+
+    from server import migrate
+
+    need_service("PostgreSQL", "127.0.0.1", 5432)
+    name = f"deploy_{uuid.uuid4().hex[:12]}"
+    admin = create_async_engine(PG_URL_DEFAULT, isolation_level="AUTOCOMMIT")
+    async with admin.connect() as conn:
+        await conn.execute(text(f'CREATE DATABASE "{name}"'))
+    url = PG_URL_DEFAULT.rsplit("/", 1)[0] + f"/{name}"
+    try:
+        await asyncio.to_thread(migrate.upgrade, url)
+        await create_superuser(url, OWN_DATABASE_ROOT)
+        yield url
+    finally:
+        async with admin.connect() as conn:
+            await conn.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
+        await admin.dispose()
 
 
 @pytest.fixture(scope="session")

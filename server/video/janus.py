@@ -286,10 +286,10 @@ class JanusGateway:
                 "the answer (application/sdp) to the Location",
                 code="offer_not_accepted",
             )
-        known = await self._mount(asset_id)
+        info = await self._info(asset_id)
+        known = self._adopt(asset_id, info) or self._mounts.get(asset_id)
         if known is None:
             raise Conflict("the asset has not started streaming yet", code="stream_offline")
-        info = await self._info(asset_id)
         if info is not None and int(info.get("viewers", 0)) >= max_viewers:
             raise ViewerLimit(f"this stream has its {max_viewers} viewers", retry_after_s=5)
         session, _ = await self._ensure()

@@ -1,21 +1,16 @@
-"""What the deployment tests share: a PostgreSQL database of each test's own, and the programs
-the deployment runs (installed by .ci/install-system.sh)."""
+"""What the deployment tests share: the programs the deployment runs (installed by
+.ci/install-system.sh); a PostgreSQL database of each test's own is tests/conftest.py's
+`own_database`, whose superuser is ROOT_EMAIL."""
 
 from __future__ import annotations
 
-import asyncio
 import shutil
-import uuid
-from collections.abc import AsyncIterator
 
 import pytest
-from sqlalchemy import text
-from sqlalchemy.ext.asyncio import create_async_engine
 
-from server import migrate
-from tests.conftest import IN_CI, PG_URL_DEFAULT, create_superuser, need_service
+from tests.conftest import IN_CI, OWN_DATABASE_ROOT
 
-ROOT_EMAIL = "root@deploy.test"
+ROOT_EMAIL = OWN_DATABASE_ROOT
 
 
 def program(name: str, package: str) -> str:
@@ -27,23 +22,3 @@ def program(name: str, package: str) -> str:
             pytest.fail(f"{message}; CI=true: .ci/install-system.sh installs it")
         pytest.skip(f"{message}; in CI this fails instead")
     return found
-
-
-@pytest.fixture
-async def own_database() -> AsyncIterator[str]:
-    """A PostgreSQL database of this test alone (several replicas need PostgreSQL; the session's
-    own server must not drive this test's runs), migrated, with a superuser."""
-    need_service("PostgreSQL", "127.0.0.1", 5432)
-    name = f"deploy_{uuid.uuid4().hex[:12]}"
-    admin = create_async_engine(PG_URL_DEFAULT, isolation_level="AUTOCOMMIT")
-    async with admin.connect() as conn:
-        await conn.execute(text(f'CREATE DATABASE "{name}"'))
-    url = PG_URL_DEFAULT.rsplit("/", 1)[0] + f"/{name}"
-    try:
-        await asyncio.to_thread(migrate.upgrade, url)
-        await create_superuser(url, ROOT_EMAIL)
-        yield url
-    finally:
-        async with admin.connect() as conn:
-            await conn.execute(text(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)'))
-        await admin.dispose()
