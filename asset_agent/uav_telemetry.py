@@ -60,7 +60,8 @@ MESSAGES = {
     "autopilot_lost": "no HEARTBEAT from the autopilot",
     "autopilot_recovered": "autopilot link back",
     "landing_aborted": "landing abandoned: the pad was not found (or lost with no retry left) "
-    "and the GNSS has no RTK fixed fix; holding at a safe height",
+    "and the GNSS has no RTK fixed fix, or the wind held the UAV off the pad; holding at a safe "
+    "height",
 }
 
 

@@ -233,6 +233,15 @@ class RetryConfig(_Model):
     # and holding only adds drift: descend as it is (marker failing below 3 m on a 3D fix, held:
     # 13.3 / 29.3 cm against 11.65 / 26.01)
     blind_recentre_s: float = Field(default=2.0, ge=0.0)
+    # a blind descent keeps to the approach's cone (outside it: slowing to its surface, holding
+    # the final stretch) this close to touchdown, where it would land beside the pad; higher up
+    # the wind is stronger (its log profile) and waiting there let 12 m/s carry the vehicle 11 m
+    # off (seed 1010), where descending brought the pad back into view
+    blind_wait_height_m: float = Field(default=2.0, ge=0.0)
+    # a blind descent that has waited outside the cone this long in all (the wind holds the
+    # vehicle off the pad) climbs to `search.abort_height_m` and holds ("aborted-climb") rather
+    # than land beside the pad
+    blind_hold_max_s: float = Field(default=10.0, gt=0.0)
     # a target lost with no retry left on a fix short of RTK fixed (float, plain, unknown):
     # descend blind only from this close to touchdown (the final stretch: well under a second
     # blind), else climb to `search.abort_height_m` and hold ("aborted-climb"), never landing

@@ -8,8 +8,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from asset_agent.precland.config import ControlConfig
+from asset_agent.precland.config import ControlConfig, RetryConfig
 from asset_agent.precland.geometry import rotation_world_from_body, wrap_angle
+from asset_agent.precland.kalman import rtk_fixed
 from asset_agent.precland.measure import Attitude
 
 MAV_FRAME_BODY_FRD = 12
@@ -150,3 +151,21 @@ def cone_setpoint(
     if a < cfg.slow_height:
         vd = min(vd, cfg.slow_descent)
     return VelocitySetpoint(vn, ve, vd, yaw_rate)
+
+
+def blind_allowed(above_touchdown: float, gnss_fix: int | None, retry: RetryConfig) -> bool:
+    """A blind descent to the seat from `above_touchdown` metres: on RTK fixed, or within
+    `blind_max_height_unfixed_m` (None: from anywhere, the thesis's rule)."""
+    limit = retry.blind_max_height_unfixed_m
+    return limit is None or rtk_fixed(gnss_fix) or above_touchdown <= limit
+
+
+def blind_profile(above_touchdown: float, retry: RetryConfig) -> float:
+    """Blind descent speed after a target was seen: fast, slowing at `blind_flare_decel` so as to
+    be down to `blind_descent` (a safe touchdown speed) `blind_flare_margin_m` above touchdown,
+    the height error a few blind seconds may have grown."""
+    v0 = retry.blind_descent
+    above = max(above_touchdown - retry.blind_flare_margin_m, 0.0)
+    return max(
+        v0, min(retry.blind_fast_descent, math.sqrt(v0**2 + 2 * retry.blind_flare_decel * above))
+    )

@@ -19,6 +19,9 @@ driven by the daemon (takeover.py, over MAVLink) and by the evaluation's autopil
   the LANDING_TARGETs); the retries used up: on RTK fixed the sequence's blind descent is handed
   to LAND, otherwise its abort (climb to the safe height) and "hold" once there — the landing is
   abandoned ("aborted-climb");
+- a blind descent the sequence holds outside the cone (the wind keeps the vehicle off the pad:
+  at 12 m/s LAND came down 3.5 m off) is flown by the agent too, handed back to LAND once inside
+  the cone, and abandoned the same way when held off for `retry.blind_hold_max_s` in all;
 - otherwise (RTK fixed and over the pad, or the final stretch) the autopilot lands as it would,
   and the loss spends none of the sequence's retries (its pause starts over at each step).
 """
@@ -29,12 +32,12 @@ import math
 from dataclasses import dataclass
 
 from asset_agent.precland.config import PrecisionLandingConfig
-from asset_agent.precland.control import VelocitySetpoint, allowed_pos_error
+from asset_agent.precland.control import VelocitySetpoint, allowed_pos_error, blind_allowed
 from asset_agent.precland.kalman import Estimate
 from asset_agent.precland.pipeline import VehicleState
-from asset_agent.precland.sequence import LandingSequence, blind_allowed
+from asset_agent.precland.sequence import LandingSequence
 
-TAKE_STATES = ("pause", "climb", "abort")  # the sequence would not descend: nor may the autopilot
+TAKE_STATES = ("pause", "climb", "abort")  # states in which the sequence would not descend
 
 
 @dataclass(frozen=True)
@@ -76,14 +79,17 @@ class LossGuard:
         cmd = self.sequence.follow(now, seen, est, state, fresh)
         if cmd.state == "landed":
             return GuardAction("landed")
+        # the sequence would not descend: nor may the autopilot (a blind descent waiting outside
+        # the cone: LAND would come down where the wind has put the vehicle)
+        wait = cmd.state in TAKE_STATES or self.sequence.waiting
         if self.flying:
             if self.sequence.holding_safe:
                 return GuardAction("hold", cmd.setpoint)
-            if cmd.state in TAKE_STATES:
+            if wait:
                 return GuardAction("fly", cmd.setpoint)
-            self.flying = False  # in view again (recentre, approach): the autopilot lands
+            self.flying = False  # in view again, or back over the pad: the autopilot lands
             return GuardAction("land")
-        if cmd.state in TAKE_STATES and self._blind_unsafe(est, state):
+        if wait and self._blind_unsafe(est, state):
             self.flying = True
             self.losses.append(
                 round(float(est.rel_ned[2]) - self.config.control.touchdown_height, 2)

@@ -4,6 +4,7 @@ approach ─lost→ pause (cautious, attempts left) or blind  pause ─target→
 pause ─timeout→ climb (attempts left) or blind             climb ─target→ recentre
   (blind: on RTK fixed, or low enough; else abort)
 climb ─reached→ pause                                      blind ─target→ approach
+blind ─held off the cone too long→ abort
 recentre ─centred→ approach                                recentre ─lost→ pause or blind
 approach ─unseen→ acquire (never seen yet)                 acquire ─target→ recentre
 acquire ─timeout→ search                                   search ─target→ recentre
@@ -26,7 +27,10 @@ never seen. Re-centring hovers there until the vision has been fresh for a while
 is over the pad, so the next descent through the failing zone starts from a converged estimate.
 Blind descent keeps steering towards the Kalman estimate; after losing a target it had seen (the
 height then comes from vision) it descends fast and flares to the blind descent speed near the
-ground, since the estimate drifts with time, not with height.
+ground, since the estimate drifts with time, not with height. Within `blind_wait_height_m` of
+touchdown, on an estimate worth waiting on (RTK fixed, or a recent sighting), it keeps to the
+approach's cone: outside it, it slows to the cone's surface and holds the final stretch, and if
+the wind keeps it outside for `blind_hold_max_s` it aborts rather than land beside the pad.
 """
 
 from __future__ import annotations
@@ -40,6 +44,9 @@ from asset_agent.precland.config import CameraModel, ControlConfig, RetryConfig,
 from asset_agent.precland.control import (
     HOVER,
     VelocitySetpoint,
+    allowed_pos_error,
+    blind_allowed,
+    blind_profile,
     clip_xy,
     cone_setpoint,
     held_off_centre,
@@ -80,10 +87,16 @@ TRANSITIONS: dict[tuple[str, str], str] = {
     ("search", "abort"): "abort",
     ("fallback", "target"): "approach",
     ("fallback", "abort"): "abort",
+    ("blind", "abort"): "abort",
     ("acquire", "touchdown"): "landed",
     ("search", "touchdown"): "landed",
     ("fallback", "touchdown"): "landed",
 }
+ABORT_REASONS = {
+    "search": "pad not found, no RTK fix",
+    "fallback": "RTK fix lost on the way down",
+    "blind": "held off the pad by the wind",
+}  # by the state it left; else "pad lost"
 PATHS = ("precision", "search-then-precision", "rtk-fallback", "aborted-climb", "gnss")
 
 
@@ -94,24 +107,6 @@ class Command:
     state: str
     setpoint: VelocitySetpoint
     attempts: int
-
-
-def blind_allowed(above_touchdown: float, gnss_fix: int | None, retry: RetryConfig) -> bool:
-    """A blind descent to the seat from `above_touchdown` metres: on RTK fixed, or within
-    `blind_max_height_unfixed_m` (None: from anywhere, the thesis's rule)."""
-    limit = retry.blind_max_height_unfixed_m
-    return limit is None or rtk_fixed(gnss_fix) or above_touchdown <= limit
-
-
-def blind_profile(above_touchdown: float, retry: RetryConfig) -> float:
-    """Blind descent speed after a target was seen: fast, slowing at `blind_flare_decel` so as to
-    be down to `blind_descent` (a safe touchdown speed) `blind_flare_margin_m` above touchdown,
-    the height error a few blind seconds may have grown."""
-    v0 = retry.blind_descent
-    above = max(above_touchdown - retry.blind_flare_margin_m, 0.0)
-    return max(
-        v0, min(retry.blind_fast_descent, math.sqrt(v0**2 + 2 * retry.blind_flare_decel * above))
-    )
 
 
 class LandingSequence:
@@ -139,13 +134,18 @@ class LandingSequence:
         self._goal: tuple[float, float, float] | None = None
         self._integral = (0.0, 0.0)  # integral of the horizontal error (m·s) while approaching
         self._last_t: float | None = None
+        self._gnss_fix: int | None = None
+        self.abort_reason: str | None = None  # ABORT_REASONS, once aborted
+        self._held_s = 0.0  # how long a blind descent has waited outside the cone
+        self.waiting = False  # blind and waiting outside the cone: nobody may descend
 
     @property
     def path(self) -> str:
         """Which way the landing went: "precision" (the pad in view on the approach),
         "search-then-precision", "rtk-fallback" (searched in vain, descended on RTK fixed GNSS),
-        "aborted-climb" (searched in vain, or lost for the last time too high, without RTK fixed:
-        climbing or holding), or "gnss" (never saw the pad, search off)."""
+        "aborted-climb" (searched in vain, or lost for the last time too high without RTK fixed,
+        or held off the pad by the wind: climbing or holding), or "gnss" (never saw the pad,
+        search off)."""
         if self.state == "abort":
             return "aborted-climb"
         if self._fallback:
@@ -176,6 +176,8 @@ class LandingSequence:
         nxt = TRANSITIONS.get((self.state, event))
         if nxt is None:
             return
+        if nxt == "abort" and self.state != "abort":
+            self.abort_reason = ABORT_REASONS.get(self.state, "pad lost, no RTK fix")
         log.info("landing %s -%s-> %s (attempts %d)", self.state, event, nxt, self.attempts)
         self.state, self._since = nxt, now
 
@@ -196,15 +198,24 @@ class LandingSequence:
         autopilot's GNSS fix type (GPS_RAW_INT; None: unknown, not RTK fixed)."""
         a = float(rel_ned[2])
         self._height = a
+        self._gnss_fix = gnss_fix
         fresh = target_seen if fresh is None else fresh
         dt = 0.0 if self._last_t is None else max(0.0, min(now - self._last_t, 0.5))
         self._last_t = now
+        if self.state == "blind" and self._blind_off_cone(now, rel_ned):
+            self._held_s += dt
         if self.state == "landed":
             return Command("landed", VelocitySetpoint(0, 0, 0, land=True), self.attempts)
         low = a <= self.control.touchdown_height + self.control.land_margin
-        off = self.state == "approach" and held_off_centre(
-            float(rel_ned[0]), float(rel_ned[1]), a - self.control.touchdown_height, self.control
-        )
+        off = (
+            self.state == "approach"
+            and held_off_centre(
+                float(rel_ned[0]),
+                float(rel_ned[1]),
+                a - self.control.touchdown_height,
+                self.control,
+            )
+        ) or (self.state == "blind" and self._blind_off_cone(now, rel_ned))
         if low and self.state != "abort" and not off:
             self._fire("touchdown", now)
             return Command(
@@ -233,6 +244,8 @@ class LandingSequence:
             rtk = rtk_fixed(gnss_fix) and self.search.rtk_fallback
             self._fallback = rtk
             self._fire("rtk_fallback" if rtk else "abort", now)
+        elif self.state == "blind" and self._held_s > self.retry.blind_hold_max_s:
+            self._fire("abort", now)  # the wind holds it off the pad: climb, not land beside it
         elif self.state == "fallback" and not rtk_fixed(gnss_fix):
             self._fire("abort", now)  # the fix degraded on the way down: not blind on it
         elif self.state == "pause" and now - self._since >= self.retry.pause_s:
@@ -244,6 +257,7 @@ class LandingSequence:
                 self._fire(self._blind_or_abort("give_up", a, gnss_fix), now)
         elif self.state == "climb" and self._reached(vehicle_ned, a):
             self._fire("reached", now)
+        self.waiting = self.state == "blind" and self._blind_off_cone(now, rel_ned)
         return Command(
             self.state,
             self._setpoint(now, rel_ned, pad_heading, vehicle_ned, yaw, dt),
@@ -358,10 +372,22 @@ class LandingSequence:
         a = float(rel_ned[2]) - c.touchdown_height
         if self.retry.blind_slow_final and a < c.slow_height:
             vd = min(vd, c.slow_descent)
-        # as the approach, while the held estimate is recent: a gust that pushed the pad out of
-        # view this low (fused-wind8, seed 1008: 20 cm) is steered back before the seat
-        seen = self._last_seen
-        recent = seen is not None and now - seen[3] <= self.retry.blind_recentre_s
-        if recent and held_off_centre(float(rel_ned[0]), float(rel_ned[1]), a, c):
-            vd = 0.0
+        if self._blind_off_cone(now, rel_ned):  # the approach's cone, on a trusted estimate
+            allowed = allowed_pos_error(a, c)
+            vd = 0.0 if a < c.slow_height else min(vd, c.kp_z * min(allowed, a))
         return VelocitySetpoint(vn, ve, vd)
+
+    def _blind_off_cone(self, now: float, rel_ned) -> bool:
+        """Outside the approach's cone and within `blind_wait_height_m` of touchdown, a blind
+        descent waits as the approach does (12 m/s, seed 1006: it went down regardless, 3.2 m
+        off) — on an estimate worth waiting on: RTK fixed, or within `blind_recentre_s` of the
+        last sighting (else waiting adds drift)."""
+        seen, c = self._last_seen, self.control
+        a = float(rel_ned[2]) - c.touchdown_height
+        if seen is None or a > self.retry.blind_wait_height_m:
+            return False
+        recent = now - seen[3] <= self.retry.blind_recentre_s
+        if not (recent or rtk_fixed(self._gnss_fix)):
+            return False
+        off = math.hypot(float(rel_ned[0]), float(rel_ned[1])) > allowed_pos_error(a, c)
+        return off and (a >= c.slow_height or c.final_inside_cone_only)

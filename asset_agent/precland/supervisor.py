@@ -266,11 +266,11 @@ class PrecisionLander:
             log.exception("precland: the search or the guard failed")
             return
         if takeover.path == "aborted-climb":
-            detail: dict[str, Any] = {"landing_path": "aborted-climb"}
-            if not takeover.losses:
-                detail["reason"] = "pad not found, no RTK fix"
-            else:  # the guard: lost too high, retries used up
-                detail["reason"] = "pad lost, no RTK fix"
+            detail: dict[str, Any] = {
+                "landing_path": "aborted-climb",
+                "reason": takeover.abort_reason or "pad not found, no RTK fix",
+            }
+            if takeover.losses:  # the guard took it: lost too high or off the pad
                 detail["lost_at_m"] = takeover.losses[-1]
             self.events.append(Event("landing_aborted", MappingProxyType(detail)))
 

@@ -104,7 +104,8 @@ class Takeover:
                     return
                 if act.kind == "take":
                     log.warning(
-                        "precland: pad lost at %.1f m without RTK fixed GNSS: the agent retries",
+                        "precland: pad lost at %.1f m (no RTK fixed GNSS, or off the pad): "
+                        "the agent flies the retry",
                         guard.losses[-1],
                     )
                     self.active = True
@@ -117,12 +118,16 @@ class Takeover:
                     self.active = False
                 if act.kind == "hold":
                     self.path = "aborted-climb"
-                    log.warning(
-                        "precland: the pad lost, no RTK fixed GNSS: holding at a safe height"
-                    )
+                    log.warning("precland: %s: holding at a safe height", self.abort_reason)
                     return
         finally:
             self.active = False
+
+    @property
+    def abort_reason(self) -> str | None:
+        """Why the landing was abandoned (sequence.ABORT_REASONS), if it was."""
+        guarded = self.loss_guard.sequence.abort_reason if self.loss_guard is not None else None
+        return guarded or self.sequence.abort_reason
 
     @property
     def losses(self) -> list[float]:

@@ -217,7 +217,8 @@ def uav_landed(seen: Seen) -> bool:
 
 
 def landing_abandoned(seen: Seen) -> bool:
-    """The UAV gave its landing up (no pad found, no RTK fixed GNSS to land on): it holds up."""
+    """The UAV gave its landing up (no pad found or lost without RTK fixed GNSS to land on, or
+    held off the pad by the wind): it holds up."""
     return "landing_aborted" in seen.obs.uav_events
 
 
@@ -406,7 +407,7 @@ STEPS: dict[State, Step] = {
                 Exit(State.confirming, "the UAV reports it has landed", when=uav_landed),
                 Exit(State.failed, "the UAV gave up its landing: the pad was not found (or lost "
                      "too high with its retries used up) and its GNSS has no RTK fix to land "
-                     "on, so it climbed and holds there; the base "
+                     "on, or the wind held it off the pad; it climbed and holds there; the base "
                      "stays open — land it by hand", "landing_aborted", alert=True,
                      when=landing_abandoned),
             ),

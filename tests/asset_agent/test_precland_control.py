@@ -12,12 +12,13 @@ from asset_agent.precland.config import ControlConfig, RetryConfig, SearchConfig
 from asset_agent.precland.control import (
     MAV_FRAME_BODY_FRD,
     allowed_pos_error,
+    blind_profile,
     cone_setpoint,
     landing_target,
 )
 from asset_agent.precland.geometry import rotation_world_from_body
 from asset_agent.precland.kalman import FIX_3D, FIX_RTK_FIXED, FIX_RTK_FLOAT
-from asset_agent.precland.sequence import LandingSequence, blind_profile
+from asset_agent.precland.sequence import LandingSequence
 
 C = ControlConfig()
 
@@ -256,13 +257,21 @@ def test_blind_never_finishes_the_final_stretch_off_centre():
     inside = allowed_pos_error(0.1, C) / 2
     back = run(seq, 0.2, False, (inside, 0.0, low))
     assert back.state == "blind" and back.setpoint.vd > 0
-    # higher up the blind descent goes on off-centre (the cone's own rule up there)
+    # higher up the blind descent goes on off-centre, slowed to the cone's surface (the
+    # approach's own rule up there)
     high = run(seq, 0.3, False, (0.15, 0.12, 2.0))
-    assert high.setpoint.vd > 0
-    # long after the last sighting the held estimate has drifted with the fix: holding would
-    # only add drift, so it descends as it is
-    late = run(seq, 0.1 + RetryConfig().blind_recentre_s + 0.1, False, (0.15, 0.12, low))
-    assert late.state == "blind" and late.setpoint.vd > 0
+    a = 2.0 - C.touchdown_height
+    assert high.setpoint.vd == pytest.approx(C.kp_z * allowed_pos_error(a, C))
+    # long after the last sighting, on a float or plain fix, the held estimate has drifted with
+    # the fix: holding would only add drift, so it descends as it is; on RTK fixed it has not
+    late_t = 0.1 + RetryConfig().blind_recentre_s + 0.1
+    assert run(seq, late_t, False, (0.15, 0.12, low)).setpoint.vd == 0.0
+    for fix in (FIX_RTK_FLOAT, FIX_3D):
+        drifting = LandingSequence(C, RetryConfig(cautious=False))
+        run(drifting, 0.0, True, (0.0, 0.0, low), fix=fix)
+        assert run(drifting, 0.1, False, (0.15, 0.12, low), fix=fix).setpoint.vd == 0.0
+        late = run(drifting, late_t, False, (0.15, 0.12, low), fix=fix)
+        assert late.state == "blind" and late.setpoint.vd > 0
     # the rule is the approach's switch
     free = LandingSequence(
         C.model_copy(update={"final_inside_cone_only": False}), RetryConfig(cautious=False)
@@ -284,7 +293,7 @@ def test_without_rtk_fixed_the_last_loss_aborts_instead_of_landing_blind(fix):
     assert run(seq, 4.0, False, (0.0, 0.0, 3.7), (0.0, 0.0), fix).state == "pause"
     cmd = run(seq, 5.1, False, (0.0, 0.0, 3.7), (0.0, 0.0), fix)  # no retry left
     assert cmd.state == "abort" and seq.path == "aborted-climb" and cmd.setpoint.vd < 0
-    assert not seq.holding_safe
+    assert seq.abort_reason == "pad lost, no RTK fix" and not seq.holding_safe
     # seen again on the way up: the landing stays abandoned, for the operator to decide
     assert run(seq, 6.0, True, (0.0, 0.0, 5.0), (0.0, 0.0), fix).state == "abort"
     held = run(seq, 30.0, False, (0.0, 0.0, SearchConfig().abort_height_m), (0.0, 0.0), fix)
@@ -324,3 +333,48 @@ def test_integral_action_removes_a_steady_offset_and_is_bounded():
     assert speeds[0] == pytest.approx(cfg.kp_xy * 0.05)
     assert speeds[50] > speeds[10] > speeds[0]  # the integral grows with a steady error
     assert speeds[-1] == pytest.approx(cfg.kp_xy * 0.05 + 0.3)  # clamped (anti-windup)
+
+
+def test_blind_descent_held_off_the_pad_by_the_wind_waits_then_aborts():
+    """fused-wind12, seed 1006: lost 1.3 m up while a gust carried the vehicle off, the blind
+    descent went down regardless and landed 3.2 m off the pad. Now, within `blind_wait_height_m`
+    of touchdown, it keeps to the cone on its RTK fixed estimate (slowing to the cone's surface,
+    never descending the final stretch off it) and, held outside the cone `blind_hold_max_s` in
+    all, climbs and holds: not landed beside the pad."""
+    retry = RetryConfig(cautious=False, blind_hold_max_s=3.0)
+    seq = LandingSequence(C, retry)
+    run(seq, 0.0, True, (0.0, 0.0, 1.6))
+    t, h, rel = 0.0, 1.6, (0.45, -0.12, 1.6)
+    for _ in range(20):  # 2 s blown 0.45-1.2 m off: it does not come down to the seat
+        t += 0.1
+        cmd = run(seq, t, False, rel)
+        assert cmd.state == "blind" and cmd.setpoint.vd <= C.kp_z * allowed_pos_error(h, C)
+        assert cmd.setpoint.vn > 0 and cmd.setpoint.ve < 0  # steering back to the estimate
+        h -= cmd.setpoint.vd * 0.1
+        rel = (min(rel[0] + 0.04, 1.2), rel[1], h)
+    assert h > 1.5
+    # back inside the cone: the blind descent goes on at its own speed
+    back = run(seq, t + 0.1, False, (0.0, 0.0, h))
+    assert back.state == "blind" and back.setpoint.vd > 0.5
+    # blown off again: 3 s outside the cone in all, and it gives the landing up
+    t += 0.1
+    while (cmd := run(seq, t, False, (0.8, 0.0, h))).state == "blind":
+        t += 0.1
+        assert t < 10.0
+    assert cmd.state == "abort" and seq.path == "aborted-climb" and cmd.setpoint.vd < 0
+    assert seq.abort_reason == "held off the pad by the wind"  # the landing_aborted event's
+    assert t == pytest.approx(0.2 + 3.0 + 0.1, abs=0.25)  # 2 s, then 1 s more, outside
+    # higher than `blind_wait_height_m` it descends off the cone: up there the wind is stronger,
+    # and waiting let 12 m/s carry the vehicle 11 m off (seed 1010) where descending found the pad
+    high = LandingSequence(C, retry)
+    run(high, 0.0, True, (0.0, 0.0, 8.0))
+    a = 7.0 - C.touchdown_height
+    assert a > retry.blind_wait_height_m
+    cmd = run(high, 0.1, False, (1.5, 1.0, 7.0))
+    assert cmd.state == "blind" and cmd.setpoint.vd == pytest.approx(blind_profile(a, retry))
+    # in the final stretch it never touches down outside the cone
+    low = C.touchdown_height + C.land_margin / 2
+    final = LandingSequence(C, retry)
+    run(final, 0.0, True, (0.0, 0.0, 0.5))
+    assert run(final, 0.1, False, (0.3, 0.0, low)).state == "blind"
+    assert run(final, 0.2, False, (0.0, 0.0, low)).state == "landed"

@@ -207,6 +207,19 @@ def test_lost_below_3_m_on_a_plain_fix_it_climbs_and_reports_on_rtk_fixed_it_lan
     assert fixed.error_m < 0.08, fixed
 
 
+@pytest.mark.slow
+def test_held_off_the_pad_by_a_12_m_s_wind_it_does_not_land_beside_it():
+    """fused-wind12, seed 1006: at 1.5 m a gust carried the vehicle off and the pad out of view,
+    and the blind descent went on down 3.2 m off the pad. The blind descent now keeps to the
+    cone on its RTK fixed estimate, and when the wind holds it outside for `blind_hold_max_s`
+    it climbs and holds: it lands on the pad or not at all."""
+    trial = run_trial(SCENARIOS["fused-wind12"], seed=1006)
+    if trial.landed:
+        assert trial.error_m < 0.05, trial
+    else:
+        assert trial.path == "aborted-climb", trial
+
+
 def test_a_row_with_no_landing_has_no_error_and_no_heading(capsys):
     """Every trial held aloft (searched in vain on a float fix): the row reports no figures —
     not the held positions as touchdowns — and the table prints dashes."""

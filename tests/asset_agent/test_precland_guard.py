@@ -125,3 +125,23 @@ def test_the_thesis_rule_leaves_every_loss_to_the_autopilot():
     f = Flight(FIX_3D, thesis)
     f.step(3.0, True)
     assert f.lose(2.8) == "watch" and f.guard.losses == []
+
+
+def test_a_blind_descent_held_off_the_pad_is_flown_by_the_agent_then_abandoned():
+    """fused-wind12 on the autopilot's own landing: the pad lost 1.5 m up with a gust holding the
+    vehicle 50 cm off, LAND came down where the wind put it (up to 3.5 m off). Without retries
+    (the evaluation's fused rows) the sequence's blind descent waits outside the cone: the guard
+    flies that wait instead of LAND, hands LAND back over the pad, and held off for
+    `blind_hold_max_s` in all it abandons the landing."""
+    cfg = CFG.model_copy(update={"retry": RetryConfig(cautious=False, blind_hold_max_s=2.0)})
+    f = Flight(FIX_RTK_FIXED, cfg)
+    f.step(1.5, True)
+    assert f.lose(1.5, north=0.5) == "take" and f.guard.sequence.state == "blind"
+    assert f.step(1.5, False, north=0.5) == "fly"
+    assert f.step(1.5, False, north=0.0) == "land"  # back over the pad: LAND descends
+    assert f.step(1.4, False, north=0.0) == "watch"
+    kinds = [f.step(1.4, False, north=0.6) for _ in range(25)]  # blown off again, 2.5 s
+    assert kinds[0] == "take" and set(kinds[1:]) == {"fly"}, kinds
+    assert f.guard.sequence.state == "abort"
+    assert f.guard.sequence.abort_reason == "held off the pad by the wind"
+    assert f.step(CFG.search.abort_height_m, False) == "hold"

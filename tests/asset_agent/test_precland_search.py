@@ -101,6 +101,7 @@ def test_searched_in_vain_without_rtk_fixed_it_climbs_and_holds_never_landing_bl
     seq = searching(search)
     over(seq, fix)
     assert seq.state == "abort" and seq.path == "aborted-climb" and not seq.holding_safe
+    assert seq.abort_reason == "pad not found, no RTK fix"
     cmd = fly(seq, 100.0, False, (0.0, 0.0, 10.0), (5.0, 5.0), fix)
     assert cmd.setpoint.vd < 0 and not cmd.setpoint.land  # climbing
     # the pad coming into view does not bring it down again: the operator decides
@@ -114,6 +115,7 @@ def test_the_fallback_climbs_when_the_fix_degrades_on_the_way_down():
     over(seq, FIX_RTK_FIXED)
     assert fly(seq, 100.0, False, (0.0, 0.0, 6.0), (5.0, 5.0), FIX_RTK_FIXED).state == "fallback"
     assert fly(seq, 101.0, False, (0.0, 0.0, 5.5), (5.0, 5.0), FIX_RTK_FLOAT).state == "abort"
+    assert seq.abort_reason == "RTK fix lost on the way down"
 
 
 def test_a_pad_in_view_from_the_start_is_a_precision_landing_and_no_search():
