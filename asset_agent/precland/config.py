@@ -219,6 +219,9 @@ class RetryConfig(_Model):
     climb_speed: float = 0.8
     reached_tolerance_m: float = 0.2
     climb_margin_m: float = 0.5  # climb this far above where the target was last seen
+    # a climb back that has not got there in this long counts as there (12 m/s, the autopilot
+    # path, seed 1019: blown 20-50 m off the goal, it went on climbing at 0.1 m/s to 22 m)
+    climb_timeout_s: float = Field(default=20.0, gt=0.0)
     max_attempts: int = 3
     blind_descent: float = 0.5  # ArduPilot's LAND_SPEED: the touchdown speed, blind
     # after losing a target it had seen (height known from vision): descend this fast, flaring

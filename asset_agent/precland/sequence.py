@@ -255,7 +255,9 @@ class LandingSequence:
                 self._fire("retry", now)
             else:
                 self._fire(self._blind_or_abort("give_up", a, gnss_fix), now)
-        elif self.state == "climb" and self._reached(vehicle_ned, a):
+        elif self.state == "climb" and (
+            self._reached(vehicle_ned, a) or now - self._since >= self.retry.climb_timeout_s
+        ):  # or the wind will not let it get there: pause where it is (no climb without end)
             self._fire("reached", now)
         self.waiting = self.state == "blind" and self._blind_off_cone(now, rel_ned)
         return Command(

@@ -378,3 +378,20 @@ def test_blind_descent_held_off_the_pad_by_the_wind_waits_then_aborts():
     run(final, 0.0, True, (0.0, 0.0, 0.5))
     assert run(final, 0.1, False, (0.3, 0.0, low)).state == "blind"
     assert run(final, 0.2, False, (0.0, 0.0, low)).state == "landed"
+
+
+def test_a_climb_back_the_wind_keeps_from_its_goal_ends_after_its_timeout():
+    """12 m/s, the autopilot path, seed 1019: lost at 8.7 m and blown 20-50 m off the point it was
+    climbing back to, the retry's climb never "reached" it and went on climbing to 22 m. Now a
+    climb that has not got there in `climb_timeout_s` pauses where it is, and the retries go on."""
+    retry = RetryConfig(cautious=True, pause_s=1.0, max_attempts=2, recentre=False)
+    seq = LandingSequence(C, retry)
+    run(seq, 0.0, True, (0.0, 0.0, 8.7))
+    run(seq, 0.1, False, (0.0, 0.0, 8.7))
+    assert run(seq, 1.2, False, (0.0, 0.0, 8.7)).state == "climb"
+    t = 1.2
+    while t + 0.5 < 1.2 + retry.climb_timeout_s:  # climbing on, blown 39 m off its goal
+        t += 0.5
+        assert run(seq, t, False, (0.0, 0.0, 9.5), (25.0, -30.0)).state == "climb"
+    cmd = run(seq, 1.2 + retry.climb_timeout_s + 0.1, False, (0.0, 0.0, 9.5), (25.0, -30.0))
+    assert cmd.state == "pause" and seq.attempts == 1
