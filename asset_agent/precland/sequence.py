@@ -202,7 +202,8 @@ class LandingSequence:
         fresh = target_seen if fresh is None else fresh
         dt = 0.0 if self._last_t is None else max(0.0, min(now - self._last_t, 0.5))
         self._last_t = now
-        if self.state == "blind" and self._blind_off_cone(now, rel_ned):
+        held = self.state == "blind" and self._blind_off_cone(now, rel_ned)
+        if held:
             self._held_s += dt
         if self.state == "landed":
             return Command("landed", VelocitySetpoint(0, 0, 0, land=True), self.attempts)
@@ -215,7 +216,7 @@ class LandingSequence:
                 a - self.control.touchdown_height,
                 self.control,
             )
-        ) or (self.state == "blind" and self._blind_off_cone(now, rel_ned))
+        ) or held
         if low and self.state != "abort" and not off:
             self._fire("touchdown", now)
             return Command(
@@ -374,7 +375,7 @@ class LandingSequence:
         a = float(rel_ned[2]) - c.touchdown_height
         if self.retry.blind_slow_final and a < c.slow_height:
             vd = min(vd, c.slow_descent)
-        if self._blind_off_cone(now, rel_ned):  # the approach's cone, on a trusted estimate
+        if self.waiting:  # outside the approach's cone, on a trusted estimate
             allowed = allowed_pos_error(a, c)
             vd = 0.0 if a < c.slow_height else min(vd, c.kp_z * min(allowed, a))
         return VelocitySetpoint(vn, ve, vd)
