@@ -15,6 +15,7 @@ Rewritten as each row finishes, so a run cut short keeps what it measured.
 from __future__ import annotations
 
 import math
+import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -82,11 +83,11 @@ def _plot_touchdowns(folder: Path, touchdowns: dict[str, list[Any]]) -> None:
         ax.set_xlabel("east, cm", fontsize=8)
         ax.set_ylabel("north, cm", fontsize=8)
         ax.title.set_fontsize(8)
-    fig.suptitle(
+    title = (
         f"touchdowns (●) around the pad's centre (+); green: the charging contacts, "
-        f"{100 * CONTACTS_M:g} cm",
-        fontsize=9,
-    )
+        f"{100 * CONTACTS_M:g} cm"
+    )  # wrapped to the figure's width (9 pt: about 40 characters to a 3.2-inch panel)
+    fig.suptitle(textwrap.fill(title, width=40 * cols), fontsize=9)
     fig.tight_layout()
     fig.savefig(folder / "touchdown.png", dpi=90)
     plt.close(fig)

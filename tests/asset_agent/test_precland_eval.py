@@ -122,6 +122,11 @@ def test_the_cli_shows_progress_and_writes_a_report_with_its_plots_and_seeds(cap
     for plot in ("touchdown.png", "error_vs_time.png"):
         png = (tmp_path / plot).read_bytes()
         assert png.startswith(b"\x89PNG") and len(png) > 5000
+    # one panel: the title wraps to the figure's width, no glyph cut at the sides
+    import matplotlib.image
+
+    top = matplotlib.image.imread(tmp_path / "touchdown.png")[:40, :, :3]
+    assert top[:, :3].min() > 0.9 and top[:, -3:].min() > 0.9
 
 
 def test_a_trace_follows_one_trial_through_time():
