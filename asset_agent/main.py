@@ -178,6 +178,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(
         level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
+    logging.getLogger("httpx").setLevel(logging.WARNING)  # else a line per login and refresh
     try:
         config = AgentConfig.load(args.config)
         pw = str(config.server.password_file.expanduser()) if config.server.password_file else None

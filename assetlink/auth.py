@@ -99,7 +99,9 @@ class SessionClient:
             raise BadCredentials(f"login of asset {self._name!r} refused: bad credentials")
         if response.status_code == 409:
             raise SessionActive(f"asset {self._name!r} already has a live session")
-        return self._token(response)
+        token = self._token(response)
+        log.info("logged in to %s as asset %r", self._base, self._name)
+        return token
 
     async def renew(self, token: str) -> Token:
         """Exchange the session's token for a new one (the old one stops working)."""

@@ -97,6 +97,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(
         level=args.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s %(message)s"
     )
+    logging.getLogger("httpx").setLevel(logging.WARNING)  # else a line per login and refresh
     try:
         config = load_config(args.config)
     except (OSError, ValueError) as err:

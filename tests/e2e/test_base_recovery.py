@@ -59,3 +59,5 @@ async def test_base_daemon_killed_mid_open_restarts_recovers_the_plc_and_the_run
         assert not body["alert"], body["reason"]
         coils = [c.coil for c in base.command_log]
         assert "FAULT_RESET" in coils and "LIFT_UP" not in coils, coils
+    # it logged in twice; its log tells what it did, not each HTTP call (httpx: INFO a call)
+    assert "logged in" in daemon.output() and "HTTP Request:" not in daemon.output()
