@@ -262,7 +262,9 @@ class Guidance:
         c, g = self.c, self.goal
         err = c.reading.error_ned
         dyn = c.dyn
-        if blocked:
+        # GUIDED on the ground: ArduPilot's controllers idle (is_disarmed_or_landed), no target
+        # lifts the vehicle, only a takeoff command does (a climb sent there stays on the ground)
+        if blocked or (c.mode == GUIDED and dyn.state.landed and not self._taking_off):
             n, e, _ = dyn.state.position
             dyn.set_position_target((n, e, 0.0))
             return

@@ -279,3 +279,28 @@ async def test_guided_global_target_and_condition_yaw(sim: VehicleServer, peer: 
         20,
         f"at the global target (now {c.estimated_position()})",
     )
+
+
+async def test_guided_on_the_ground_lifts_off_for_a_takeoff_not_for_a_climb_target(
+    sim: VehicleServer, peer: Peer
+) -> None:
+    """ArduPilot's GUIDED controllers idle while landed (`is_disarmed_or_landed`): a velocity
+    target that climbs, sent to an armed vehicle on the ground, leaves it there; a takeoff
+    command lifts it."""
+    c = sim.copter
+    peer.conn.mav.set_mode_send(1, 1, 4)  # GUIDED
+    await peer.recv("COMMAND_ACK", command=11)
+    peer.conn.mav.command_long_send(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert (await peer.recv("COMMAND_ACK", command=400)).result == 0
+    start = c.t
+    velocity_only = 0b0000_1101_1100_0111
+    while c.t < start + 2.0:  # two simulated seconds of climb targets, one every 0.1 s
+        peer.conn.mav.set_position_target_local_ned_send(
+            0, 1, 1, 1, velocity_only, 0, 0, 0, 0.5, 0, -1.5, 0, 0, 0, 0, 0
+        )
+        sent = c.t
+        await eventually(lambda sent=sent: c.t >= sent + 0.1, 5, "simulated time")
+    assert c.dyn.state.landed and c.dyn.state.altitude < 0.05 and c.armed
+    peer.conn.mav.command_long_send(1, 1, 22, 0, 0, 0, 0, 0, 0, 0, 3)
+    assert (await peer.recv("COMMAND_ACK", command=22)).result == 0
+    await eventually(lambda: c.dyn.state.altitude > 2.5, 10, "takeoff")
