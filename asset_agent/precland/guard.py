@@ -23,7 +23,10 @@ driven by the daemon (takeover.py, over MAVLink) and by the evaluation's autopil
   at 12 m/s LAND came down 3.5 m off) is flown by the agent too, handed back to LAND once inside
   the cone, and abandoned the same way when held off for `retry.blind_hold_max_s` in all;
 - otherwise (RTK fixed and over the pad, or the final stretch) the autopilot lands as it would,
-  and the loss spends none of the sequence's retries (its pause starts over at each step).
+  and the loss spends none of the sequence's retries (its pause starts over at each step);
+- never once LAND is touching down (`TOUCHING_DOWN_M` from the seat): taken there, a vehicle
+  blown off in the last second was held on the ground in GUIDED, then lifted off to the safe
+  height when the wait timed out.
 """
 
 from __future__ import annotations
@@ -38,6 +41,10 @@ from asset_agent.precland.pipeline import VehicleState
 from asset_agent.precland.sequence import LandingSequence
 
 TAKE_STATES = ("pause", "climb", "abort")  # states in which the sequence would not descend
+# LAND this close to the seat (above touchdown, by the estimate) is touching down: the guard does
+# not take the vehicle there. ArduPilot's GUIDED idles on the ground only once its land detector
+# has seen the touchdown (about a second): a climb sent before that lifts the vehicle off the pad.
+TOUCHING_DOWN_M = 0.1
 
 
 @dataclass(frozen=True)
@@ -89,7 +96,8 @@ class LossGuard:
                 return GuardAction("fly", cmd.setpoint)
             self.flying = False  # in view again, or back over the pad: the autopilot lands
             return GuardAction("land")
-        if wait and self._blind_unsafe(est, state):
+        touching_down = est.rel_ned[2] - self.config.control.touchdown_height <= TOUCHING_DOWN_M
+        if wait and not touching_down and self._blind_unsafe(est, state):
             self.flying = True
             self.losses.append(
                 round(float(est.rel_ned[2]) - self.config.control.touchdown_height, 2)

@@ -1,19 +1,23 @@
 """The daemon's search before the autopilot's own descent (takeover.py), against the simulated
 autopilot over MAVLink and the simulated IR beacon over UDP: a landing whose pad is never seen is
-searched for, then abandoned by a climb on a plain fix, or landed on the RTK fixed GNSS."""
+searched for, then abandoned by a climb on a plain fix, or landed on the RTK fixed GNSS; a pad
+lost low is retried or abandoned on a plain fix; a blind descent blown off the pad by the wind is
+flown by the agent (the guard's blind wait) and handed back, or abandoned."""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 from collections.abc import AsyncIterator
+from typing import Any
 
 import pytest
 
 from asset_agent.autopilot import Autopilot
 from asset_agent.precland.config import FaultConfig, RetryConfig, SearchConfig
 from asynckit.tasks import cancel_and_wait
-from sim.vehicle.server import VehicleServer, run_vehicle
+from sim.vehicle.server import VehicleServer, WindFn, run_vehicle
 from tests.asset_agent.blind_landing import (
     blind_beacon_lander,
     precland_adapter,
@@ -150,3 +154,102 @@ async def test_a_pad_lost_at_3_m_on_rtk_fixed_is_landed_by_the_autopilot(
         assert lander.takeover is not None and lander.takeover.path == "precision"
         assert vehicle.copter.pad_distance() < 0.3
         assert [e.kind for e in lander.drain_events()] == []
+
+
+BELOW_2M = FaultConfig(fail_below_m=2.0)  # lost inside the blind wait's 2 m
+NO_RETRY = RetryConfig(max_attempts=0, blind_hold_max_s=5.0)  # lost: at once blind, on RTK fixed
+
+
+@contextlib.asynccontextmanager
+async def storm_below(
+    height_m: float, wind_mps: float, lasting_s: float = math.inf
+) -> AsyncIterator[tuple[WindFn, Any]]:
+    """A wind (from the south, carrying the vehicle north) stronger than the vehicle can lean
+    against, rising once the vehicle is first below `height_m`, for `lasting_s` simulated
+    seconds: (the simulator's wind function, a binder that starts watching the vehicle the
+    function's server flies)."""
+    blowing = asyncio.Event()
+    since: list[float] = []
+
+    def wind(t: float) -> tuple[float, float]:
+        if not blowing.is_set():
+            return (0.0, 0.0)
+        since[:] = since or [t]
+        return (wind_mps, 0.0) if t - since[0] < lasting_s else (0.0, 0.0)
+
+    async def watch(vehicle: VehicleServer) -> None:
+        await eventually(lambda: vehicle.copter.dyn.state.altitude > 5.0, 30, "airborne")
+        await eventually(
+            lambda: vehicle.copter.dyn.state.altitude < height_m, 60, "down into the storm"
+        )
+        blowing.set()
+
+    tasks: list[asyncio.Task[None]] = []
+    try:
+        yield wind, lambda vehicle: tasks.append(asyncio.create_task(watch(vehicle)))
+    finally:
+        await cancel_and_wait(tasks)
+
+
+@contextlib.asynccontextmanager
+async def landing_into_a_storm(
+    retry: RetryConfig, lasting_s: float = math.inf
+) -> AsyncIterator[tuple[VehicleServer, Autopilot, Any]]:
+    """On RTK fixed, the beacon failing below 2 m, a landing by the autopilot into a storm
+    rising at 1.5 m for `lasting_s`: (the vehicle, the adapter, the daemon's lander), once LAND
+    has begun."""
+    async with (
+        storm_below(1.5, 25.0, lasting_s) as (wind, bind),
+        run_vehicle(speed=4.0, seed=7, wind_ne=wind) as vehicle,
+    ):
+        bind(vehicle)
+        async with (
+            precland_adapter(vehicle) as autopilot,
+            corrections(autopilot, 0.1),
+            blind_beacon_lander(
+                autopilot, vehicle, BELOW_2M, search=SEARCH, retry=retry, pad_sigma_m=0.5
+            ) as lander,
+        ):
+            await eventually(lambda: autopilot.state.fix_type == 6, 15, "RTK fixed")
+            await take_off_and_land(autopilot, vehicle)
+            await eventually(lambda: autopilot.state.mode == "LAND", 10, "the autopilot lands")
+            yield vehicle, autopilot, lander
+
+
+@pytest.mark.slow  # ~12 s: the landing from 10 m at 4x
+async def test_a_blind_descent_blown_off_the_pad_is_held_by_the_agent_then_abandoned() -> None:
+    """RTK fixed, the beacon failing below 2 m: the autopilot's LAND would go on descending
+    blind wherever the wind carries it. At 1.5 m a wind the vehicle cannot lean against carries
+    it off the pad: the agent takes the vehicle (GUIDED), keeps it off the seat, and after
+    `blind_hold_max_s` outside the cone climbs to the safe height and reports why."""
+    async with landing_into_a_storm(NO_RETRY) as (vehicle, autopilot, lander):
+        async with lowest_altitude(vehicle) as lowest:
+            await eventually(lambda: lander.takeover and lander.takeover.losses, 30, "taken")
+            took = lander.takeover
+            assert took is not None and took.losses[0] < 1.75  # below 2 m: the blind wait's
+            await eventually(lambda: autopilot.state.mode == "GUIDED", 10, "the agent flies it")
+            await eventually(lambda: took.path == "aborted-climb", 30, "held off, abandoned")
+            await eventually(
+                lambda: vehicle.copter.dyn.state.altitude > 10.5, 30, "up at the safe height"
+            )
+            assert vehicle.copter.armed and lowest[0] > 0.2, lowest  # never down beside the pad
+            events = lander.drain_events()
+            assert [e.kind for e in events] == ["landing_aborted"]
+            assert events[0].detail["reason"] == "held off the pad by the wind"
+
+
+@pytest.mark.slow  # ~12 s: the landing from 10 m at 4x
+async def test_a_blind_descent_blown_off_by_a_gust_is_flown_back_and_landed() -> None:
+    """The same, but the wind drops after 1.5 s: the agent takes the vehicle, brings it back
+    inside the cone and hands LAND back; the autopilot lands on the pad and, touching down, is
+    left to it. Blown 1.5-5 m off, the flight back on a loaded machine took longer than the
+    default `blind_hold_max_s` (10 s) in one run of eight: the wait may take 30 s here."""
+    retry = RetryConfig(max_attempts=0, blind_hold_max_s=30.0)  # see the docstring
+    async with landing_into_a_storm(retry, 1.5) as (vehicle, autopilot, lander):
+        await eventually(lambda: lander.takeover and lander.takeover.losses, 30, "taken")
+        # handed back: LAND lands it (the agent, holding it, would not)
+        await eventually(lambda: not autopilot.state.armed, 60, "landed and disarmed")
+        assert lander.takeover is not None and lander.takeover.path == "precision"
+        # LAND left to itself came down where the gust put it: 80 cm off (on the blind estimate,
+        # after the flight back: 2-15 cm)
+        assert vehicle.copter.pad_distance() < 0.3
