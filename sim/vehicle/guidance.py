@@ -36,6 +36,7 @@ from sim.vehicle.plnd_flight import land_with_plnd
 if TYPE_CHECKING:
     from sim.vehicle.copter import Copter
 
+LAND_DETECTOR_S = 1.0  # ArduPilot's LAND_DETECTOR_TRIGGER_SEC: on the ground this long, landed
 POS_IGNORE, VEL_IGNORE, YAW_IGNORE = 0b000000111, 0b000111000, 0b10000000000
 FRAME_LOCAL_NED, FRAME_LOCAL_OFFSET_NED, FRAME_BODY_NED, FRAME_BODY_OFFSET_NED = 1, 7, 8, 9
 
@@ -64,6 +65,7 @@ class Guidance:
         self._rtl_alt = 0.0
         self._arrived_at: float | None = None
         self._taking_off = False
+        self.landed_s = LAND_DETECTOR_S  # on the ground this long (it starts there)
         self._target_seen = False
         self._jumps: dict[int, int] = {}
         self.yaw_target: float | None = None
@@ -101,6 +103,13 @@ class Guidance:
         self.mission_state = MISSION_NONE
         if self.c.mode == AUTO and self.c.armed:
             self.hold()
+
+    @property
+    def land_complete(self) -> bool:
+        """ArduPilot's `ap.land_complete`: its land detector has seen the vehicle on the ground
+        for LAND_DETECTOR_S. Then LAND disarms, GUIDED idles and EXTENDED_SYS_STATE says ON_GROUND;
+        in the second before, GUIDED still flies (a climb sent then lifts the vehicle again)."""
+        return self.landed_s >= LAND_DETECTOR_S
 
     def takeoff(self, alt: float) -> int:
         """GUIDED takeoff to `alt` metres above home; a MAV_RESULT."""
@@ -190,7 +199,7 @@ class Guidance:
         self.rtl_phase = None
         item = c.items[seq]
         n, e, d = c.item_ned(item)
-        c.text(INFO, f"Mission: {seq} {_CMD_NAMES.get(item.command, item.command)}")
+        c.text(INFO, f"Mission: {seq} {ms.CMD_NAMES.get(item.command, item.command)}")
         if item.command == ms.DO_CHANGE_SPEED:
             self.speed = item.param2
             self.start_item(seq + 1, chain + 1)
@@ -243,9 +252,10 @@ class Guidance:
     def update(self, dt: float, blocked: bool) -> None:
         """Advance the mode logic and hand the dynamics a true target."""
         c = self.c
+        self.landed_s = self.landed_s + dt if c.dyn.state.landed else 0.0
         if not c.armed:
             return
-        if self.goal.kind == "land" and c.dyn.state.landed:
+        if self.goal.kind == "land" and self.land_complete:
             self._touched_down()
             return
         if c.mode == AUTO and self.mission_state == MISSION_ACTIVE:
@@ -262,9 +272,9 @@ class Guidance:
         c, g = self.c, self.goal
         err = c.reading.error_ned
         dyn = c.dyn
-        # GUIDED on the ground: ArduPilot's controllers idle (is_disarmed_or_landed), no target
-        # lifts the vehicle, only a takeoff command does (a climb sent there stays on the ground)
-        if blocked or (c.mode == GUIDED and dyn.state.landed and not self._taking_off):
+        # GUIDED landed: ArduPilot's controllers idle (is_disarmed_or_landed), no target lifts
+        # the vehicle, only a takeoff command does (a climb sent there stays on the ground)
+        if blocked or (c.mode == GUIDED and self.land_complete and not self._taking_off):
             n, e, _ = dyn.state.position
             dyn.set_position_target((n, e, 0.0))
             return
@@ -316,7 +326,7 @@ class Guidance:
             if c.dyn.state.altitude >= -self.goal.d - 0.3:
                 self._reached(c.mission_current)
             return
-        hold_s = _HOLD_S.get(item.command)
+        hold_s = ms.HOLD_S.get(item.command)
         if hold_s is None:
             return  # land, RTL: done on touchdown; LOITER_UNLIM: never
         if self._arrived_at is None and self._arrived(c.config.wp_radius):
@@ -365,7 +375,7 @@ class Guidance:
     def landed_state(self) -> int:
         """MAV_LANDED_STATE for EXTENDED_SYS_STATE."""
         c = self.c
-        if c.dyn.state.landed and not (self._taking_off and c.armed):
+        if self.land_complete and not (self._taking_off and c.armed):
             return ON_GROUND
         if self._taking_off:
             return TAKEOFF
@@ -381,20 +391,3 @@ class Guidance:
         if self.mission_state in (MISSION_NONE, MISSION_PAUSED):
             return MISSION_NOT_STARTED
         return self.mission_state
-
-
-# how long each nav item holds once there (LOITER_TURNS: 10 s a turn)
-_HOLD_S = {
-    ms.NAV_WAYPOINT: lambda it: max(it.param1, 0.0),
-    ms.NAV_SPLINE_WAYPOINT: lambda it: max(it.param1, 0.0),
-    ms.NAV_LOITER_TIME: lambda it: max(it.param1, 0.0),
-    ms.NAV_LOITER_TURNS: lambda it: 10.0 * max(it.param1, 0.0),
-    ms.NAV_DELAY: lambda it: max(it.param1, 0.0),
-}
-
-_CMD_NAMES = {
-    ms.NAV_WAYPOINT: "WP", ms.NAV_LOITER_TIME: "LoitTime", ms.NAV_RETURN_TO_LAUNCH: "RTL",
-    ms.NAV_LAND: "Land", ms.NAV_TAKEOFF: "Takeoff", ms.DO_CHANGE_SPEED: "ChangeSpeed",
-    ms.DO_JUMP: "Jump", ms.NAV_LOITER_UNLIM: "LoitUnlim", ms.NAV_LOITER_TURNS: "LoitTurns",
-    ms.NAV_SPLINE_WAYPOINT: "SplineWP", ms.NAV_DELAY: "Delay",
-}  # fmt: skip

@@ -186,3 +186,20 @@ def starts_with_takeoff(items: list[Item]) -> bool:
         if item.command in NAV_COMMANDS:
             return item.command == NAV_TAKEOFF
     return False
+
+
+# how long each nav item holds once there (LOITER_TURNS: 10 s a turn)
+HOLD_S = {
+    NAV_WAYPOINT: lambda it: max(it.param1, 0.0),
+    NAV_SPLINE_WAYPOINT: lambda it: max(it.param1, 0.0),
+    NAV_LOITER_TIME: lambda it: max(it.param1, 0.0),
+    NAV_LOITER_TURNS: lambda it: 10.0 * max(it.param1, 0.0),
+    NAV_DELAY: lambda it: max(it.param1, 0.0),
+}
+
+CMD_NAMES = {
+    NAV_WAYPOINT: "WP", NAV_LOITER_TIME: "LoitTime", NAV_RETURN_TO_LAUNCH: "RTL",
+    NAV_LAND: "Land", NAV_TAKEOFF: "Takeoff", DO_CHANGE_SPEED: "ChangeSpeed",
+    DO_JUMP: "Jump", NAV_LOITER_UNLIM: "LoitUnlim", NAV_LOITER_TURNS: "LoitTurns",
+    NAV_SPLINE_WAYPOINT: "SplineWP", NAV_DELAY: "Delay",
+}  # fmt: skip

@@ -6,6 +6,7 @@ import itertools
 import math
 
 import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sim.vehicle import mission as ms
 from sim.vehicle.dynamics import Dynamics, DynamicsParams, Phase
@@ -256,3 +257,38 @@ def test_leaving_auto_stops_the_mission_as_ardupilot_reports_it() -> None:
         if not c.armed:
             break
     assert c.guidance.reported_mission_state() == MISSION_COMPLETE
+
+
+def test_land_disarms_a_second_after_touchdown_and_guided_lifts_off_before_it() -> None:
+    """ArduPilot's land detector: on the ground LAND_DETECTOR_TRIGGER_SEC (1 s) before
+    land_complete; LAND disarms then and EXTENDED_SYS_STATE says ON_GROUND. In that second GUIDED
+    still flies: a climb sent there lifts the vehicle off again (after it, GUIDED idles)."""
+    from sim.vehicle.constants import LANDING, ON_GROUND
+    from sim.vehicle.copter import Copter, CopterConfig
+    from sim.vehicle.standalone import OpenPad
+
+    velocity_only = 0b0000_1101_1100_0111
+    climb = mavlink.MAVLink_set_position_target_local_ned_message(
+        0, 1, 1, 1, velocity_only, 0, 0, 0, 0, 0, -1.0, 0, 0, 0, 0, 0
+    )
+    for climb_at in (None, 0.5):
+        c = Copter(OpenPad(), CopterConfig(seed=2))
+        assert c.set_mode(4) and c.arm() == 0 and c.guidance.takeoff(3) == 0
+        while c.dyn.state.altitude < 2.9 and c.t < 30.0:
+            c.tick(0.05, 0.0)
+        assert c.set_mode(9)  # LAND
+        while not c.dyn.state.landed and c.t < 60.0:
+            c.tick(0.05, 0.0)
+        assert c.dyn.state.landed and c.armed
+        down = c.t
+        while c.armed and c.t < down + 3.0 and c.dyn.state.landed:
+            assert c.guidance.landed_state() == LANDING, c.t - down
+            if climb_at is not None and c.t >= down + climb_at:
+                assert c.set_mode(4)  # GUIDED, climbing at 1 m/s
+                c.handle(climb, None, 0.0)
+            c.tick(0.05, 0.0)
+        if climb_at is None:  # disarmed by LAND one second after touchdown
+            assert not c.armed and 0.95 <= c.t - down <= 1.1, c.t - down
+            assert c.guidance.landed_state() == ON_GROUND
+        else:  # lifted off again before the detector had seen the touchdown
+            assert c.armed and not c.dyn.state.landed and c.t - down < 1.0
