@@ -96,6 +96,14 @@ NTRIP_CLIENTS = Gauge(
     ["version"],
     registry=REGISTRY,
 )
+NTRIP_RECHECKS = Counter(
+    "aerobase_ntrip_rechecks_total",
+    "Running NTRIP streams' credentials checked again, by outcome: allowed, ended (the account "
+    "may no longer take the stream), failed (could not be checked, the database away: the "
+    "stream goes on)",
+    ["outcome"],
+    registry=REGISTRY,
+)
 LOGINS = Counter(
     "aerobase_logins_total",
     "Password and secret checks by door (user, asset, ntrip, password_change) and outcome: ok "

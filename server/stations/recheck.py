@@ -11,6 +11,8 @@ import time
 from collections.abc import AsyncGenerator, AsyncIterator, Awaitable, Callable
 from typing import Any
 
+from server.kit.metrics import NTRIP_RECHECKS
+
 log = logging.getLogger(__name__)
 
 # (username, password, organisation id) -> whether those credentials still open that
@@ -43,10 +45,11 @@ async def rechecked(
         async for frame in frames:
             if still is not None and time.monotonic() >= next_at:
                 try:
-                    allowed = await still()
+                    allowed, outcome = await still(), None
                 except Exception:
                     log.warning("ntrip: a stream's credentials could not be checked", exc_info=True)
-                    allowed = True
+                    allowed, outcome = True, "failed"
+                NTRIP_RECHECKS.labels(outcome or ("allowed" if allowed else "ended")).inc()
                 if not allowed:
                     log.info("ntrip: a stream's account may no longer take it; ended")
                     return

@@ -16,6 +16,7 @@ from assetlink.configfile import decrypt_config
 from assetlink.link import Link
 from server.deps import services_of
 from tests.conftest import LiveServer, Tenant, test_settings
+from tests.metrics import value
 from tests.polling import eventually
 from tests.rtk import base_sending
 
@@ -74,17 +75,23 @@ async def _v2(url: str, mountpoint: str, email: str) -> Rover:
     return rover
 
 
-async def _fed(rovers: list[Rover], checks: int = 1) -> None:
-    """Each rover gets more corrections over several recheck periods, and none was cut off."""
-    before = [r.received for r in rovers]
-    for _ in range(checks):
-        now = [r.received for r in rovers]
-        await eventually(
-            lambda now=now: all(r.received > n + 2000 for r, n in zip(rovers, now, strict=True)),
-            what="corrections going on",
-        )
+async def _fed(rovers: list[Rover]) -> None:
+    """Each rover gets more corrections, and none was cut off."""
+    now = [r.received for r in rovers]
+    await eventually(
+        lambda: all(r.received > n + 2000 for r, n in zip(rovers, now, strict=True)),
+        what="corrections going on",
+    )
     assert not any(r.ended for r in rovers), rovers
-    assert all(r.received > b for r, b in zip(rovers, before, strict=True))
+
+
+async def _rechecks(url: str, outcome: str, at_least: float | None = None) -> float | bool:
+    """The server's count of stream rechecks with `outcome` (its /metrics, over HTTP); with
+    `at_least`, whether it has reached that."""
+    async with httpx.AsyncClient(base_url=url) as client:
+        text = (await client.get("/metrics")).text
+    n = value(text, "aerobase_ntrip_rechecks_total", outcome=outcome)
+    return n if at_least is None else n >= at_least
 
 
 async def test_a_disabled_users_streams_end_and_the_others_go_on(
@@ -121,12 +128,22 @@ async def test_a_disabled_users_streams_end_and_the_others_go_on(
             )
             assert r.status_code == 200, r.text
             await eventually(lambda: rovers[0].ended and rovers[1].ended, what="viewer cut off")
+            ended = await _rechecks(server.url, "ended")
             await _fed(rovers[2:])
             reset = f"/api/v1/users/{tenant.user_ids['operator']}/password"
-            # the same password again: a new hash, one password check, and the stream goes on
+            # the same password again: a new hash, one password check, and the streams go on
+            # through rechecks made after it (three a stream: each rechecked at the same period)
+            allowed = await _rechecks(server.url, "allowed")
             r = api.post(reset, json={"new_password": Tenant.PASSWORD}, headers=tenant.h())
             assert r.status_code == 204, r.text
-            await _fed(rovers[2:], checks=3)
+            after = allowed + 3 * len(rovers[2:])
+            await eventually(
+                lambda: _rechecks(server.url, "allowed", at_least=after),
+                what="rechecks after it",
+                interval=0.1,
+            )
+            await _fed(rovers[2:])
+            assert await _rechecks(server.url, "ended") == ended  # only the viewer's two
             r = api.post(reset, json={"new_password": "another-password-9"}, headers=tenant.h())
             assert r.status_code == 204, r.text
             await eventually(lambda: rovers[2].ended, what="the operator's rover cut off")

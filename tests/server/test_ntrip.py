@@ -22,6 +22,7 @@ from pyrtcm import RTCMReader
 
 from base_station.rtk import RtkConfig, RtkReader
 from protocol.rtcm import Reframer, frame_ok, message_type
+from server.kit.metrics import NTRIP_RECHECKS
 from server.realtime.broker import InProcessBroker
 from server.realtime.channels import rtcm_channel
 from server.stations.ntrip import (
@@ -390,7 +391,13 @@ async def test_a_stream_ends_when_its_check_says_no_and_goes_on_when_the_check_f
     async def broken() -> bool:
         raise ConnectionError("the database is away")
 
+    def counted() -> dict[str, float]:  # aerobase_ntrip_rechecks_total by outcome
+        return {o: NTRIP_RECHECKS.labels(o)._value.get() for o in ("allowed", "ended", "failed")}
+
     # every_s 0: asked before each frame after the first check's moment
+    before = counted()
     assert [f async for f in rechecked(frames(), allowed, 0.0)] == [b"\x00"]
     assert [f async for f in rechecked(frames(), broken, 0.0)] == [bytes([i]) for i in range(5)]
     assert [f async for f in rechecked(frames(), None, 0.0)] == [bytes([i]) for i in range(5)]
+    after = counted()
+    assert {o: after[o] - before[o] for o in after} == {"allowed": 1, "ended": 1, "failed": 5}
