@@ -767,6 +767,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="the autopilot path's PLND_XY_DIST_MAX while it lands (default: the agent's "
         "[precland.autopilot], 0.05 m; 2.5 is ArduPilot's default, as before the agent set it)",
     )
+    ap.add_argument(
+        "--max-time",
+        type=float,
+        default=150.0,
+        metavar="S",
+        help="simulated seconds a trial may last (default 150); one still in the air then is "
+        "reported not landed",
+    )
     ap.add_argument("--json", action="store_true")
     argv = list(sys.argv[1:] if argv is None else argv)
     args = ap.parse_args(argv)
@@ -781,6 +789,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "camera_hz": round(args.camera_hz, 2),
         "gnss": args.gnss,
         "plnd_xy_dist_max": args.plnd_xy_dist_max,
+        "max_time_s": args.max_time,
         "seed": args.seed,
         "seeds": [args.seed * 1000 + i for i in range(args.trials)],  # the same for every row
         "command": " ".join(["aerobase sim precland-eval", *argv]),
@@ -820,6 +829,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         camera_hz=args.camera_hz,
                         trace=trace,
                         gnss_fix=args.gnss,
+                        max_time=args.max_time,
                     )
                 else:
                     tr = run_autopilot_trial(
@@ -829,6 +839,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         trace=trace,
                         gnss_fix=args.gnss,
                         xy_dist_max=args.plnd_xy_dist_max,
+                        max_time=args.max_time,
                     )
                 trials.append(tr)
                 print(  # live progress, on stderr: the table on stdout stays parseable

@@ -48,6 +48,17 @@ def test_cli_prints_a_table_and_one_json_object_last(capsys):
     assert row["landed"] == 2 and row["max_cm"] >= row["mean_cm"] > 0
 
 
+def test_max_time_ends_a_trial_still_in_the_air_on_both_paths(capsys):
+    """`--max-time`: a trial that has not landed by then is reported not landed (a landing from
+    10 m takes 16 s or more), on the agent's path and the autopilot's."""
+    argv = ["--trials", "1", "--scenario", "ir", "--max-time", "4", "--json"]
+    assert main(argv) == 0
+    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert result["max_time_s"] == 4.0
+    for row in (result["scenarios"]["ir"], result["autopilot"]["ir"]):
+        assert row["landed"] == 0 and row["time_s"] == pytest.approx(4.0, abs=0.02), row
+
+
 def test_the_ekf_velocity_error_has_its_modelled_noise_and_slow_bias():
     err = EkfVelocityError(np.random.default_rng(5))
     e = np.array([err.step(0.01) for _ in range(60_000)])  # 600 s at 100 Hz
