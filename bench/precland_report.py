@@ -64,23 +64,25 @@ def _plot_touchdowns(folder: Path, touchdowns: dict[str, list[Any]]) -> None:
         ax.set_visible(False)
     for ax, (label, trials) in zip(axes.flat, touchdowns.items(), strict=False):
         cm = np.array([[100 * tr.touchdown[1], 100 * tr.touchdown[0]] for tr in trials])
-        lim = max(10.0, float(np.abs(cm).max()) * 1.2)
-        ax.add_patch(plt.Circle((0, 0), 100 * CONTACTS_M, fill=False, color="green"))
         down = np.array([tr.landed for tr in trials], dtype=bool)
+        note = ""
+        # scaled to the touchdowns (metres away, a trial held aloft would hide them): one held
+        # farther is drawn at the edge, in its direction
+        lim = max(10.0, float(np.abs(cm[down] if down.any() else cm).max()) * 1.2)
+        ax.add_patch(plt.Circle((0, 0), 100 * CONTACTS_M, fill=False, color="green"))
         ax.scatter(cm[down, 0], cm[down, 1], s=14, color="tab:red")
         if not down.all():  # aborted: where it held at the safe height, not a touchdown
-            ax.scatter(cm[~down, 0], cm[~down, 1], s=16, facecolors="none", edgecolors="grey")
-            ax.text(
-                0.02,
-                0.02,
-                f"○ {int((~down).sum())} held aloft, not landed",
-                transform=ax.transAxes,
-                fontsize=7,
-                color="grey",
+            aloft = cm[~down]
+            far = np.abs(aloft).max(axis=1, keepdims=True)
+            edge = aloft * np.minimum(1.0, 0.95 * lim / np.maximum(far, 1e-9))
+            ax.scatter(edge[:, 0], edge[:, 1], s=16, facecolors="none", edgecolors="grey")
+            off = np.hypot(aloft[:, 0], aloft[:, 1]) / 100
+            note = (
+                f"\n○ {len(aloft)} held aloft ({off.min():.1f}–{off.max():.1f} m off), not landed"
             )
         ax.plot(0, 0, "k+")
         ax.set(xlim=(-lim, lim), ylim=(-lim, lim), aspect="equal", title=label)
-        ax.set_xlabel("east, cm", fontsize=8)
+        ax.set_xlabel("east, cm" + note, fontsize=8)
         ax.set_ylabel("north, cm", fontsize=8)
         ax.title.set_fontsize(8)
     title = (
