@@ -45,11 +45,12 @@ async def rechecked(
         async for frame in frames:
             if still is not None and time.monotonic() >= next_at:
                 try:
-                    allowed, outcome = await still(), None
+                    allowed = await still()
+                    outcome = "allowed" if allowed else "ended"
                 except Exception:
                     log.warning("ntrip: a stream's credentials could not be checked", exc_info=True)
                     allowed, outcome = True, "failed"
-                NTRIP_RECHECKS.labels(outcome or ("allowed" if allowed else "ended")).inc()
+                NTRIP_RECHECKS.labels(outcome).inc()
                 if not allowed:
                     log.info("ntrip: a stream's account may no longer take it; ended")
                     return
