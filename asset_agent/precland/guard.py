@@ -96,12 +96,10 @@ class LossGuard:
                 return GuardAction("fly", cmd.setpoint)
             self.flying = False  # in view again, or back over the pad: the autopilot lands
             return GuardAction("land")
-        touching_down = est.rel_ned[2] - self.config.control.touchdown_height <= TOUCHING_DOWN_M
-        if wait and not touching_down and self._blind_unsafe(est, state):
+        above = float(est.rel_ned[2]) - self.config.control.touchdown_height
+        if wait and above > TOUCHING_DOWN_M and self._blind_unsafe(est, state):
             self.flying = True
-            self.losses.append(
-                round(float(est.rel_ned[2]) - self.config.control.touchdown_height, 2)
-            )
+            self.losses.append(round(above, 2))
             return GuardAction("take", cmd.setpoint)
         self.sequence.restart_pause(now)  # the autopilot lands through this loss: no retry spent
         return GuardAction("watch")

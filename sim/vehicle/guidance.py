@@ -65,7 +65,7 @@ class Guidance:
         self._rtl_alt = 0.0
         self._arrived_at: float | None = None
         self._taking_off = False
-        self.landed_s = LAND_DETECTOR_S  # on the ground this long (it starts there)
+        self._landed_s = LAND_DETECTOR_S  # on the ground this long (it starts there)
         self._target_seen = False
         self._jumps: dict[int, int] = {}
         self.yaw_target: float | None = None
@@ -109,7 +109,7 @@ class Guidance:
         """ArduPilot's `ap.land_complete`: its land detector has seen the vehicle on the ground
         for LAND_DETECTOR_S. Then LAND disarms, GUIDED idles and EXTENDED_SYS_STATE says ON_GROUND;
         in the second before, GUIDED still flies (a climb sent then lifts the vehicle again)."""
-        return self.landed_s >= LAND_DETECTOR_S
+        return self._landed_s >= LAND_DETECTOR_S
 
     def takeoff(self, alt: float) -> int:
         """GUIDED takeoff to `alt` metres above home; a MAV_RESULT."""
@@ -252,7 +252,7 @@ class Guidance:
     def update(self, dt: float, blocked: bool) -> None:
         """Advance the mode logic and hand the dynamics a true target."""
         c = self.c
-        self.landed_s = self.landed_s + dt if c.dyn.state.landed else 0.0
+        self._landed_s = self._landed_s + dt if c.dyn.state.landed else 0.0
         if not c.armed:
             return
         if self.goal.kind == "land" and self.land_complete:

@@ -9,13 +9,13 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
-from collections.abc import AsyncIterator
-from typing import Any
+from collections.abc import AsyncIterator, Callable
 
 import pytest
 
 from asset_agent.autopilot import Autopilot
 from asset_agent.precland.config import FaultConfig, RetryConfig, SearchConfig
+from asset_agent.precland.supervisor import PrecisionLander
 from asynckit.tasks import cancel_and_wait
 from sim.vehicle.server import VehicleServer, WindFn, run_vehicle
 from tests.asset_agent.blind_landing import (
@@ -136,18 +136,28 @@ async def test_a_pad_lost_at_3_m_on_a_plain_fix_is_retried_then_abandoned_not_la
         assert events[0].detail["lost_at_m"] == took.losses[-1] < 2.75  # the beacon's 3 m
 
 
-@pytest.mark.slow  # ~15 s: the landing from 10 m at 4x
-async def test_a_pad_lost_at_3_m_on_rtk_fixed_is_landed_by_the_autopilot(
-    autopilot: Autopilot, vehicle: VehicleServer
-) -> None:
+@contextlib.asynccontextmanager
+async def landing_on_rtk_fixed(
+    autopilot: Autopilot, vehicle: VehicleServer, fault: FaultConfig, retry: RetryConfig
+) -> AsyncIterator[PrecisionLander]:
+    """The daemon's lander (its beacon failing as `fault` says, retrying as `retry` does) on an
+    RTK fixed fix, once the autopilot has taken off and been told to LAND."""
     async with (
         corrections(autopilot, 0.1),
         blind_beacon_lander(
-            autopilot, vehicle, BELOW_3M, search=SEARCH, retry=ONE_RETRY, pad_sigma_m=0.5
+            autopilot, vehicle, fault, search=SEARCH, retry=retry, pad_sigma_m=0.5
         ) as lander,
     ):
         await eventually(lambda: autopilot.state.fix_type == 6, 15, "RTK fixed")
         await take_off_and_land(autopilot, vehicle)
+        yield lander
+
+
+@pytest.mark.slow  # ~15 s: the landing from 10 m at 4x
+async def test_a_pad_lost_at_3_m_on_rtk_fixed_is_landed_by_the_autopilot(
+    autopilot: Autopilot, vehicle: VehicleServer
+) -> None:
+    async with landing_on_rtk_fixed(autopilot, vehicle, BELOW_3M, ONE_RETRY) as lander:
         await eventually(lambda: not autopilot.state.armed, 60, "landed and disarmed")
         # lost over the pad, the autopilot lands; lost off it (outside the cone: under load the
         # vehicle lags its targets), the guard flies a retry first — never an abandoned landing
@@ -163,7 +173,7 @@ NO_RETRY = RetryConfig(max_attempts=0, blind_hold_max_s=5.0)  # lost: at once bl
 @contextlib.asynccontextmanager
 async def storm_below(
     height_m: float, wind_mps: float, lasting_s: float = math.inf
-) -> AsyncIterator[tuple[WindFn, Any]]:
+) -> AsyncIterator[tuple[WindFn, Callable[[VehicleServer], None]]]:
     """A wind (from the south, carrying the vehicle north) stronger than the vehicle can lean
     against, rising once the vehicle is first below `height_m`, for `lasting_s` simulated
     seconds: (the simulator's wind function, a binder that starts watching the vehicle the
@@ -194,7 +204,7 @@ async def storm_below(
 @contextlib.asynccontextmanager
 async def landing_into_a_storm(
     retry: RetryConfig, lasting_s: float = math.inf
-) -> AsyncIterator[tuple[VehicleServer, Autopilot, Any]]:
+) -> AsyncIterator[tuple[VehicleServer, Autopilot, PrecisionLander]]:
     """On RTK fixed, the beacon failing below 2 m, a landing by the autopilot into a storm
     rising at 1.5 m for `lasting_s`: (the vehicle, the adapter, the daemon's lander), once LAND
     has begun."""
@@ -205,13 +215,8 @@ async def landing_into_a_storm(
         bind(vehicle)
         async with (
             precland_adapter(vehicle) as autopilot,
-            corrections(autopilot, 0.1),
-            blind_beacon_lander(
-                autopilot, vehicle, BELOW_2M, search=SEARCH, retry=retry, pad_sigma_m=0.5
-            ) as lander,
+            landing_on_rtk_fixed(autopilot, vehicle, BELOW_2M, retry) as lander,
         ):
-            await eventually(lambda: autopilot.state.fix_type == 6, 15, "RTK fixed")
-            await take_off_and_land(autopilot, vehicle)
             await eventually(lambda: autopilot.state.mode == "LAND", 10, "the autopilot lands")
             yield vehicle, autopilot, lander
 

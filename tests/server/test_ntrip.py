@@ -22,7 +22,7 @@ from pyrtcm import RTCMReader
 
 from base_station.rtk import RtkConfig, RtkReader
 from protocol.rtcm import Reframer, frame_ok, message_type
-from server.kit.metrics import NTRIP_RECHECKS
+from server.kit.metrics import REGISTRY
 from server.realtime.broker import InProcessBroker
 from server.realtime.channels import rtcm_channel
 from server.stations.ntrip import (
@@ -392,7 +392,11 @@ async def test_a_stream_ends_when_its_check_says_no_and_goes_on_when_the_check_f
         raise ConnectionError("the database is away")
 
     def counted() -> dict[str, float]:  # aerobase_ntrip_rechecks_total by outcome
-        return {o: NTRIP_RECHECKS.labels(o)._value.get() for o in ("allowed", "ended", "failed")}
+        name = "aerobase_ntrip_rechecks_total"
+        return {
+            o: REGISTRY.get_sample_value(name, {"outcome": o}) or 0.0
+            for o in ("allowed", "ended", "failed")
+        }
 
     # every_s 0: asked before each frame after the first check's moment
     before = counted()
