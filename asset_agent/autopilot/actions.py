@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Awaitable, Callable
 
+from asset_agent.autopilot.errors import AutopilotError
 from asset_agent.autopilot.flight_state import MissionWatch
 from asset_agent.autopilot.state import MODE_NUMBERS, UavState
 
@@ -42,14 +44,24 @@ class ActionsMixin:
         await self.command(CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, alt_m)
 
     async def start_mission(self) -> None:
-        """Start the uploaded mission: from the ground GUIDED + arm + MISSION_START; in the air AUTO."""
+        """Start the uploaded mission: from the ground GUIDED + arm + MISSION_START; in the air AUTO.
+
+        A start that fails after arming disarms again (the error is raised all the same): the
+        motors would idle on the pad until the autopilot's DISARM_DELAY, 10 s on ArduPilot."""
         if self.state.armed and self.state.in_air:
             await self.set_mode("AUTO")
             return
-        if not self.state.armed:
+        armed_here = not self.state.armed
+        if armed_here:
             await self.set_mode("GUIDED")
             await self.arm()
-        await self.command(CMD_MISSION_START, 0, 0)
+        try:
+            await self.command(CMD_MISSION_START, 0, 0)
+        except AutopilotError:
+            if armed_here:
+                with contextlib.suppress(AutopilotError):  # a lost link: the delay disarms it
+                    await self.disarm()
+            raise
 
     async def pause(self, mode: str = "BRAKE") -> None:
         """Stop and hold position (BRAKE, or LOITER)."""

@@ -221,7 +221,7 @@ class Copter(MissionProtocolMixin, BootMixin):
             return FAILED
         self.armed = True
         self.dyn.motors_on = True
-        self.guidance.hold()
+        self.guidance.on_arming()
         self.text(INFO, "Arming motors")
         return ACCEPTED
 

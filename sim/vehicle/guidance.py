@@ -31,6 +31,7 @@ from sim.vehicle.constants import (
     RTL,
     TAKEOFF,
 )  # fmt: skip
+from sim.vehicle.disarm import auto_disarm
 from sim.vehicle.plnd_flight import land_with_plnd
 
 if TYPE_CHECKING:
@@ -66,6 +67,7 @@ class Guidance:
         self._arrived_at: float | None = None
         self._taking_off = False
         self._landed_s = LAND_DETECTOR_S  # on the ground this long (it starts there)
+        self.idle_s = 0.0  # armed and idling on the ground this long (disarm.py)
         self._target_seen = False
         self._jumps: dict[int, int] = {}
         self.yaw_target: float | None = None
@@ -76,6 +78,11 @@ class Guidance:
         n, e, d = self.c.estimated_position()
         self.goal = Goal("goto", n, e, min(d, 0.0))
         self._taking_off = False
+
+    def on_arming(self) -> None:
+        """Armed: hold here; the auto-disarm timer starts (disarm.py)."""
+        self.idle_s = 0.0
+        self.hold()
 
     def enter_mode(self, mode: int) -> None:
         """A mode change happened: set up what the new mode flies."""
@@ -253,7 +260,7 @@ class Guidance:
         """Advance the mode logic and hand the dynamics a true target."""
         c = self.c
         self._landed_s = self._landed_s + dt if c.dyn.state.landed else 0.0
-        if not c.armed:
+        if auto_disarm(self, dt) or not c.armed:
             return
         if self.goal.kind == "land" and self.land_complete:
             self._touched_down()

@@ -10,6 +10,7 @@ from collections.abc import AsyncIterator
 import pytest
 
 from asset_agent.autopilot import Autopilot, CommandRejected, items_from_dicts
+from asset_agent.autopilot.params import set_param
 from asset_agent.autopilot.state import Notification, UavState
 from asset_agent.events import EventTracker
 from protocol.rtcm import build_frame
@@ -196,20 +197,24 @@ async def test_low_battery_blocks_arming(autopilot: Autopilot, vehicle: VehicleS
     assert "Battery" in info.value.detail
 
 
-async def test_nacked_commands(autopilot: Autopilot) -> None:
+async def test_nacked_commands(autopilot: Autopilot, vehicle: VehicleServer) -> None:
     with pytest.raises(CommandRejected) as info:
         await autopilot.takeoff(10)  # not armed
     assert info.value.result_name == "FAILED" and info.value.command == 22
     with pytest.raises(CommandRejected) as info:
         await autopilot.command(183, 9, 1500)  # DO_SET_SERVO: not simulated
     assert info.value.result_name == "UNSUPPORTED"
+    await set_param(autopilot, "DISARM_DELAY", 0)  # the autopilot would not disarm by itself
     with pytest.raises(CommandRejected):
         await autopilot.start_mission()  # no mission: MISSION_START fails after arming
-    await autopilot.disarm()
-    await eventually(lambda: not autopilot.state.armed, 5, "disarmed in the HEARTBEAT")
+    # and the adapter disarmed again (acknowledged before the error came back): no motor left
+    # idling on the pad
+    assert not vehicle.copter.armed
 
 
-async def test_auto_without_takeoff_item_is_refused_on_the_ground(autopilot: Autopilot) -> None:
+async def test_auto_without_takeoff_item_is_refused_on_the_ground(
+    autopilot: Autopilot, vehicle: VehicleServer
+) -> None:
     wp = {
         "command": 16,
         "frame": 3,
@@ -219,10 +224,11 @@ async def test_auto_without_takeoff_item_is_refused_on_the_ground(autopilot: Aut
         "alt": 10,
     }
     await autopilot.upload_mission(items_from_dicts([wp]))
+    await set_param(autopilot, "DISARM_DELAY", 0)  # the autopilot would not disarm by itself
     with pytest.raises(CommandRejected) as info:
         await autopilot.start_mission()
     assert "Missing Takeoff" in info.value.detail
-    await autopilot.disarm()
+    assert not vehicle.copter.armed  # disarmed again after the refused start
 
 
 @pytest.mark.slow

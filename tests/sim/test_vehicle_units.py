@@ -292,3 +292,38 @@ def test_land_disarms_a_second_after_touchdown_and_guided_lifts_off_before_it() 
             assert c.guidance.landed_state() == ON_GROUND
         else:  # lifted off again before the detector had seen the touchdown
             assert c.armed and not c.dyn.state.landed and c.t - down < 1.0
+
+
+def test_armed_on_the_ground_without_a_takeoff_disarms_after_disarm_delay() -> None:
+    """ArduPilot's auto-disarm: armed in GUIDED and left on the ground (no takeoff), the vehicle
+    disarms itself DISARM_DELAY (10 s) after arming; a takeoff sent before then keeps it armed;
+    DISARM_DELAY 0 never disarms; a manual disarm and re-arm starts the delay again."""
+    from sim.vehicle.copter import Copter, CopterConfig
+    from sim.vehicle.standalone import OpenPad
+
+    def armed_for(c: Copter, limit: float, takeoff_at: float | None = None) -> float:
+        start = c.t
+        while c.armed and c.t < start + limit:
+            if takeoff_at is not None and c.t >= start + takeoff_at and c.dyn.state.landed:
+                assert c.guidance.takeoff(3) == 0
+                takeoff_at = None
+            c.tick(0.05, 0.0)
+        return c.t - start
+
+    c = Copter(OpenPad(), CopterConfig(seed=2))
+    assert c.param("DISARM_DELAY") == 10
+    assert c.set_mode(4) and c.arm() == 0  # GUIDED
+    assert 9.95 <= armed_for(c, 30.0) <= 10.1 and not c.armed
+
+    assert c.arm() == 0  # armed again, then a takeoff 8 s later: still armed 30 s on
+    assert armed_for(c, 30.0, takeoff_at=8.0) >= 30.0 and c.armed and c.flying
+
+    c = Copter(OpenPad(), CopterConfig(seed=2))
+    assert c.set_mode(4) and c.arm() == 0
+    armed_for(c, 6.0)
+    assert c.disarm() == 0 and c.arm() == 0  # the timer starts again at arming
+    assert 9.95 <= armed_for(c, 30.0) <= 10.1
+
+    c = Copter(OpenPad(), CopterConfig(seed=2))
+    assert c.set_param("DISARM_DELAY", 0) and c.set_mode(4) and c.arm() == 0
+    assert armed_for(c, 30.0) >= 30.0 and c.armed
