@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import functools
 import getpass
+import logging
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import AsyncIterator, Sequence
+from contextlib import asynccontextmanager
 from typing import Any
 
 from sqlalchemy import make_url
@@ -20,11 +23,15 @@ from server.kit.db import make_engine, make_sessionmaker
 from server.kit.errors import AppError
 from server.kit.principal import Role
 from server.kit.security import Passwords
-from server.kit.uow import UnitOfWork
+from server.kit.uow import SessionEndListener, UnitOfWork
 from server.logging import configure_logging
 from server.organizations import service
 from server.organizations.repository import UserRepository
+from server.realtime.broker import RedisBroker
+from server.realtime.hub import RECHECK_S, announce_sessions_ended
 from server.realtime.native import WebSocketProtocol
+
+log = logging.getLogger(__name__)
 
 
 def server_main(argv: Sequence[str] | None = None) -> int:
@@ -211,10 +218,16 @@ async def _admin(db, args, settings: Settings, passwords: Passwords) -> str:  # 
         if user is None:
             raise AppError(f"no user with e-mail {args.email}")
         user.password_hash = passwords.hash(_checked(_password(args.password)))
-        ended = await SessionService(UnitOfWork(db), settings).end_all_for_user(
-            user.id, "password_reset"
+        async with _session_end_announcer(settings) as listeners:
+            uow = UnitOfWork(db, session_end_listeners=listeners)
+            ended = await SessionService(uow, settings).end_all_for_user(user.id, "password_reset")
+            await uow.commit()  # then the listeners tell the running servers
+        sockets = (
+            "the servers told to close their sockets"
+            if listeners
+            else f"their sockets close within {RECHECK_S:.0f} s"
         )
-        return f"password of {user.email} set; {len(ended)} session(s) ended"
+        return f"password of {user.email} set; {len(ended)} session(s) ended, {sockets}"
     if args.command == "token":
         users = UserRepository(db)
         user = await users.by_email(args.email)
@@ -231,6 +244,29 @@ async def _admin(db, args, settings: Settings, passwords: Passwords) -> str:  # 
         )
         return issued.access_token
     raise AppError(f"unknown command {args.command}")
+
+
+@asynccontextmanager
+async def _session_end_announcer(
+    settings: Settings,
+) -> AsyncIterator[tuple[SessionEndListener, ...]]:
+    """Session-end listeners that make the running servers close the ended sessions' sockets
+    at once, through the Redis broker they share. Without one (REDIS_URL unset, or Redis away)
+    none: each server notices the end at its next look at the session (RECHECK_S)."""
+    if not settings.redis_url:
+        yield ()
+        return
+    broker = RedisBroker(settings.redis_url)
+    try:
+        await broker.start()
+    except Exception as err:  # the password change does not wait for Redis
+        log.warning("sessions ended, but Redis could not be told: %r", err)
+        yield ()
+        return
+    try:
+        yield (functools.partial(announce_sessions_ended, broker),)
+    finally:
+        await broker.close()
 
 
 def _checked(password: str) -> str:

@@ -45,6 +45,19 @@ class Counters:
     sent_to_operators: int = 0
 
 
+async def announce_sessions_ended(broker: Broker, ids: list[uuid.UUID], reason: str) -> None:
+    """Tell every process on `broker` to close these sessions' sockets (code 4001, `reason`):
+    a hub's own session ends, and the admin CLI's (`aerobase admin set-password`).
+
+    Sockets opened after this moment stay open: after a renewal the same session carries on
+    with its new token."""
+    if ids:
+        await broker.publish(
+            sessions_ended_channel(),
+            {"ids": [str(i) for i in ids], "reason": reason, "at": time.time()},
+        )
+
+
 class Hub:
     """Connections of this process; everything shared goes through the broker and the database."""
 
@@ -83,15 +96,8 @@ class Hub:
         await self._sweeper.stop()
 
     async def sessions_ended(self, ids: list[uuid.UUID], reason: str = "the session ended") -> None:
-        """Tell every process to close these sessions' sockets (code 4001).
-
-        Sockets opened after this moment stay open: after a renewal the same session carries on
-        with its new token."""
-        if ids:
-            await self.broker.publish(
-                sessions_ended_channel(),
-                {"ids": [str(i) for i in ids], "reason": reason, "at": time.time()},
-            )
+        """Tell every process to close these sessions' sockets (code 4001)."""
+        await announce_sessions_ended(self.broker, ids, reason)
 
     def _on_sessions_ended(self, message: dict[str, Any]) -> None:
         reason = str(message.get("reason") or "the session ended")

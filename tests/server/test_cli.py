@@ -11,7 +11,7 @@ import uuid
 
 import pytest
 
-from tests.conftest import Tenant, auth
+from tests.conftest import Tenant, auth, free_port
 
 
 def _run(
@@ -86,6 +86,14 @@ def test_admin_bootstrap_and_token(database_url, api):
     assert r.returncode == 0 and "1 session(s) ended" in r.stdout, (r.stdout, r.stderr)
     assert api.get("/api/v1/auth/me", headers=auth(token)).status_code == 401
     body = {"email": email, "password": "cli-password-456"}
+    assert api.post("/api/v1/auth/login", json=body).status_code == 200
+    # Redis named but away: the password is set all the same, and the CLI says the servers
+    # were not told (their sockets close at the next look at the session)
+    away = {**env, "REDIS_URL": f"redis://127.0.0.1:{free_port()}/0"}
+    r = _run(["admin", "set-password", "--email", email, "--password", "cli-password-789"], away)
+    assert r.returncode == 0 and "their sockets close within 30 s" in r.stdout, r.stdout
+    assert "Redis could not be told" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    body = {"email": email, "password": "cli-password-789"}
     assert api.post("/api/v1/auth/login", json=body).status_code == 200
     r = _run(["admin", "set-password", "--email", "nobody@x.test", "--password", "x" * 12], env)
     assert r.returncode == 1 and "no user" in r.stderr and "Traceback" not in r.stderr

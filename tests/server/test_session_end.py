@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
+import subprocess
+import sys
 import time
 import uuid
 from collections.abc import Iterator
@@ -20,7 +23,7 @@ import websockets
 from protocol.codec import encode
 from protocol.messages import HelloPayload, envelope
 from tests.conftest import LiveServer, Tenant, auth, login, test_settings
-from tests.replicas import replicas
+from tests.replicas import REDIS_URL, replicas
 from tests.server.realtime_client import operator_socket
 
 CLOSE_WITHIN_S = 1.0
@@ -194,3 +197,39 @@ async def test_a_session_ended_on_one_replica_closes_its_socket_on_the_other(
         started = time.monotonic()
         assert (await _post(a, "/api/v1/auth/logout", auth(token))).status_code == 204
         assert await closed_within(ws, started, CLOSE_WITHIN_S) == 4001
+
+
+@pytest.mark.slow
+async def test_a_password_set_from_the_admin_cli_closes_the_users_socket_on_a_replica(
+    two_replicas, api, superuser_email, database_url
+):
+    """`aerobase admin set-password` runs in a process of its own: it tells the replicas through
+    their Redis, so the user's socket closes with the reset as its reason (not at the replica's
+    next look at the session, up to 30 s later, as "expired or was ended")."""
+    _, b = two_replicas
+    tenant = Tenant(api, superuser_email, "cli-reset")
+    env = {
+        **os.environ,
+        "DATABASE_URL": database_url,
+        "REDIS_URL": REDIS_URL,
+        "AEROBASE_ARGON2_MEMORY_KIB": "8192",
+        "AEROBASE_ARGON2_TIME_COST": "1",
+    }
+    args = ["set-password", "--email", tenant.emails["operator"], "--password", "cli-reset-pw-1"]
+    async with operator_socket(b, tenant.tokens["operator"]) as ws:
+        r = await asyncio.to_thread(
+            subprocess.run,
+            [sys.executable, "-m", "aerobase.cli", "admin", *args],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert r.returncode == 0, r.stderr
+        assert "1 session(s) ended, the servers told to close their sockets" in r.stdout, r.stdout
+        with pytest.raises(websockets.ConnectionClosed) as closed:
+            async with asyncio.timeout(10):
+                while True:
+                    await ws.recv()
+    assert closed.value.rcvd is not None and closed.value.rcvd.code == 4001
+    assert "password was reset by an administrator" in closed.value.rcvd.reason
