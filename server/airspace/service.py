@@ -144,7 +144,7 @@ class AirspaceService(Service):
             "windows": row.windows,
             "base_id": row.base_id,
         }
-        if "geometry" in changes and changes["geometry"]["type"] == "Polygon":
+        if (changes.get("geometry") or {}).get("type") == "Polygon":  # null: refused below
             current["radius_m"] = None  # a circle turned polygon loses its radius
         try:
             zone = ZoneIn.model_validate({**current, **changes})

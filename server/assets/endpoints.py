@@ -95,6 +95,7 @@ async def update_asset(
     "/api/v1/assets/{asset_id}",
     status_code=204,
     response_class=Response,
+    responses=errors(Conflict),  # 409: runs refer to it
 )
 async def delete_asset(asset_id: uuid.UUID, assets: AssetsAdmin, expect: IfMatchDep) -> Response:
     """Delete an asset and end its sessions (admins only); with `If-Match`, only the version it

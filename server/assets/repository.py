@@ -5,12 +5,15 @@ from __future__ import annotations
 import uuid
 from collections.abc import Collection
 
-from sqlalchemy import select
+from sqlalchemy import exists, or_, select
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.assets.models import Asset
+from server.kit.db import delete_unless_referred
+from server.kit.errors import Conflict
 from server.kit.paging import Page, Paged, paginate
 from server.kit.scope import ScopedRepository
+from server.runs.models import Run
 
 
 class AssetRepository(ScopedRepository[Asset]):
@@ -30,6 +33,17 @@ class AssetRepository(ScopedRepository[Asset]):
         if kind:
             stmt = stmt.where(Asset.kind == kind)
         return await paginate(self.db, stmt, page)
+
+    async def delete(self, asset: Asset) -> None:
+        """Delete an asset in the current unit of work; Conflict while runs refer to it, as UAV
+        or base: a run's report names both (`delete_unless_referred`)."""
+        asset_id = asset.id
+        in_use = Conflict(
+            f"asset {asset_id} has flown runs (their reports refer to it) and cannot be deleted",
+            code="asset_in_use",
+        )
+        flown = select(exists().where(or_(Run.uav_id == asset_id, Run.base_id == asset_id)))
+        await delete_unless_referred(self.db, asset, flown, in_use)  # unscoped: its id
 
     async def bound_to(self, base_id: uuid.UUID) -> list[Asset]:
         """The UAVs bound to a landing base."""

@@ -97,7 +97,8 @@ class AssetService(Service):
         return asset, data
 
     async def delete(self, asset_id: uuid.UUID, expect: IfMatch = NO_PRECONDITION) -> None:
-        """Delete an asset and end its sessions; the UAVs bound to a base are unbound."""
+        """Delete an asset and end its sessions; the UAVs bound to a base are unbound. Conflict
+        (409) for one that runs refer to: their reports keep it."""
         asset = await self.repo.get(asset_id, lock=True)
         expect.check(asset.version, f"asset {asset.id}")
         for uav in await self.repo.bound_to(asset.id):
@@ -106,7 +107,7 @@ class AssetService(Service):
             self.uow, self.principal, "asset.deleted", target=str(asset.id), name=asset.name
         )
         await SessionService(self.uow, self.settings).end_all_for_asset(asset.id, "asset_deleted")
-        await self.db.delete(asset)
+        await self.repo.delete(asset)
 
     async def _issue(self, asset: Asset, password: str) -> bytes:
         secret = new_secret()
@@ -126,9 +127,11 @@ class AssetService(Service):
     async def update(
         self, asset_id: uuid.UUID, changes: dict[str, Any], expect: IfMatch = NO_PRECONDITION
     ) -> Asset:
-        """Apply a partial update (PreconditionFailed when `expect` names another version)."""
+        """Apply a partial update (PreconditionFailed when `expect` names another version); a
+        null leaves its field as it is, but for `base_id` (null: unbound from its base)."""
         asset = await self.repo.get(asset_id, lock=True)
         expect.check(asset.version, f"asset {asset.id}")
+        changes = {k: v for k, v in changes.items() if v is not None or k == "base_id"}
         if "name" in changes and changes["name"] != asset.name:
             if await self.repo.name_taken(changes["name"]):
                 raise Conflict(

@@ -8,8 +8,8 @@ from datetime import UTC, datetime
 from typing import Any
 
 import orjson
-from sqlalchemy import DateTime, MetaData, event
-from sqlalchemy.exc import StatementError
+from sqlalchemy import DateTime, MetaData, Select, event
+from sqlalchemy.exc import DBAPIError, IntegrityError, StatementError
 from sqlalchemy.ext.asyncio import (
     AsyncEngine,
     AsyncSession,
@@ -75,6 +75,9 @@ def json_dumps(value: Any) -> str:
         return json.dumps(value)
 
 
+DEADLOCK = "40P01"  # PostgreSQL's deadlock_detected
+
+
 def sqlstate(err: BaseException) -> str:
     """The SQLSTATE of a database error, found along its causes (asyncpg's, through SQLAlchemy's
     wrappers), or "" when none carries one (SQLite's errors do not)."""
@@ -88,6 +91,29 @@ def sqlstate(err: BaseException) -> str:
         orig = seen.orig if isinstance(seen, StatementError) else None
         seen = orig if isinstance(orig, BaseException) else seen.__cause__
     return ""
+
+
+async def delete_unless_referred(
+    db: AsyncSession, row: Any, referred: Select[Any], in_use: Exception
+) -> None:
+    """Delete `row` in the current unit of work, or raise `in_use` (a 409) while rows refer to it
+    through a RESTRICT foreign key (`referred`: a SELECT EXISTS of them).
+
+    They are looked for first, without locks: a DELETE whose RESTRICT check meets a row locked by
+    the run engine waits for it, while the engine's own foreign-key check waits for this row
+    (PostgreSQL reports a deadlock). Only a row made in the instant between the look and the
+    DELETE can still meet it; that violation, or that deadlock, is the same answer."""
+    if await db.scalar(referred):
+        raise in_use
+    await db.delete(row)
+    try:
+        await db.flush()
+    except IntegrityError as err:
+        raise in_use from err
+    except DBAPIError as err:
+        if sqlstate(err) == DEADLOCK:
+            raise in_use from err
+        raise
 
 
 def make_engine(url: str, **kwargs: Any) -> AsyncEngine:

@@ -3,16 +3,13 @@
 from __future__ import annotations
 
 from sqlalchemy import exists, select
-from sqlalchemy.exc import DBAPIError, IntegrityError
 
-from server.kit.db import sqlstate
+from server.kit.db import delete_unless_referred
 from server.kit.errors import Conflict
 from server.kit.paging import Page, Paged, paginate
 from server.kit.scope import ScopedRepository
 from server.missions.models import Mission, MissionKind
 from server.runs.models import Run
-
-DEADLOCK = "40P01"  # PostgreSQL's deadlock_detected
 
 
 class MissionRepository(ScopedRepository[Mission]):
@@ -35,25 +32,11 @@ class MissionRepository(ScopedRepository[Mission]):
         return mission
 
     async def delete(self, mission: Mission) -> None:
-        """Delete a mission in the current unit of work; Conflict while runs still refer to it.
-
-        Runs are looked for first, without locks: a DELETE whose RESTRICT check meets a run row
-        locked by the run engine waits for it, while the engine's own foreign-key check waits for
-        the mission (PostgreSQL reports a deadlock). Only a run created in the instant between
-        the look and the DELETE can still meet it; that deadlock is the same answer, 409."""
-        mission_id = mission.id  # the row cannot be read again once a flush failed
+        """Delete a mission in the current unit of work; Conflict while runs still refer to it
+        (`delete_unless_referred`)."""
+        mission_id = mission.id
         in_use = Conflict(
             f"mission {mission_id} is used by runs and cannot be deleted", code="mission_in_use"
         )
         referred = select(exists().where(Run.mission_id == mission_id))  # unscoped: its id
-        if await self.db.scalar(referred):
-            raise in_use
-        await self.db.delete(mission)
-        try:
-            await self.db.flush()
-        except IntegrityError as err:
-            raise in_use from err
-        except DBAPIError as err:
-            if sqlstate(err) == DEADLOCK:
-                raise in_use from err
-            raise
+        await delete_unless_referred(self.db, mission, referred, in_use)

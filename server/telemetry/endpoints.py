@@ -34,7 +34,9 @@ async def telemetry(
     start: Timestamp | None = None,
     end: Timestamp | None = None,
     fields: str | None = Query(None, max_length=2000, description="comma-separated dotted names"),
-    every: float | None = Query(None, gt=0, le=86400, description="bucket seconds"),
+    every: float | None = Query(
+        None, ge=0.001, le=86400, description="bucket seconds (a millisecond to a day)"
+    ),
     agg: Literal["mean", "last"] = "mean",
     limit: int = Query(10_000, ge=1, le=100_000),
 ) -> list[dict[str, Any]]:

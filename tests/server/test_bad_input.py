@@ -240,3 +240,66 @@ def test_a_waypoint_file_with_an_infinite_number_names_the_line(api, tenant: Ten
     )
     assert r.status_code == 422, r.text
     assert r.json()["error"]["message"].startswith("line 3: fields must be finite numbers"), r.text
+
+
+# found by a schema fuzz against the demo's data (ids that exist, with runs), each a 500 before
+
+
+def test_a_telemetry_bucket_below_a_millisecond_is_422(api: httpx.Client, tenant: Tenant):
+    uav = tenant.create_asset("uav")
+    path = f"/api/v1/assets/{uav['id']}/telemetry"
+    r = api.get(path, params={"every": "5e-324"}, headers=tenant.h("viewer"))
+    assert r.status_code == 422 and "every" in r.json()["error"]["message"], r.text
+    assert api.get(path, params={"every": 0.001}, headers=tenant.h("viewer")).status_code == 200
+
+
+def test_a_zone_patched_with_a_null_geometry_is_422(api: httpx.Client, tenant: Tenant):
+    square = [[[8.5, 47.3], [8.501, 47.3], [8.501, 47.301], [8.5, 47.301], [8.5, 47.3]]]
+    body = {
+        "name": "pad",
+        "kind": "exclusion",
+        "geometry": {"type": "Polygon", "coordinates": square},
+    }
+    r = api.post("/api/v1/airspace/zones", json=body, headers=tenant.h("operator"))
+    assert r.status_code == 201, r.text
+    path = f"/api/v1/airspace/zones/{r.json()['id']}"
+    r = api.patch(path, json={"geometry": None, "radius_m": 30}, headers=tenant.h("operator"))
+    assert r.status_code == 422 and r.json()["error"]["code"] == "invalid_zone", r.text
+    assert api.get(path, headers=tenant.h("viewer")).json()["geometry"]["coordinates"] == square
+
+
+def test_an_asset_patched_with_nulls_keeps_those_fields_and_null_base_unbinds(
+    api: httpx.Client, tenant: Tenant
+):
+    base = tenant.create_asset("landing_base")
+    uav = tenant.create_asset("uav", base_id=base["id"], attributes={"mass_g": 1450})
+    path = f"/api/v1/assets/{uav['id']}"
+    nulls = {"name": None, "description": None, "attributes": None, "base_id": None}
+    r = api.patch(path, json=nulls, headers=tenant.h("admin"))
+    assert r.status_code == 200, r.text
+    got = api.get(path, headers=tenant.h("viewer")).json()
+    assert got["name"] == uav["name"] and got["attributes"] == {"mass_g": 1450}
+    assert got["base_id"] is None
+
+
+def test_an_asset_that_has_flown_a_run_is_409_on_delete_and_kept(api: httpx.Client, tenant: Tenant):
+    base = tenant.create_asset("landing_base")
+    uav = tenant.create_asset("uav", base_id=base["id"])
+    item = {"command": 22, "lat": 47.39, "lon": 8.54, "alt": 20}
+    mission = api.post(
+        "/api/v1/missions", json={"name": "m", "items": [item]}, headers=tenant.h("operator")
+    )
+    assert mission.status_code == 201, mission.text
+    ids = {"mission_id": mission.json()["id"], "uav_id": uav["id"], "base_id": base["id"]}
+    run = api.post("/api/v1/runs", json=ids, headers=tenant.h("operator"))
+    assert run.status_code == 201, run.text
+    for asset in (uav, base):
+        r = api.delete(f"/api/v1/assets/{asset['id']}", headers=tenant.h("admin"))
+        assert r.status_code == 409 and r.json()["error"]["code"] == "asset_in_use", r.text
+        assert "runs" in r.json()["error"]["message"]
+        assert (
+            api.get(f"/api/v1/assets/{asset['id']}", headers=tenant.h("viewer")).status_code == 200
+        )
+    # an asset that never flew is deleted as before
+    spare = tenant.create_asset("uav")
+    assert api.delete(f"/api/v1/assets/{spare['id']}", headers=tenant.h("admin")).status_code == 204
