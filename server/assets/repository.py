@@ -42,8 +42,9 @@ class AssetRepository(ScopedRepository[Asset]):
             f"asset {asset_id} has flown runs (their reports refer to it) and cannot be deleted",
             code="asset_in_use",
         )
-        flown = select(exists().where(or_(Run.uav_id == asset_id, Run.base_id == asset_id)))
-        await delete_unless_referred(self.db, asset, flown, in_use)  # unscoped: its id
+        by_id = or_(Run.uav_id == asset_id, Run.base_id == asset_id)
+        flown = select(exists().where(by_id))  # unscoped: runs by its id
+        await delete_unless_referred(self.db, asset, flown, in_use)
 
     async def bound_to(self, base_id: uuid.UUID) -> list[Asset]:
         """The UAVs bound to a landing base."""
