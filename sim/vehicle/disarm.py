@@ -6,6 +6,10 @@ motors not spooled above ground idle, for `DISARM_DELAY` seconds (default 10; 0:
 it disarms. Spooled above ground idle here: a takeoff under way, or a mission flying in AUTO;
 GUIDED on the ground flies no other target (ModeGuided's `is_disarmed_or_landed`), so armed
 there without a takeoff it idles, and disarms. The timer starts again at every arming.
+
+The delay is counted in wall seconds, as the simulator's protocol timers are: it is the time a
+companion has between arming and its takeoff command, and a companion's latencies are wall
+time whatever the simulation's speed (at 20x, ten simulated seconds would be half a second).
 """
 
 from __future__ import annotations
@@ -19,14 +23,17 @@ if TYPE_CHECKING:
 
 
 def auto_disarm(g: Guidance, dt: float) -> bool:
-    """Advance the idle timer of `g`'s vehicle by `dt`; disarm it when the timer runs out."""
+    """Start, keep or stop `g`'s vehicle's idle timer; disarm it when the timer runs out."""
     c = g.c
     flying_mission = c.mode == AUTO and g.mission_state == MISSION_ACTIVE
-    idle = c.armed and g.landed_state() == ON_GROUND and not flying_mission
-    g.idle_s = g.idle_s + dt if idle else 0.0
-    delay = c.param("DISARM_DELAY")
-    if delay <= 0 or g.idle_s < delay:
+    if not (c.armed and g.landed_state() == ON_GROUND and not flying_mission):
+        g.idle_since = None
         return False
-    g.idle_s = 0.0
+    if g.idle_since is None:
+        g.idle_since = c.wall
+    delay = c.param("DISARM_DELAY")
+    if delay <= 0 or c.wall - g.idle_since < delay:
+        return False
+    g.idle_since = None
     c.disarm()
     return True

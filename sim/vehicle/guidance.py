@@ -67,7 +67,7 @@ class Guidance:
         self._arrived_at: float | None = None
         self._taking_off = False
         self._landed_s = LAND_DETECTOR_S  # on the ground this long (it starts there)
-        self.idle_s = 0.0  # armed and idling on the ground this long (disarm.py)
+        self.idle_since: float | None = None  # wall time it began idling armed on the ground
         self._target_seen = False
         self._jumps: dict[int, int] = {}
         self.yaw_target: float | None = None
@@ -81,7 +81,7 @@ class Guidance:
 
     def on_arming(self) -> None:
         """Armed: hold here; the auto-disarm timer starts (disarm.py)."""
-        self.idle_s = 0.0
+        self.idle_since = None
         self.hold()
 
     def enter_mode(self, mode: int) -> None:

@@ -302,12 +302,13 @@ def test_armed_on_the_ground_without_a_takeoff_disarms_after_disarm_delay() -> N
     from sim.vehicle.standalone import OpenPad
 
     def armed_for(c: Copter, limit: float, takeoff_at: float | None = None) -> float:
+        """Simulated seconds it stays armed, ticked at 1x (the delay is counted in wall time)."""
         start = c.t
         while c.armed and c.t < start + limit:
             if takeoff_at is not None and c.t >= start + takeoff_at and c.dyn.state.landed:
                 assert c.guidance.takeoff(3) == 0
                 takeoff_at = None
-            c.tick(0.05, 0.0)
+            c.tick(0.05, c.t + 0.05)
         return c.t - start
 
     c = Copter(OpenPad(), CopterConfig(seed=2))
@@ -327,3 +328,9 @@ def test_armed_on_the_ground_without_a_takeoff_disarms_after_disarm_delay() -> N
     c = Copter(OpenPad(), CopterConfig(seed=2))
     assert c.set_param("DISARM_DELAY", 0) and c.set_mode(4) and c.arm() == 0
     assert armed_for(c, 30.0) >= 30.0 and c.armed
+
+    c = Copter(OpenPad(), CopterConfig(seed=2))  # 30 simulated seconds in 3 wall seconds (10x)
+    assert c.set_mode(4) and c.arm() == 0
+    for _ in range(600):
+        c.tick(0.05, c.t / 10)
+    assert c.armed
