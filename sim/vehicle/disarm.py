@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from sim.vehicle.guidance import Guidance
 
 
-def auto_disarm(g: Guidance, dt: float) -> bool:
+def auto_disarm(g: Guidance) -> bool:
     """Start, keep or stop `g`'s vehicle's idle timer; disarm it when the timer runs out."""
     c = g.c
     flying_mission = c.mode == AUTO and g.mission_state == MISSION_ACTIVE

@@ -260,7 +260,7 @@ class Guidance:
         """Advance the mode logic and hand the dynamics a true target."""
         c = self.c
         self._landed_s = self._landed_s + dt if c.dyn.state.landed else 0.0
-        if auto_disarm(self, dt) or not c.armed:
+        if auto_disarm(self) or not c.armed:
             return
         if self.goal.kind == "land" and self.land_complete:
             self._touched_down()
