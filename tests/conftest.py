@@ -247,6 +247,13 @@ def superuser_email(database_url: str) -> str:
     return email
 
 
+# a small GeoJSON polygon, about 75 m by 110 m
+SQUARE = {
+    "type": "Polygon",
+    "coordinates": [[[8.5, 47.3], [8.501, 47.3], [8.501, 47.301], [8.5, 47.301], [8.5, 47.3]]],
+}
+
+
 class Tenant:
     """An organisation with one logged-in user per role, built through the public API."""
 
@@ -291,6 +298,20 @@ class Tenant:
             **extra,
         }
         r = self.api.post("/api/v1/assets", json=body, headers=self.h("admin"))
+        assert r.status_code == 201, r.text
+        return dict(r.json())
+
+    def create_mission(self, name: str = "m", **extra: Any) -> dict[str, Any]:
+        """Store a mission as the operator: one takeoff item unless `items` are given."""
+        body = {"name": name, "items": [{"command": 22, "lat": 47.39, "lon": 8.54, "alt": 20}]}
+        r = self.api.post("/api/v1/missions", json={**body, **extra}, headers=self.h("operator"))
+        assert r.status_code == 201, r.text
+        return dict(r.json())
+
+    def create_zone(self, name: str = "zone", **extra: Any) -> dict[str, Any]:
+        """Store an airspace zone as the operator: an exclusion over SQUARE unless told."""
+        body = {"name": name, "kind": "exclusion", "geometry": SQUARE, **extra}
+        r = self.api.post("/api/v1/airspace/zones", json=body, headers=self.h("operator"))
         assert r.status_code == 201, r.text
         return dict(r.json())
 

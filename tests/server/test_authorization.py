@@ -94,16 +94,8 @@ class Victim:
             headers=tenant.h("operator"),
         )
         assert cmd.status_code == 202, cmd.text
-        mission = tenant.api.post(
-            "/api/v1/missions",
-            headers=tenant.h("operator"),
-            json={
-                "name": "walk-mission",
-                "items": [{"command": 22, "lat": 47.39, "lon": 8.54, "alt": 20}],
-            },
-        )
-        assert mission.status_code == 201, mission.text
-        ids = {"mission_id": mission.json()["id"], "uav_id": uav, "base_id": base["id"]}
+        mission = tenant.create_mission("walk-mission")
+        ids = {"mission_id": mission["id"], "uav_id": uav, "base_id": base["id"]}
         run = tenant.api.post("/api/v1/runs", headers=tenant.h("operator"), json=ids)
         assert run.status_code == 201, run.text
         schedule = tenant.api.post(
@@ -118,26 +110,18 @@ class Victim:
             },
         )
         assert schedule.status_code == 201, schedule.text
-        zone = tenant.api.post(
-            "/api/v1/airspace/zones",
-            headers=tenant.h("operator"),
-            json={
-                "name": "walk-zone",
-                "kind": "exclusion",
-                "geometry": {"type": "Point", "coordinates": [8.6, 47.4]},
-                "radius_m": 50,
-            },
+        zone = tenant.create_zone(
+            "walk-zone", geometry={"type": "Point", "coordinates": [8.6, 47.4]}, radius_m=50
         )
-        assert zone.status_code == 201, zone.text
         self.ids = {
-            "zone_id": zone.json()["id"],
+            "zone_id": zone["id"],
             "run_id": run.json()["id"],
             "schedule_id": schedule.json()["id"],
             "asset_id": uav,
             "command_id": cmd.json()["id"],
             "user_id": tenant.user_ids["viewer"],
             "organization_id": tenant.id,
-            "mission_id": mission.json()["id"],
+            "mission_id": mission["id"],
             "session_id": str(uuid.uuid4()),  # a video session (none exists: 404 past the checks)
             "name": "20260101T000000.000000Z.webm",  # a recording (none exists)
         }

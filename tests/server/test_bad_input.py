@@ -6,6 +6,7 @@ safe file names; and the error encoder itself, which must never be what fails.
 
 from __future__ import annotations
 
+import base64
 import http.client
 import json
 import re
@@ -17,7 +18,9 @@ import httpx
 import pytest
 
 from assetlink.configfile import decrypt_config
-from tests.conftest import Tenant
+from assetlink.link import Link
+from protocol.telemetry_payloads import Position, UavTelemetry
+from tests.conftest import SQUARE, Tenant
 
 
 def _plan(lat: str = "47.397742", param3: str = "null", fence: str = "[]") -> str:
@@ -123,15 +126,9 @@ def test_the_error_encoder_never_fails_on_non_finite_values():
 def _schedule_body(tenant: Tenant, cron: str) -> dict[str, Any]:
     base = tenant.create_asset("landing_base")
     uav = tenant.create_asset("uav", base_id=base["id"])
-    mission = tenant.api.post(
-        "/api/v1/missions",
-        headers=tenant.h("operator"),
-        json={"name": "m", "items": [{"command": 22, "lat": 47.39, "lon": 8.54, "alt": 20}]},
-    )
-    assert mission.status_code == 201, mission.text
     return {
         "name": "never",
-        "mission_id": mission.json()["id"],
+        "mission_id": tenant.create_mission()["id"],
         "uav_id": uav["id"],
         "base_id": base["id"],
         "kind": "cron",
@@ -245,27 +242,37 @@ def test_a_waypoint_file_with_an_infinite_number_names_the_line(api, tenant: Ten
 # found by a schema fuzz against the demo's data (ids that exist, with runs), each a 500 before
 
 
-def test_a_telemetry_bucket_below_a_millisecond_is_422(api: httpx.Client, tenant: Tenant):
+async def test_a_telemetry_bucket_below_a_millisecond_is_422(live_server, tenant: Tenant, tmp_path):
+    """With samples stored, a bucket of 5e-324 s overflowed the downsampler (a 500)."""
     uav = tenant.create_asset("uav")
+    cfg = decrypt_config(base64.b64decode(uav["config_file"]), "asset-password-123")
+    link = Link(live_server.url, cfg.name, cfg.secret, tmp_path / "link.db", seed=1)
+    await link.start()
+    try:
+        await link.wait_connected(15)
+        for alt in (10.0, 20.0, 30.0):
+            position = Position(lat=41.0, lon=-8.6, alt_msl_m=120.0, alt_rel_m=alt)
+            await link.send_telemetry(UavTelemetry(position=position, armed=False))
+        assert await link.flush(15)
+    finally:
+        await link.stop()
     path = f"/api/v1/assets/{uav['id']}/telemetry"
-    r = api.get(path, params={"every": "5e-324"}, headers=tenant.h("viewer"))
-    assert r.status_code == 422 and "every" in r.json()["error"]["message"], r.text
-    assert api.get(path, params={"every": 0.001}, headers=tenant.h("viewer")).status_code == 200
+    always = {"start": "2000-01-01T00:00:00Z", "end": "2100-01-01T00:00:00Z"}
+    async with httpx.AsyncClient(base_url=live_server.url, headers=tenant.h("viewer")) as c:
+        r = await c.get(path, params={**always, "every": "5e-324"})
+        assert r.status_code == 422 and "every" in r.json()["error"]["message"], r.text
+        r = await c.get(path, params={**always, "every": 0.001, "fields": "position.alt_rel_m"})
+    assert r.status_code == 200, r.text
+    # a millisecond's buckets: each sample alone, or samples sent within one millisecond averaged
+    means = [row["position.alt_rel_m"] for row in r.json()]
+    assert 1 <= len(means) <= 3 and min(means) >= 10.0 and max(means) <= 30.0, means
 
 
 def test_a_zone_patched_with_a_null_geometry_is_422(api: httpx.Client, tenant: Tenant):
-    square = [[[8.5, 47.3], [8.501, 47.3], [8.501, 47.301], [8.5, 47.301], [8.5, 47.3]]]
-    body = {
-        "name": "pad",
-        "kind": "exclusion",
-        "geometry": {"type": "Polygon", "coordinates": square},
-    }
-    r = api.post("/api/v1/airspace/zones", json=body, headers=tenant.h("operator"))
-    assert r.status_code == 201, r.text
-    path = f"/api/v1/airspace/zones/{r.json()['id']}"
+    path = f"/api/v1/airspace/zones/{tenant.create_zone()['id']}"
     r = api.patch(path, json={"geometry": None, "radius_m": 30}, headers=tenant.h("operator"))
     assert r.status_code == 422 and r.json()["error"]["code"] == "invalid_zone", r.text
-    assert api.get(path, headers=tenant.h("viewer")).json()["geometry"]["coordinates"] == square
+    assert api.get(path, headers=tenant.h("viewer")).json()["geometry"] == SQUARE
 
 
 def test_an_asset_patched_with_nulls_keeps_those_fields_and_null_base_unbinds(
@@ -285,12 +292,7 @@ def test_an_asset_patched_with_nulls_keeps_those_fields_and_null_base_unbinds(
 def test_an_asset_that_has_flown_a_run_is_409_on_delete_and_kept(api: httpx.Client, tenant: Tenant):
     base = tenant.create_asset("landing_base")
     uav = tenant.create_asset("uav", base_id=base["id"])
-    item = {"command": 22, "lat": 47.39, "lon": 8.54, "alt": 20}
-    mission = api.post(
-        "/api/v1/missions", json={"name": "m", "items": [item]}, headers=tenant.h("operator")
-    )
-    assert mission.status_code == 201, mission.text
-    ids = {"mission_id": mission.json()["id"], "uav_id": uav["id"], "base_id": base["id"]}
+    ids = {"mission_id": tenant.create_mission()["id"], "uav_id": uav["id"], "base_id": base["id"]}
     run = api.post("/api/v1/runs", json=ids, headers=tenant.h("operator"))
     assert run.status_code == 201, run.text
     for asset in (uav, base):

@@ -51,33 +51,23 @@ def _stored(api: httpx.Client, tenant: Tenant) -> dict[str, str]:
     base = tenant.create_asset("landing_base")
     uav = tenant.create_asset("uav", base_id=base["id"], attributes={"mass_g": 1450})
     h = tenant.h("operator")
-    item = {"command": 22, "lat": 47.39, "lon": 8.54, "alt": 20}
-    mission = api.post("/api/v1/missions", json={"name": "fuzzed", "items": [item]}, headers=h)
-    ids = {"mission_id": mission.json()["id"], "uav_id": uav["id"], "base_id": base["id"]}
+    mission = tenant.create_mission("fuzzed")
+    ids = {"mission_id": mission["id"], "uav_id": uav["id"], "base_id": base["id"]}
     run = api.post("/api/v1/runs", json=ids, headers=h)
-    square = [[[8.5, 47.3], [8.501, 47.3], [8.501, 47.301], [8.5, 47.301], [8.5, 47.3]]]
-    zone = api.post(
-        "/api/v1/airspace/zones",
-        json={
-            "name": "fuzzed",
-            "kind": "exclusion",
-            "geometry": {"type": "Polygon", "coordinates": square},
-        },
-        headers=h,
-    )
+    zone = tenant.create_zone("fuzzed")
     next_year = (datetime.datetime.now(datetime.UTC) + datetime.timedelta(days=365)).isoformat()
     schedule = api.post(
         "/api/v1/schedules",
         json={**ids, "name": "fuzzed", "kind": "once", "at": next_year},
         headers=h,
     )
-    made = (mission, run, zone, schedule)
+    made = (run, schedule)
     assert all(r.status_code == 201 for r in made), [r.text for r in made]
     return {
         "asset_id": uav["id"],
         "mission_id": ids["mission_id"],
         "run_id": run.json()["id"],
-        "zone_id": zone.json()["id"],
+        "zone_id": zone["id"],
         "schedule_id": schedule.json()["id"],
     }
 

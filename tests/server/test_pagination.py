@@ -100,21 +100,11 @@ def test_page_bounds_are_checked(api: httpx.Client, tenant: Tenant, path: str, q
     assert r.json()["error"]["details"][0]["loc"][:2] == ["query", next(iter(query))]
 
 
-def _mission(api: httpx.Client, tenant: Tenant, name: str) -> str:
-    r = api.post(
-        "/api/v1/missions",
-        headers=tenant.h("operator"),
-        json={"name": name, "items": [{"command": 22, "lat": 41.178, "lon": -8.598, "alt": 20}]},
-    )
-    assert r.status_code == 201, r.text
-    return str(r.json()["id"])
-
-
 def test_missions_assets_and_schedules_page_with_totals_and_filters(
     api: httpx.Client, tenant: Tenant
 ):
     """Before: no total anywhere, so a front-end could not draw a pager."""
-    made = [_mission(api, tenant, f"m{i}") for i in range(5)]
+    made = [tenant.create_mission(f"m{i}")["id"] for i in range(5)]
     h = tenant.h("viewer")
     assert ids(walk(api, "/api/v1/missions", h, limit=2)) == made  # oldest first, no gaps
     assert walk(api, "/api/v1/missions", h, limit=2, kind="survey") == []
@@ -159,7 +149,7 @@ def test_an_offset_past_the_end_is_empty_with_the_total_and_a_way_back(
     api: httpx.Client, tenant: Tenant
 ):
     for i in range(3):
-        _mission(api, tenant, f"m{i}")
+        tenant.create_mission(f"m{i}")
     r = api.get("/api/v1/missions", params={"limit": 2, "offset": 50}, headers=tenant.h())
     assert r.status_code == 200 and r.json() == []
     assert r.headers[TOTAL_HEADER] == "3"
@@ -260,7 +250,7 @@ def test_a_browser_may_read_the_total_and_the_links(cors_server: LiveServer):
 def test_the_link_keeps_a_repeated_filter_and_drops_nothing(api: httpx.Client, tenant: Tenant):
     """Filters are copied as given (here an unknown-to-paging `kind`), only limit/offset change."""
     for i in range(3):
-        _mission(api, tenant, f"k{i}-{uuid.uuid4().hex[:4]}")
+        tenant.create_mission(f"k{i}-{uuid.uuid4().hex[:4]}")
     r = api.get(
         "/api/v1/missions",
         params={"kind": "waypoints", "limit": 1, "offset": 1},
