@@ -21,9 +21,11 @@ lint: $(STAMP)
 	$(BIN)/lint-imports
 	$(BIN)/mypy
 
-# two pytest-xdist workers, a test file each at a time (a file's fixtures stay in one worker; each
-# worker has a PostgreSQL database of its own: tests/conftest.py); the slowest tests are listed
-PARALLEL ?= -n 2 --dist loadfile
+# three pytest-xdist workers, a test file each at a time (a file's fixtures stay in one worker; each
+# worker has a PostgreSQL database of its own: tests/conftest.py); the slowest tests are listed.
+# Three on two cores: with two, a third of the CPU sat idle while tests waited on sockets and
+# simulated flights (README, "Test suites")
+PARALLEL ?= -n 3 --dist loadfile
 
 test: $(STAMP) lint
 	$(BIN)/python -m pytest $(PARALLEL) --durations=25 $(PYTEST_ARGS)
