@@ -5,12 +5,21 @@
 from __future__ import annotations
 
 import shutil
+from pathlib import Path
 
 import pytest
 
 from tests.conftest import IN_CI, OWN_DATABASE_ROOT
 
 ROOT_EMAIL = OWN_DATABASE_ROOT
+TURN_CONF = Path(__file__).resolve().parents[2] / "deploy" / "coturn" / "turnserver.conf"
+
+
+def conf_relay_ports() -> tuple[int, int]:
+    """deploy/coturn/turnserver.conf's relay ports: its min-port and max-port."""
+    conf = TURN_CONF.read_text()
+    low, high = (int(conf.split(f"{k}=")[1].split()[0]) for k in ("min-port", "max-port"))
+    return low, high
 
 
 def program(name: str, package: str) -> str:

@@ -20,6 +20,7 @@ from assetlink.configfile_cli import PASSWORD_ENV
 from base_station.config import load_config as load_station_config
 from server.config import Settings
 from tests.conftest import IN_CI
+from tests.deploy.conftest import conf_relay_ports
 
 ROOT = Path(__file__).resolve().parents[2]
 COMPOSE = ROOT / "docker-compose.yml"
@@ -193,3 +194,9 @@ def test_janus_and_coturn_mount_the_configurations_the_media_tests_run():
     assert _mounts(turn)["/etc/aerobase/turnserver.conf"] == "./deploy/coturn/turnserver.conf"
     # the shared secret comes from .env on the command line, never from a committed file
     assert "--static-auth-secret=${TURN_SECRET:?set TURN_SECRET in .env}" in turn["command"]
+    # the relay ports coturn is told are the ones published, by default the file's
+    low, high = "${TURN_MIN_PORT:-49160}", "${TURN_MAX_PORT:-49200}"
+    assert {f"--min-port={low}", f"--max-port={high}"} <= set(turn["command"])
+    assert f"{low}-{high}:{low}-{high}/udp" in turn["ports"]
+    assert conf_relay_ports() == (49160, 49200)
+    assert (example_env()["TURN_MIN_PORT"], example_env()["TURN_MAX_PORT"]) == ("49160", "49200")

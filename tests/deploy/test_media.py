@@ -21,12 +21,11 @@ from aioice import turn
 from aioice.stun import TransactionFailed, TransactionTimeout
 
 from tests.conftest import free_port
-from tests.deploy.conftest import program
+from tests.deploy.conftest import TURN_CONF, conf_relay_ports, program
 from tests.polling import eventually, wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
 JANUS = ROOT / "deploy" / "janus"
-TURN_CONF = ROOT / "deploy" / "coturn" / "turnserver.conf"
 
 
 def _stop(proc: subprocess.Popen[bytes]) -> None:
@@ -73,9 +72,11 @@ def _credentials(secret: str, user: str, lifetime_s: int = 600) -> tuple[str, st
     return username, base64.b64encode(digest).decode()
 
 
-def _turnserver(binary: str, port: int, secret: str, folder: Path) -> subprocess.Popen[bytes]:
+def _turnserver(
+    binary: str, port: int, secret: str, folder: Path, extra: tuple[str, ...] = ()
+) -> subprocess.Popen[bytes]:
     """coturn with deploy/coturn/turnserver.conf on 127.0.0.1:`port`; the secret is passed on the
-    command line, as the compose service passes it from .env."""
+    command line, as the compose service passes it from .env, and so are `extra` options."""
     with open(folder / "turn.log", "wb") as log:
         return subprocess.Popen(
             [
@@ -94,21 +95,27 @@ def _turnserver(binary: str, port: int, secret: str, folder: Path) -> subprocess
                 str(folder / "turndb"),
                 "--pidfile",
                 str(folder / "turn.pid"),
+                *extra,
             ],
             stdout=log,
             stderr=subprocess.STDOUT,
         )
 
 
-async def test_coturn_grants_a_relay_to_credentials_from_the_shared_secret_only(tmp_path):
+# the compose file's TURN_MIN_PORT / TURN_MAX_PORT reach coturn as --min-port / --max-port, over
+# the file's range: a range set so (below Linux's ephemeral ports, where no test binds) is used
+@pytest.mark.parametrize("relay_ports", [None, (30141, 30149)], ids=["file", "command-line"])
+async def test_coturn_grants_a_relay_to_credentials_from_the_shared_secret_only(
+    tmp_path, relay_ports: tuple[int, int] | None
+):
     binary = program("turnserver", "coturn")
     port, secret = free_port(), "a-secret-shared-with-the-server"
-    conf = TURN_CONF.read_text()
-    lines = conf.splitlines()
+    lines = TURN_CONF.read_text().splitlines()
     assert "use-auth-secret" in lines
     assert not any(x.startswith("static-auth-secret") for x in lines)  # never in the file
-    low, high = (int(conf.split(f"{k}=")[1].split()[0]) for k in ("min-port", "max-port"))
-    proc = _turnserver(binary, port, secret, tmp_path)
+    low, high = relay_ports or conf_relay_ports()
+    extra = (f"--min-port={low}", f"--max-port={high}") if relay_ports else ()
+    proc = _turnserver(binary, port, secret, tmp_path, extra)
     try:
 
         async def allocate(username: str, password: str) -> tuple[str, int] | None:

@@ -73,6 +73,11 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
         "AEROBASE_TELEMETRY_RETENTION_DAYS": "90",
         "MEDIA_PUBLIC_IP": "127.0.0.1",
         "TURN_SECRET": "stack-turn-" + uuid.uuid4().hex[:12],
+        # relay ports below Linux's ephemeral range (32768-60999): Docker does not start a
+        # container while a host socket holds one of its published ports, and the default range
+        # lies within it, where test_media's coturn relays and any test's outgoing UDP can bind
+        "TURN_MIN_PORT": "30100",
+        "TURN_MAX_PORT": "30140",
         "AEROBASE_ASSET_PASSWORD": ASSET_PASSWORD,
     }
     with docker_daemon(tmp / "dockerd.log"):
