@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -19,6 +18,7 @@ from aiortc.mediastreams import MediaStreamError
 
 from asset_agent.video.rtp import RtpPublisher
 from asset_agent.video.source import CameraTrack
+from server.realtime import hub as realtime_hub
 from tests.conftest import LiveServer, Tenant, auth, test_settings
 from tests.polling import eventually
 from tests.server.realtime_client import next_of, operator_socket
@@ -195,7 +195,12 @@ async def test_operators_following_the_uav_are_told_once_its_rtp_reaches_janus(
 
 
 @pytest.mark.slow
-async def test_logging_out_hangs_up_that_sessions_janus_viewer(server: LiveServer, tenant: Tenant):
+async def test_logging_out_hangs_up_that_sessions_janus_viewer(
+    server: LiveServer, tenant: Tenant, monkeypatch: pytest.MonkeyPatch
+):
+    # the hub reads every session again at least each RECHECK_S (30 s), which would detach the
+    # viewer too: made an hour here, only the logout's announcement detaches it within the wait
+    monkeypatch.setattr(realtime_hub, "RECHECK_S", 3600.0)
     asset_id, token = uav_with_camera(tenant, httpx.Client(base_url=server.url))
     pub = rtp_publisher(server, asset_id, token)
     sending = asyncio.create_task(pub.run())
@@ -211,7 +216,6 @@ async def test_logging_out_hangs_up_that_sessions_janus_viewer(server: LiveServe
                 return int(r.json()["viewers"])
 
             assert await viewers() == 1
-            started = time.monotonic()
             r = await c.post("/api/v1/auth/logout", headers=tenant.h("viewer"))
             assert r.status_code == 204, r.text
 
@@ -220,7 +224,6 @@ async def test_logging_out_hangs_up_that_sessions_janus_viewer(server: LiveServe
 
             # the handle is detached: Janus counts the viewer gone and hangs up its peer
             await eventually(detached, within=10, what="the logged-out viewer's handle detached")
-            assert time.monotonic() - started <= 1.5, time.monotonic() - started
             await eventually(
                 lambda: viewer.pc.connectionState in ("closed", "failed"),
                 within=10,
