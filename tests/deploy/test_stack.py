@@ -1,8 +1,9 @@
 """docker-compose.yml started as README's "docker compose up" tells an operator, in containers:
 the images build, `migrate` runs once, both replicas become healthy behind nginx, the first user
 is made with `docker-compose run`, the demo profile's simulated site connects through the proxy
-and flies a whole run, a rover gets the base's corrections on the NTRIP port, and stopping a
-replica is graceful while the other goes on serving (tests/deploy/docker_stack.py says how the
+and flies a whole run, which the console in Debian's Chromium follows live through the proxy, a
+rover gets the base's corrections on the NTRIP port, and stopping a replica is graceful while the
+other goes on serving (tests/deploy/docker_stack.py says how the
 images are built on a machine that reaches no registry)."""
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from asset_agent.video.rtp import RtpPublisher
 from asset_agent.video.source import CameraTrack
 from assetlink.configfile import decrypt_config
 from tests.conftest import SUPERUSER_PASSWORD, Tenant, free_port
+from tests.console.browser import launch, open_page, shot, sign_in
 from tests.deploy.docker_stack import Stack, base_image, docker_daemon, run
 from tests.e2e.harness import mission_items
 from tests.polling import eventually, wait_for
@@ -196,6 +198,51 @@ async def _live_video(url: str, ops: dict[str, str], uav: Any, token: str) -> in
         await track.aclose()  # type: ignore[attr-defined]
 
 
+def _track_points(label: str | None) -> int:
+    m = re.search(r": (\d+) track points", label or "")
+    return int(m.group(1)) if m else -1
+
+
+async def _console_follows(url: str, tenant: Tenant, base: Any, uav: Any, run_id: str) -> None:
+    """The console, served by a replica's container through nginx, in Debian's Chromium: a viewer
+    signs in; the base's and UAV's cards show their live state; the UAV's track grows as its
+    telemetry arrives over the page's WebSocket through the proxy; the run's page reaches
+    `completed` without a reload. No script error, nothing fetched from another origin."""
+    from playwright.async_api import expect
+
+    browsers = launch()
+    browser = await anext(browsers)
+    try:
+        page, traffic = await open_page(browser, url + "/")
+        await sign_in(page, tenant.emails["viewer"], Tenant.PASSWORD)
+        uav_card = page.get_by_role("region", name=f"UAV {uav['name']}")
+        base_card = page.get_by_role("region", name=f"Landing base {base['name']}")
+        await expect(uav_card).to_contain_text("connected")
+        await expect(uav_card).to_contain_text(re.compile(r"GNSS fix\s*(3d|dgps|rtk_\w+)"))
+        await expect(base_card).to_contain_text(re.compile(r"PLC link\s*up"))
+        await expect(page.locator("#link")).to_have_text("Live")  # the page's WebSocket is up
+        track = uav_card.get_by_role("img", name=re.compile(f"^Live track of {uav['name']}"))
+        first = _track_points(await track.get_attribute("aria-label"))
+
+        async def grown() -> bool:
+            return _track_points(await track.get_attribute("aria-label")) > max(first, 0) + 2
+
+        await eventually(
+            grown, within=60, what="the UAV's live track growing on the fleet page", interval=0.5
+        )
+        await shot(page, "stack-fleet")
+        await page.goto(f"{url}/#/runs/{run_id}")
+        detail = page.get_by_role("region", name=re.compile("^Run of"))
+        ended = detail.get_by_text(re.compile("^(completed|aborted|failed)$")).first
+        await expect(ended).to_be_visible(timeout=420_000)
+        await shot(page, "stack-run")
+        assert await ended.text_content() == "completed", await detail.inner_text()
+        assert traffic.errors == [], traffic.errors
+        assert traffic.off_origin(url) == [], traffic.off_origin(url)
+    finally:
+        await browsers.aclose()
+
+
 def _published_udp(stack: Stack, service: str) -> set[int]:
     """The host's UDP ports that reach `service`'s container (`docker port`)."""
     out = run(["docker", "port", stack.container(service)], timeout=30).stdout
@@ -284,6 +331,9 @@ def test_the_stack_starts_as_the_readme_says_and_flies_the_demo_through_the_prox
             got = _ntrip_v1(site.ntrip_port, base["name"], tenant.emails["viewer"], Tenant.PASSWORD)
             assert got.startswith(b"ICY 200 OK\r\n"), got[:80]
             assert got[len(b"ICY 200 OK\r\n")] == RTCM3_PREAMBLE, got[:80]
+
+            # the console follows the run in a browser through the proxy until it completes
+            asyncio.run(_console_follows(url, tenant, base, uav, run_id))
 
             def final() -> Any:
                 body = api.get(f"/api/v1/runs/{run_id}", headers=ops).json()
