@@ -20,9 +20,17 @@ class CameraDescription(BaseModel):
     codec: Literal["vp8"] = "vp8"
 
 
+def has_camera(attributes: dict[str, Any] | None) -> bool:
+    """False for a UAV described as having no camera (`attributes.camera` false); a UAV with no
+    description has the default camera."""
+    return (attributes or {}).get("camera") is not False
+
+
 def camera_of(attributes: dict[str, Any] | None) -> CameraDescription:
     """The asset's camera description (defaults when it has none); 422 when it is malformed."""
-    raw = (attributes or {}).get("camera") or {}
+    raw = (attributes or {}).get("camera")
+    if raw is None:
+        raw = {}
     try:
         return CameraDescription.model_validate(raw)
     except ValidationError as err:

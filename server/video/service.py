@@ -19,7 +19,7 @@ from server.kit.service import Service
 from server.kit.uow import UnitOfWork
 from server.realtime.hub import Hub
 from server.video.announce import announce
-from server.video.camera import camera_of
+from server.video.camera import camera_of, has_camera
 from server.video.errors import ViewerLimit
 from server.video.gateway import MediaGateway, Negotiated
 from server.video.ice import ice_servers
@@ -74,10 +74,16 @@ class VideoService(Service):
         self.hub = hub  # viewers and publications end with the caller's session through it
         self.assets = AssetService(uow, principal, settings)
 
-    async def _uav(self, asset_id: uuid.UUID) -> Asset:
+    async def _uav(self, asset_id: uuid.UUID, camera: bool = True) -> Asset:
+        """The UAV (404 for another organisation's asset or another kind); with `camera`, 404 too
+        for a UAV described as having none (its sessions may still end, its recordings be read)."""
         asset = await self.assets.get(asset_id)  # NotFound for another organisation's asset
         if asset.kind != AssetKind.uav:
             raise NotFound("this asset has no camera stream (it is not a UAV)", code="no_video")
+        if camera and not has_camera(asset.attributes):
+            raise NotFound(
+                "this UAV has no camera (its attributes.camera is false)", code="no_camera"
+            )
         return asset
 
     async def require_stream(self, asset_id: uuid.UUID) -> None:
@@ -149,7 +155,7 @@ class VideoService(Service):
 
     async def stop(self, asset_id: uuid.UUID, session_id: uuid.UUID) -> None:
         """End a viewer session."""
-        await self._uav(asset_id)
+        await self._uav(asset_id, camera=False)
         await self.gateway.stop(asset_id, session_id)
 
     def _check_publisher(self, asset_id: uuid.UUID) -> None:
@@ -213,12 +219,12 @@ class VideoService(Service):
 
     async def recordings(self, asset_id: uuid.UUID) -> list[RecordingOut]:
         """The asset's recorded segments, newest first (empty when recording is off)."""
-        await self._uav(asset_id)
+        await self._uav(asset_id, camera=False)
         return recorded_segments(self.settings.video_record_dir, asset_id)
 
     async def recording_file(self, asset_id: uuid.UUID, name: str) -> Path:
         """A segment or its times file (NotFound for any other name)."""
-        await self._uav(asset_id)
+        await self._uav(asset_id, camera=False)
         folder = self._recording_folder(asset_id)
         if folder is None or SEGMENT_NAME.match(name) is None or not (folder / name).is_file():
             raise NotFound(f"no recording {name!r} of this asset")

@@ -1,6 +1,7 @@
 """The fleet page's video panels in Debian's Chromium against a real server and a real WHIP
 publisher: a panel holds a viewer session only while its UAV publishes, and the server's
-`video_state` on the operator socket is what wakes it (no panel asks again and again)."""
+`video_state` on the operator socket is what wakes it (no panel asks again and again); a UAV
+described without a camera has no panel."""
 
 from __future__ import annotations
 
@@ -30,6 +31,9 @@ async def test_a_fleet_panel_holds_no_session_for_an_idle_uav_and_opens_one_when
         with httpx.Client(base_url=server.url, timeout=30) as sync_api:
             tenant = await asyncio.to_thread(Tenant, sync_api, superuser_email, "fleet-video")
             asset_id, asset_token = await asyncio.to_thread(uav_with_camera, tenant, sync_api)
+            blind = await asyncio.to_thread(
+                tenant.create_asset, "uav", attributes={"camera": False}
+            )
         async with httpx.AsyncClient(base_url=server.url, timeout=30) as api:
             name = (await api.get(f"/api/v1/assets/{asset_id}", headers=tenant.h())).json()["name"]
 
@@ -44,6 +48,11 @@ async def test_a_fleet_panel_holds_no_session_for_an_idle_uav_and_opens_one_when
             # idle: the panel says so and holds nothing on the server
             await expect(state).to_have_text(re.compile("^no signal"))
             assert await viewers() == 0 and whep_offers(traffic, asset_id) == 0
+            # a UAV described without a camera has a card but no panel, and nothing is asked
+            no_camera, _, _ = video_panel(page, blind["name"])
+            await expect(no_camera.get_by_role("heading")).to_have_text(f"UAV {blind['name']}")
+            await expect(no_camera.locator("video, figure.video")).to_have_count(0)
+            assert not [u for u in traffic.urls if f"/{blind['id']}/video" in u], traffic.urls
             await shot(page, "fleet-video-idle")
 
             # the UAV publishes: the server's video_state wakes the panel, which opens one session

@@ -106,6 +106,46 @@ def test_bad_offers_are_clear_errors(video_api: httpx.Client, video_tenant: Tena
     assert video_api.delete(gone, headers=h).status_code == 404
 
 
+def test_a_uav_described_without_a_camera_has_no_stream_until_it_is_given_one(
+    video_api: httpx.Client, video_tenant: Tenant
+):
+    """`attributes.camera: false`: every way to a stream answers 404 no_camera (not a default
+    camera's offline stream); its recordings still list; a camera described later is streamed."""
+    from assetlink.configfile import decrypt_config
+
+    asset = video_tenant.create_asset(
+        "uav", password="asset-password-123", attributes={"camera": False}
+    )
+    cfg = decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
+    r = video_api.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret})
+    assert r.status_code == 200, r.text
+    own = auth(r.json()["access_token"])
+    url, sdp = f"/api/v1/assets/{asset['id']}/video", {"Content-Type": "application/sdp"}
+    viewer = video_tenant.h("viewer")
+    answers = {
+        "description": video_api.get(url, headers=viewer),
+        "WHEP offer": video_api.post(f"{url}/whep", content="v=0\r\n", headers={**sdp, **viewer}),
+        "WHIP offer": video_api.post(f"{url}/whip", content="v=0\r\n", headers={**sdp, **own}),
+        "RTP target": video_api.post(f"{url}/rtp", headers=own),
+    }
+    for what, r in answers.items():
+        assert r.status_code == 404, (what, r.status_code, r.text)
+        assert r.json()["error"]["code"] == "no_camera", (what, r.text)
+        assert "attributes.camera is false" in r.json()["error"]["message"], (what, r.text)
+    r = video_api.get(f"{url}/recordings", headers=viewer)
+    assert r.status_code == 200 and r.json() == [], r.text
+
+    r = video_api.patch(
+        f"/api/v1/assets/{asset['id']}",
+        json={"attributes": {"camera": CAMERA}},
+        headers=video_tenant.h(),
+    )
+    assert r.status_code == 200, r.text
+    r = video_api.get(url, headers=viewer)
+    assert r.status_code == 200, r.text
+    assert (r.json()["width"], r.json()["height"], r.json()["state"]) == (320, 240, "offline")
+
+
 @pytest.mark.slow
 async def test_viewers_get_frames_of_the_camera_size_and_the_limit_answers_503(
     video_server: LiveServer, video_api: httpx.Client, video_tenant: Tenant

@@ -69,7 +69,8 @@ function card(ctx, asset) {
   const out = h("p", { role: "status", "aria-live": "polite", class: "muted" });
   const mapBox = h("div");
   const title = asset.kind === "uav" ? "UAV" : "Landing base";
-  const video = asset.kind === "uav" ? livePanel(asset) : null;
+  // a UAV described as having no camera (attributes.camera false) gets no video panel
+  const video = asset.kind === "uav" && (asset.attributes || {}).camera !== false ? livePanel(asset) : null;
   const actions = [];
   if (ctx.canOperate && asset.kind === "uav") {
     actions.push(commandButton(asset, "Return to base", "return_to_base", {
@@ -97,7 +98,7 @@ function card(ctx, asset) {
     values,
     actions.length ? h("div", { class: "actions", role: "group", "aria-label": `Commands for ${asset.name}` }, actions) : null,
     out,
-    asset.kind === "uav" ? h("div", { class: "views" }, mapBox, video.el) : null);
+    asset.kind === "uav" ? h("div", { class: "views" }, mapBox, video ? video.el : null) : null);
   // the map and the video are the card's costly parts: drawn and watched only while the card is
   // on (or near) the screen — off it the browser skips the card's rendering (app.css:
   // content-visibility) and says so
