@@ -22,13 +22,16 @@ CAMERA = {"width": 320, "height": 240, "fps": 20}
 
 
 def uav_with_camera(
-    tenant: Tenant, api: httpx.Client, camera: dict[str, Any] | None = None
+    tenant: Tenant, api: httpx.Client, camera: dict[str, Any] | bool | None = None
 ) -> tuple[str, str]:
-    """A UAV with a camera description (CAMERA by default), and its asset session token."""
+    """A UAV with a camera description (CAMERA by default; False: described as having none), and
+    its asset session token."""
     from assetlink.configfile import decrypt_config
 
     asset = tenant.create_asset(
-        "uav", password="asset-password-123", attributes={"camera": camera or CAMERA}
+        "uav",
+        password="asset-password-123",
+        attributes={"camera": CAMERA if camera is None else camera},
     )
     cfg = decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
     r = api.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret})
@@ -111,16 +114,9 @@ def test_a_uav_described_without_a_camera_has_no_stream_until_it_is_given_one(
 ):
     """`attributes.camera: false`: every way to a stream answers 404 no_camera (not a default
     camera's offline stream); its recordings still list; a camera described later is streamed."""
-    from assetlink.configfile import decrypt_config
-
-    asset = video_tenant.create_asset(
-        "uav", password="asset-password-123", attributes={"camera": False}
-    )
-    cfg = decrypt_config(base64.b64decode(asset["config_file"]), "asset-password-123")
-    r = video_api.post("/api/v1/assets/login", json={"name": cfg.name, "secret": cfg.secret})
-    assert r.status_code == 200, r.text
-    own = auth(r.json()["access_token"])
-    url, sdp = f"/api/v1/assets/{asset['id']}/video", {"Content-Type": "application/sdp"}
+    asset_id, token = uav_with_camera(video_tenant, video_api, camera=False)
+    own = auth(token)
+    url, sdp = f"/api/v1/assets/{asset_id}/video", {"Content-Type": "application/sdp"}
     viewer = video_tenant.h("viewer")
     answers = {
         "description": video_api.get(url, headers=viewer),
@@ -136,7 +132,7 @@ def test_a_uav_described_without_a_camera_has_no_stream_until_it_is_given_one(
     assert r.status_code == 200 and r.json() == [], r.text
 
     r = video_api.patch(
-        f"/api/v1/assets/{asset['id']}",
+        f"/api/v1/assets/{asset_id}",
         json={"attributes": {"camera": CAMERA}},
         headers=video_tenant.h(),
     )
