@@ -90,6 +90,9 @@ class PlcServer:
             elif block == "d":
                 image = pack_bits(self.base.discrete_inputs())
             elif block == "i":
+                # the heartbeat is the PLC's own scan counter: current at every read, not only
+                # when the world's step loop last ran (a stall in this process would freeze it)
+                self.base.tick_wall(time.monotonic())
                 image = self.base.input_registers()
             elif block == "h":
                 image = self.base.holding_registers()

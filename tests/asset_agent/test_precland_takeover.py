@@ -122,8 +122,13 @@ async def test_a_pad_lost_at_3_m_on_a_plain_fix_is_retried_then_abandoned_not_la
         took = lander.takeover
         assert took is not None and took.path == "precision"  # retrying: not decided yet
         await eventually(lambda: took.path == "aborted-climb", 40, "the retries used up")
-        # lost, climbed back into view and handed LAND back, lost again: no retry left
-        assert len(took.losses) == 2
+        # lost below the beacon's 3 m, climbed back into view and handed LAND back, lost again:
+        # no retry left. (A loaded machine can also starve the beacon for the fusion's hold
+        # higher up: in view again within the pause, such a loss spends no retry; one full run on
+        # a loaded machine took the vehicle at 8.35 m, then at 2.15 m and 0.8 m.)
+        assert took.loss_guard is not None
+        assert took.loss_guard.sequence.attempts == ONE_RETRY.max_attempts
+        assert len([h for h in took.losses if h < 2.75]) == 2, took.losses
         # at the safe height by its estimate (a 3D fix's height is off by decimetres)
         assert vehicle.copter.dyn.state.altitude > 10.5 and vehicle.copter.armed
         # never down on the pad: after the last loss LAND descends through the guard's 1 s hold

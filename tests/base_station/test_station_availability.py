@@ -42,12 +42,17 @@ async def test_every_failed_condition_is_listed_with_measured_value_and_limit(ri
     await rig.inject("/faults/estop", {"on": True})
     rig.world.base.panels.position = 0.5
     rig.world.base.lift.position = 0.25
+    # The daemon reads discrete inputs and input registers in separate requests: wait for both
+    # blocks to show the moved axes, or a snapshot can pair 25 % with a stale lower limit switch.
     await eventually(
         lambda: (
-            rig.app.coordinator.snapshot.plc.estop_active
-            and rig.app.coordinator.snapshot.plc.wind_speed_mps == 11.0
-            and rig.app.coordinator.snapshot.plc.lift_position_pct == 25.0
-        )
+            (plc := rig.app.coordinator.snapshot.plc).estop_active
+            and plc.wind_speed_mps == 11.0
+            and plc.lift_position_pct == 25.0
+            and not plc.panels_closed_limit
+            and not plc.lift_down_limit
+        ),
+        what="E-stop, weather, and both axes off their low limits in one snapshot",
     )
     result = await run(rig.station, "check_availability")
     assert result.status is Status.REJECTED and not result.data["available"]

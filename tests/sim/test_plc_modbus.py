@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import time
 from collections.abc import AsyncIterator
 
 import httpx
@@ -10,6 +11,8 @@ import pytest
 from pymodbus.client import AsyncModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
+from sim.plc import LandingBase, PlcServer
+from sim.weather import Weather, WeatherParams
 from sim.world import World, parse_args
 from tests.polling import eventually
 
@@ -116,6 +119,27 @@ async def test_heartbeat_counts_in_wall_time(world: World, plc: AsyncModbusTcpCl
     first = (await ir(plc))[19]
     await eventually(lambda: world.base.heartbeat >= first + 3, 2, "three heartbeats")
     assert (await ir(plc))[19] >= first + 3
+
+
+async def test_the_heartbeat_is_current_at_every_read_with_nothing_stepping_the_model() -> None:
+    """A real PLC counts its heartbeat on its own CPU: a stall of the process serving ours (the
+    world's step loop) must not freeze it, or the daemon reads a live PLC as halted."""
+    base = LandingBase(Weather(7, WeatherParams()), seed=7)
+    base.tick_wall(time.monotonic())
+    server = PlcServer(base)  # no world, so no step loop: only the reads can advance it
+    await server.start()
+    client = AsyncModbusTcpClient("127.0.0.1", port=server.port, timeout=1, retries=0)
+    try:
+        assert await client.connect()
+        first = (await ir(client))[19]
+
+        async def counted_on() -> bool:
+            return (await ir(client))[19] >= first + 3  # three of its 100 ms ticks
+
+        await eventually(counted_on, 2, "the heartbeat read over Modbus to count on")
+    finally:
+        client.close()
+        await server.stop()
 
 
 @pytest.mark.slow
