@@ -84,12 +84,15 @@ def worker_app() -> Any:
 
 
 def uvicorn_options(settings: Settings) -> dict[str, Any]:
-    """How uvicorn serves the app: frames over 1 MiB close with 1009, and a peer that does not
-    answer the server's pings (every ws_ping_interval_s) within ws_ping_timeout_s is dropped."""
+    """How uvicorn serves the app: frames over 1 MiB close with 1009, a peer that does not
+    answer the server's pings (every ws_ping_interval_s) within ws_ping_timeout_s is dropped, and
+    an idle HTTP connection is held http_keep_alive_s (uvicorn's own default, 5 s, is below any
+    proxy's upstream keep-alive)."""
     return {
         "host": settings.host,
         "port": settings.port,
         "log_config": None,
+        "timeout_keep_alive": settings.http_keep_alive_s,
         # /ws/asset and /ws/operator served straight from the transport (server/realtime/native.py)
         "ws": WebSocketProtocol,
         "ws_max_size": 1 << 20,

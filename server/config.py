@@ -73,6 +73,14 @@ class Settings(BaseSettings):
     # request bodies over these sizes are refused with 413 before they are read
     max_body_bytes: int = Field(default=1024 * 1024, ge=1024)
     max_import_bytes: int = Field(default=5 * 1024 * 1024, ge=1024)
+    http_keep_alive_s: int = Field(
+        default=75,
+        ge=1,
+        description="an idle HTTP/1.1 connection is closed after this many seconds. Keep it above "
+        "the reverse proxy's upstream keep-alive (deploy/nginx/aerobase.conf: keepalive_timeout "
+        "60s): a proxy that sends a request on a connection the server is just closing answers a "
+        "POST with 502",
+    )
     log_format: Literal["auto", "json", "console"] = "auto"
     log_level: str = "INFO"
 
