@@ -5,13 +5,13 @@ failsafe, low_battery, fence_breach, autopilot_lost, autopilot_recovered; precis
 adds landing_aborted (precland/supervisor.py).
 
     tracker = EventTracker(EventLimits(low_battery_pct=30))
-    events = tracker.update(autopilot.state)          # on every telemetry tick
-    events += tracker.notification(note)              # for each Notification
+    # on every telemetry tick: the Notifications heard since the last one, and the state now
+    events = tracker.feed(notes, autopilot.state)
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
@@ -121,3 +121,15 @@ class EventTracker:
     def notification(self, note: Notification) -> list[Event]:
         """Events from one notification."""
         return events_from_notification(note)
+
+    def feed(self, notes: Iterable[Notification], state: UavState) -> list[Event]:
+        """Events in the order they happened: for each notification (oldest first) the state
+        changes heard before it, then its own events; then the changes since the last one. (The
+        last item's MISSION_ITEM_REACHED and the mission's end come in one burst: derived from
+        the latest state alone, the end would come before the item.)"""
+        events: list[Event] = []
+        for note in notes:
+            if note.state is not None:
+                events += self.update(note.state)
+            events += self.notification(note)
+        return events + self.update(state)

@@ -105,9 +105,8 @@ async def _report(agent: Agent, stop: asyncio.Event) -> None:
         while not stop.is_set():
             try:
                 state = agent.autopilot.state
-                events = agent.tracker.update(state)
-                while not notes.empty():
-                    events += agent.tracker.notification(notes.get_nowait())
+                heard = [notes.get_nowait() for _ in range(notes.qsize())]
+                events = agent.tracker.feed(heard, state)
                 if agent.lander is not None:
                     events += agent.lander.drain_events()
                 for event in events:

@@ -218,6 +218,7 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
             self._notify(Notification("link_lost"))
 
     def _notify(self, note: Notification) -> None:
+        note = replace(note, state=self.state)
         for q in self._subscribers:
             q.put_nowait(note)
 

@@ -89,3 +89,6 @@ class Notification:
     text: str = ""
     severity: int = 6  # MAV_SEVERITY
     index: int | None = None  # item_reached: index in the server's list (seq - 1)
+    # the vehicle's state when it was said (the client sets it): events derived from states and
+    # from notifications keep the order in which the autopilot's messages came (EventTracker.feed)
+    state: UavState | None = None

@@ -99,8 +99,11 @@ async def test_fly_mission_rtl_and_land_on_the_pad(
     truth = vehicle.copter.dyn.state
     assert truth.landed
     notifications = drain(notes)
-    reached = [n.index for n in notifications if n.kind == "item_reached"]
-    assert reached[:4] == [0, 2, 3, 4]  # takeoff, two waypoints, RTL (change speed is not nav)
+    reached = [n for n in notifications if n.kind == "item_reached"]
+    assert [n.index for n in reached[:4]] == [0, 2, 3, 4]  # takeoff, two waypoints, RTL (change
+    # speed is not nav); each carries the state it was heard in, still on that item (the
+    # autopilot moves on after it says so): EventTracker.feed orders the events by these
+    assert [n.state and n.state.mission_current for n in reached[:4]] == [0, 2, 3, 4]
     dist = vehicle.copter.pad_distance()
     sigma = vehicle.copter.gnss.params.sigma_fixed_m
     assert dist <= 4 * sigma + 0.02, f"landed {dist:.3f} m from the pad centre"

@@ -69,3 +69,28 @@ def test_out_of_order_streams_keep_the_logical_order() -> None:
     disarmed = replace(landing, armed=False)
     assert kinds(landing, disarmed) == ["landed", "disarmed"]
     assert kinds(disarmed, replace(disarmed, landed_state="ON_GROUND")) == []
+
+
+def test_the_last_item_reached_comes_before_the_mission_end_it_causes() -> None:
+    """MISSION_ITEM_REACHED of the last waypoint and the state that says the mission complete
+    arrive within one telemetry tick; the events keep the order in which they were heard."""
+    flying = replace(GROUND, armed=True, landed_state="IN_AIR", mode="AUTO", mission_state="ACTIVE")
+    done = replace(flying, mission_state="COMPLETE")
+    tracker = EventTracker()
+    tracker.update(flying)
+    # as the client queues them: each with the state when it was heard
+    reached = Notification("item_reached", index=2, state=flying)
+    events = tracker.feed([reached], done)
+    assert [(e.kind, e.detail.get("index")) for e in events] == [
+        ("waypoint_reached", 2), ("mission_finished", None),
+    ]  # fmt: skip
+
+
+def test_a_state_change_heard_before_a_notification_comes_before_it() -> None:
+    ground = replace(GROUND, mode="AUTO")
+    armed = replace(ground, armed=True, system_status=4)
+    tracker = EventTracker()
+    tracker.update(ground)
+    note = Notification("item_reached", index=0, state=armed)
+    events = tracker.feed([note], replace(armed, landed_state="TAKEOFF"))
+    assert [e.kind for e in events] == ["armed", "waypoint_reached", "took_off"]
