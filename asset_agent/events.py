@@ -56,14 +56,18 @@ def derive_events(prev: UavState, cur: UavState, limits: EventLimits | None = No
         out.append(_event("autopilot_recovered"))
     if prev.link_up and not cur.link_up:
         out.append(_event("autopilot_lost"))
-    if not prev.armed and cur.armed:
+    # what the agent first hears is no change: started (or restarted) with the vehicle armed in
+    # the air, it did not arm, take off or start landing then
+    heard = prev.custom_mode is not None  # a HEARTBEAT: armed known
+    placed = prev.landed_state != "UNDEFINED"  # the landed state known
+    if heard and not prev.armed and cur.armed:
         out.append(_event("armed", mode=cur.mode))
     # HEARTBEAT (armed) and EXTENDED_SYS_STATE (landed state) arrive independently, so the
     # flight phases combine both: airborne means armed and in the air; a disarm while the
     # landed state still says "in the air" is a landing whose ON_GROUND report is late.
-    if not _flying(prev) and _flying(cur) and cur.landed_state != "LANDING":
+    if placed and heard and not _flying(prev) and _flying(cur) and cur.landed_state != "LANDING":
         out.append(_event("took_off", mode=cur.mode))
-    if prev.landed_state != "LANDING" and cur.landed_state == "LANDING":
+    if placed and prev.landed_state != "LANDING" and cur.landed_state == "LANDING":
         out.append(_event("landing", mode=cur.mode))
     if _flying(prev) and (cur.landed_state == "ON_GROUND" or not cur.armed):
         out.append(_event("landed", lat=cur.lat, lon=cur.lon))

@@ -56,7 +56,6 @@ class Handlers:
         self.autopilot = autopilot
         self.limits = limits
         self.checks = tuple(checks)
-        self._mission: tuple[int, ...] = ()  # command of each item last uploaded and verified
 
     def table(self) -> dict[type[CommandParams], Handler]:
         """Command type -> handler, for `Link.on_command`."""
@@ -105,7 +104,6 @@ class Handlers:
         except AutopilotError as err:
             yield _failure(err)
             return
-        self._mission = tuple(int(i.command) for i in cmd.items)
         yield CommandProgress(
             step="verify",
             index=2,
@@ -162,13 +160,9 @@ class Handlers:
             return ""
         if s.mode in RETURNING_MODES:
             return f"already returning to the base ({s.mode})"
-        current = s.mission_current
-        if (
-            s.mode == "AUTO"
-            and current is not None
-            and current < len(self._mission)
-            and self._mission[current] == NAV_RETURN_TO_LAUNCH
-        ):
+        # the mission this agent uploaded, or found on the autopilot when it started
+        command = self.autopilot.mission_watch.command_at(s.mission_current)
+        if s.mode == "AUTO" and command == NAV_RETURN_TO_LAUNCH:
             return "already returning to the base: the mission's own return-home"
         return ""
 

@@ -7,7 +7,9 @@ flies its mission and everything the agent reports waits in the link's on-disk o
 landing is the agent's too: precision landing (precland/supervisor.py) follows the autopilot, not
 the server, so the mission's own return-home lands on the pad with it; when the link returns the
 server learns of the landing from the outbox, and its late return_to_base is answered "already
-landed" (handlers.py) instead of sending the UAV back into RTL.
+landed" (handlers.py) instead of sending the UAV back into RTL. Restarted in flight, the agent
+reads the mission off the autopilot (its last item may already fly home) and tells no arming or
+take-off for the flight it finds (events.py).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from asset_agent.autopilot import Autopilot, AutopilotConfig
+from asset_agent.autopilot import Autopilot, AutopilotConfig, AutopilotError
 from asset_agent.autopilot.config import DEFAULT_STREAMS
 from asset_agent.availability import AvailabilityLimits
 from asset_agent.config import AgentConfig
@@ -125,6 +127,17 @@ async def _report(agent: Agent, stop: asyncio.Event) -> None:
         agent.autopilot.unsubscribe(notes)
 
 
+async def _adopt_mission(agent: Agent) -> None:
+    """The mission already on the autopilot, read once it answers: started after the upload (a
+    restart, in flight perhaps), the agent would not know that the mission's last item flies
+    home, and would answer the run's return to the base with an RTL on top of it."""
+    try:
+        await agent.autopilot.wait_link(None)
+        await agent.autopilot.adopt_mission()
+    except AutopilotError as err:
+        log.warning("the mission on the autopilot could not be read: %s", err)
+
+
 async def _publish(agent: Agent, video: VideoPublisher) -> None:
     """The camera to the server once the link has a session: a WHIP offer without its bearer
     token would only be refused (401) and retried."""
@@ -143,6 +156,7 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
         agent.config.autopilot.url,
         agent.link.server_url,
     )
+    adopting = asyncio.create_task(_adopt_mission(agent), name="adopt-mission")
     lander = None
     if agent.lander is not None:
         lander = asyncio.create_task(agent.lander.run(stop), name="precland")
@@ -161,7 +175,7 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
     finally:
         if metrics:
             metrics.close()
-        await cancel_and_wait([lander, publishing])
+        await cancel_and_wait([adopting, lander, publishing])
         if video is not None:
             await video.stop()
             await video.track.aclose()

@@ -106,8 +106,9 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
         await cancel_and_wait([*self._tasks, self._negotiation])
         await self._link.close()
 
-    async def wait_link(self, within_s: float) -> None:
-        """Wait until the autopilot's HEARTBEAT is seen; AutopilotTimeout otherwise."""
+    async def wait_link(self, within_s: float | None) -> None:
+        """Wait until the autopilot's HEARTBEAT is seen (None: however long that takes);
+        AutopilotTimeout otherwise."""
         try:
             await asyncio.wait_for(self._link_event.wait(), within_s)
         except TimeoutError as err:
@@ -370,6 +371,15 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
     async def download_mission(self) -> list[MissionItem]:
         """Read the mission back (home dropped)."""
         return await mission.download(self)
+
+    async def adopt_mission(self) -> None:
+        """Read the mission off the autopilot when this agent has uploaded none (it started after
+        the upload: a restart, in flight perhaps), so that its progress and last item are known."""
+        items = await self.download_mission()
+        if self.mission_watch.total is None:  # an upload of this agent's came first: it stands
+            self.mission_watch.uploaded(len(items), [item.command for item in items])
+            self.state = replace(self.state, mission_total=len(items))
+            log.info("the mission on the autopilot adopted: %d items", len(items))
 
     async def clear_mission(self) -> None:
         """MISSION_CLEAR_ALL, awaiting its MISSION_ACK."""

@@ -94,3 +94,21 @@ def test_a_state_change_heard_before_a_notification_comes_before_it() -> None:
     note = Notification("item_reached", index=0, state=armed)
     events = tracker.feed([note], replace(armed, landed_state="TAKEOFF"))
     assert [e.kind for e in events] == ["armed", "waypoint_reached", "took_off"]
+
+
+def test_an_agent_started_in_flight_tells_no_arming_take_off_or_landing_it_did_not_see() -> None:
+    """What the agent first hears is no change (a restart in flight): the HEARTBEAT says armed
+    before EXTENDED_SYS_STATE says in the air, or on a landing; what follows is told as usual."""
+    tracker = EventTracker()
+    first = replace(GROUND, armed=True, system_status=4, mode="AUTO", landed_state="UNDEFINED")
+    flying = replace(first, landed_state="IN_AIR")
+    assert tracker.update(UavState()) == []  # no HEARTBEAT yet
+    assert tracker.update(first) == [] and tracker.update(flying) == []
+    landing = replace(flying, landed_state="LANDING")
+    down = replace(landing, landed_state="ON_GROUND", armed=False, system_status=3)
+    assert [e.kind for e in tracker.update(landing) + tracker.update(down)] == [
+        "landing", "landed", "disarmed",
+    ]  # fmt: skip
+    # a restart in the final descent: no "landing" for it
+    again = EventTracker()
+    assert again.update(replace(first, landed_state="LANDING")) == []

@@ -8,7 +8,7 @@ import base64
 import contextlib
 import json
 import time
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -69,6 +69,17 @@ class Platform:
     agent: Any
     base: Any
     base_daemon: BaseDaemon | None = None  # when the base runs as its own process
+    make_agent: Callable[[], Any] | None = None  # a new agent on the same config and state file
+
+    async def restart_agent(self) -> None:
+        """Stop the agent daemon (its run() ends; its outbox stays on disk) and start a new one on
+        the same configuration, as a service manager restarts a crashed daemon."""
+        assert self.make_agent is not None
+        self.stops["agent"].set()
+        await asyncio.wait_for(self.tasks["agent"], 20)
+        self.agent = self.make_agent()
+        self.stops["agent"] = asyncio.Event()
+        self.tasks["agent"] = asyncio.create_task(run_agent(self.agent, self.stops["agent"]))
 
     @property
     def copter(self) -> Any:
@@ -242,7 +253,10 @@ async def platform(
             else:
                 link = link_runner(make_link(bcfg, tmp / "base.db", server_url))
                 tasks["base"] = asyncio.create_task(run_base(base_app, stops["base"], link=link))
-            p = Platform(world, tenant, api, ids, tasks, stops, agent, base_app, daemon)
+            p = Platform(
+                world, tenant, api, ids, tasks, stops, agent, base_app, daemon,
+                make_agent=lambda: setup_agent(aconf, ucfg),
+            )  # fmt: skip
             try:
                 await p.ready()
                 yield p
