@@ -9,6 +9,8 @@ one in RTL mode; so it answers what is already happening instead.
 
 from __future__ import annotations
 
+import asyncio
+import logging
 from collections.abc import AsyncIterator, Awaitable, Callable, Sequence
 from typing import Any
 
@@ -37,6 +39,8 @@ from protocol.vocabulary import (
 
 NAV_RETURN_TO_LAUNCH = 20
 RETURNING_MODES = ("RTL", "SMART_RTL")
+
+log = logging.getLogger(__name__)
 
 
 def _failure(err: AutopilotError) -> CommandResultPayload:
@@ -150,6 +154,26 @@ class Handlers:
             return _failure(err)
         return result("succeeded", "mission started")
 
+    async def _where_the_mission_is(self) -> None:
+        """Asked at once by a server that queued the command while this agent was away (a
+        restart), before the agent has heard its autopilot, read the mission off it (main.py) or
+        heard which item it flies: wait for each, a few seconds at most; what is still unknown
+        then leaves an RTL, the safe side. Otherwise an RTL lands on the mission's own."""
+        ap = self.autopilot
+        bound = ap.config.link_timeout_s
+        try:
+            if not ap.link_up:
+                await ap.wait_link(bound)
+            if not (ap.state.armed and ap.state.mode == "AUTO"):
+                return
+            if ap.mission_watch.total is None:
+                await ap.adopt_mission()
+            if ap.state.mission_current is None:
+                with ap.tap(lambda m: m.get_type() == "MISSION_CURRENT") as heard:
+                    await asyncio.wait_for(heard.get(), bound)
+        except (AutopilotError, TimeoutError) as err:
+            log.warning("where the mission is could not be read: %s", err or "no MISSION_CURRENT")
+
     def already_home(self) -> str:
         """Why a return to the base has nothing to do ("" when it has): the UAV has landed, or
         is already on its way (RTL, or the mission's own return-home item in AUTO)."""
@@ -168,6 +192,7 @@ class Handlers:
 
     async def return_to_base(self, request: CommandRequest[ReturnToBase]) -> CommandResultPayload:
         """RTL, unless the UAV is already back or on its way (then it is left to land as it is)."""
+        await self._where_the_mission_is()
         why = self.already_home()
         if why:
             return result("succeeded", why, {"action": "none"})

@@ -72,11 +72,19 @@ class Platform:
     make_agent: Callable[[], Any] | None = None  # a new agent on the same config and state file
 
     async def restart_agent(self) -> None:
-        """Stop the agent daemon (its run() ends; its outbox stays on disk) and start a new one on
-        the same configuration, as a service manager restarts a crashed daemon."""
-        assert self.make_agent is not None
+        """Stop the agent daemon and start a new one, as a service manager restarts a crashed
+        daemon."""
+        await self.stop_agent()
+        self.start_agent()
+
+    async def stop_agent(self) -> None:
+        """Stop the agent daemon: its run() ends; its outbox stays on disk."""
         self.stops["agent"].set()
         await asyncio.wait_for(self.tasks["agent"], 20)
+
+    def start_agent(self) -> None:
+        """A new agent daemon on the same configuration and state file."""
+        assert self.make_agent is not None
         self.agent = self.make_agent()
         self.stops["agent"] = asyncio.Event()
         self.tasks["agent"] = asyncio.create_task(run_agent(self.agent, self.stops["agent"]))

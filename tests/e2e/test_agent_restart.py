@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 
+from sim.vehicle.constants import AUTO
 from tests.conftest import Tenant
 from tests.e2e.harness import FINAL, Platform, platform
 from tests.e2e.test_autonomous_run import WHOLE_SEQUENCE
@@ -21,6 +22,10 @@ async def _events(p: Platform) -> list[dict[str, Any]]:
     return list(r.json())
 
 
+async def _told(p: Platform, name: str) -> bool:
+    return name in [e["name"] for e in await _events(p)]
+
+
 async def test_an_agent_restarted_in_flight_tells_no_new_take_off_and_leaves_the_return_home_be(
     live_server, tenant: Tenant, tmp_path
 ):
@@ -30,12 +35,7 @@ async def test_an_agent_restarted_in_flight_tells_no_new_take_off_and_leaves_the
     start the return over from its first phase in the middle of the mission's own landing."""
     async with platform(live_server.url, tenant, tmp_path) as p:
         run_id = await p.start_run()
-        await p.wait_state(run_id, ("flying",), 60)
-
-        async def told_take_off() -> bool:
-            return "took_off" in [e["name"] for e in await _events(p)]
-
-        await eventually(told_take_off, 60, "the take-off reported")
+        await eventually(lambda: _told(p, "took_off"), 60, "the take-off reported")
         first = p.agent
         await p.restart_agent()
         assert p.agent is not first
@@ -55,6 +55,43 @@ async def test_an_agent_restarted_in_flight_tells_no_new_take_off_and_leaves_the
             )
         ).json()
         (home,) = [c for c in commands if c["name"] == "return_to_base"]
-        assert home["status"] == "succeeded", home
+        assert home["status"] == "succeeded", (home["reason"], home["result"])
         assert home["result"]["action"] == "none", home["result"]
         assert "the mission's own return-home" in home["reason"], home
+
+
+async def test_a_return_home_waiting_for_a_restarted_agent_reads_the_mission_before_it_answers(
+    live_server, tenant: Tenant, tmp_path
+):
+    """The agent is down while the UAV flies on into its mission's RTL item, and a return to the
+    base waits for it at the server: the new agent gets it the moment it connects, before its own
+    read of the mission has begun (that waits for a HEARTBEAT), and reads the mission first."""
+    async with platform(live_server.url, tenant, tmp_path) as p:
+        run_id = await p.start_run()
+        await eventually(lambda: _told(p, "took_off"), 60, "the take-off reported")
+        await p.stop_agent()
+        copter = p.copter
+        await eventually(
+            lambda: copter.mode == AUTO and copter.mission_current == len(copter.items) - 1,
+            60,
+            "the UAV on its mission's last item, RTL",
+        )
+        r = await p.api.post(
+            f"/api/v1/assets/{p.ids['uav_id']}/commands",
+            json={"name": "return_to_base", "params": {}, "timeout_s": 60},
+            headers=tenant.h("operator"),
+        )
+        assert r.status_code == 202, r.text
+        p.start_agent()
+
+        async def answered() -> dict[str, Any] | None:
+            got = await p.api.get(f"/api/v1/commands/{r.json()['id']}", headers=tenant.h("viewer"))
+            body = dict(got.json())
+            return body if body["status"] not in ("queued", "sent", "in_progress") else None
+
+        home = await eventually(answered, 60, "the return to the base answered")
+        assert home["status"] == "succeeded", (home["reason"], home["result"])
+        assert home["result"]["action"] == "none", home
+        assert "the mission's own return-home" in home["reason"], home
+        body = await p.wait_state(run_id, FINAL, 150)
+        assert body["state"] == "completed", (body["reason"], body["timeline"])
