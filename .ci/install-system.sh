@@ -21,6 +21,7 @@ command -v turnserver >/dev/null 2>&1 || need+=(coturn)
 command -v ip >/dev/null 2>&1 || need+=(iproute2)
 command -v unshare >/dev/null 2>&1 || need+=(util-linux)
 command -v str2str >/dev/null 2>&1 || need+=(rtklib)  # a real NTRIP 1 client (tests/server/test_ntrip_caster.py)
+command -v systemd-analyze >/dev/null 2>&1 || need+=(systemd)  # verifies deploy/systemd/ (tests/deploy/test_systemd_units.py)
 if [ ${#need[@]} -eq 0 ]; then
     echo "system packages already installed"
     exit 0
