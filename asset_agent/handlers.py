@@ -172,7 +172,9 @@ class Handlers:
                 with ap.tap(lambda m: m.get_type() == "MISSION_CURRENT") as heard:
                     await asyncio.wait_for(heard.get(), bound)
         except (AutopilotError, TimeoutError) as err:
-            log.warning("where the mission is could not be read: %s", err or "no MISSION_CURRENT")
+            log.warning(
+                "where the mission is could not be read: %s", str(err) or "no MISSION_CURRENT"
+            )
 
     def already_home(self) -> str:
         """Why a return to the base has nothing to do ("" when it has): the UAV has landed, or
