@@ -116,6 +116,14 @@ class Platform:
             await asyncio.sleep(0.1)
         raise AssertionError("the daemons did not report ready telemetry")
 
+    async def uav_events(self) -> list[dict[str, Any]]:
+        """The UAV's events as the server stores them, oldest first."""
+        r = await self.api.get(
+            f"/api/v1/assets/{self.ids['uav_id']}/events", headers=self.tenant.h("viewer")
+        )
+        assert r.status_code == 200, r.text
+        return list(r.json())
+
     async def start_run(self) -> str:
         r = await self.api.post("/api/v1/runs", json=self.ids, headers=self.tenant.h("operator"))
         assert r.status_code == 201, r.text

@@ -16,14 +16,8 @@ from tests.polling import eventually
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
 
 
-async def _events(p: Platform) -> list[dict[str, Any]]:
-    r = await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}/events", headers=p.tenant.h("viewer"))
-    assert r.status_code == 200, r.text
-    return list(r.json())
-
-
 async def _told(p: Platform, name: str) -> bool:
-    return name in [e["name"] for e in await _events(p)]
+    return name in [e["name"] for e in await p.uav_events()]
 
 
 async def test_an_agent_restarted_in_flight_tells_no_new_take_off_and_leaves_the_return_home_be(
@@ -45,7 +39,7 @@ async def test_an_agent_restarted_in_flight_tells_no_new_take_off_and_leaves_the
         body = await p.wait_state(run_id, FINAL, 150)
         assert body["state"] == "completed", (body["reason"], body["timeline"])
         assert [t["to_state"] for t in body["timeline"]] == [*WHOLE_SEQUENCE, "completed"]
-        names = [e["name"] for e in await _events(p)]
+        names = [e["name"] for e in await p.uav_events()]
         # what happened once is told once
         for once in ("armed", "took_off", "landing", "landed", "disarmed"):
             assert names.count(once) == 1, (once, names)

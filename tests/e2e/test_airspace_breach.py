@@ -80,8 +80,6 @@ async def test_a_gust_across_the_fence_sends_the_uav_home_and_the_run_records_th
         ).json()
         (recorded,) = report["airspace_breaches"]
         assert recorded["breach_type"] == "BOUNDARY" and recorded["breach_count"] == 1
-        events = (
-            await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}/events", headers=tenant.h("viewer"))
-        ).json()
+        events = await p.uav_events()
         (event,) = [e for e in events if e["name"] == "fence_breach"]
         assert event["severity"] == "critical"

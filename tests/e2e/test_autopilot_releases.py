@@ -45,9 +45,7 @@ async def test_the_qgc_square_plan_as_is_completes_a_run(
         speeds = [it.param2 for it in copter.items if it.command == 178]
         assert speeds == [plan["mission"]["hoverSpeed"]]  # the plan's 5 m/s went up as an item
         assert copter.guidance.speed == plan["mission"]["hoverSpeed"]  # flown; RTL went at 10
-        events = (
-            await p.api.get(f"/api/v1/assets/{p.ids['uav_id']}/events", headers=tenant.h("viewer"))
-        ).json()
+        events = await p.uav_events()
         names = [e["name"] for e in events]
         for name in ("took_off", "mission_finished", "landed"):
             assert name in names, (name, names)
