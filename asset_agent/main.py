@@ -8,8 +8,9 @@ landing is the agent's too: precision landing (precland/supervisor.py) follows t
 the server, so the mission's own return-home lands on the pad with it; when the link returns the
 server learns of the landing from the outbox, and its late return_to_base is answered "already
 landed" (handlers.py) instead of sending the UAV back into RTL. Restarted in flight, the agent
-reads the mission off the autopilot (its last item may already fly home) and tells no arming or
-take-off for the flight it finds (events.py).
+reads the mission off the autopilot (its last item may already fly home), tells no arming or
+take-off for the flight it finds (events.py), and takes up a landing it was flying itself, as its
+state file says (precland/resume.py).
 """
 
 from __future__ import annotations
@@ -91,7 +92,7 @@ def setup(config: AgentConfig, asset: AssetConfig) -> Agent:
         autopilot.inject_rtcm(frame)  # the fragment count is of no use to the link
 
     link.on_rtcm(inject_rtcm)
-    lander = PrecisionLander(autopilot, config.precland) if precland else None
+    lander = PrecisionLander(autopilot, config.precland, link) if precland else None
     if lander is not None:
         link.on_command("precland_fault", lander.fault_command)
     tracker = EventTracker(EventLimits(low_battery_pct=config.telemetry.low_battery_pct))

@@ -44,6 +44,26 @@ class LinkClosed(Exception):
         self.reason = reason
 
 
+@dataclass(frozen=True, slots=True)
+class LinkStats:
+    """Counters of one Link since it started (`dropped` and `queued` are the outbox's)."""
+
+    sent: int
+    acked: int
+    replayed: int
+    dropped: int
+    reconnects: int
+    queued: int
+    rtcm_sent: int
+    rtcm_dropped: int
+    rtcm_received: int
+    bad_inbound: int
+    commands_executed: int
+    commands_redelivered: int
+    telemetry_queued: int = 0  # telemetry samples handed to the outbox since the link started
+    events_queued: int = 0
+
+
 @dataclass
 class LinkCore:
     """What a link shares with its successive connections."""

@@ -15,7 +15,6 @@ import asyncio
 import logging
 import random
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlsplit, urlunsplit
 
@@ -28,6 +27,7 @@ from assetlink.conversation import (
     Conversation,
     LinkClosed,
     LinkCore,
+    LinkStats,
     RtcmCallback,
     SessionEnded,
 )
@@ -47,26 +47,7 @@ log = logging.getLogger(__name__)
 # Close codes after which the token is no longer usable: log in again.
 TOKEN_DEAD_CODES = frozenset({4001, 4401})
 _ENVELOPE_OVERHEAD = 400
-
-
-@dataclass(frozen=True, slots=True)
-class LinkStats:
-    """Counters of one Link since it started (`dropped` and `queued` are the outbox's)."""
-
-    sent: int
-    acked: int
-    replayed: int
-    dropped: int
-    reconnects: int
-    queued: int
-    rtcm_sent: int
-    rtcm_dropped: int
-    rtcm_received: int
-    bad_inbound: int
-    commands_executed: int
-    commands_redelivered: int
-    telemetry_queued: int = 0  # telemetry samples handed to the outbox since the link started
-    events_queued: int = 0
+DAEMON_KEY = "daemon:"  # the daemon's own key/values (recall, remember), apart from the link's
 
 
 def ws_url(server_url: str, path: str = "/ws/asset") -> str:
@@ -223,6 +204,15 @@ class Link:
         except TimeoutError:
             return False
         return True
+
+    async def recall(self, key: str) -> str | None:
+        """A value kept with `remember`, in this run or an earlier one; None if none."""
+        return await self._require_core().outbox.meta(DAEMON_KEY + key)  # type: ignore[no-any-return]
+
+    async def remember(self, key: str, value: str | None) -> None:
+        """Keep a value of the daemon's own in the state file, committed when this returns, for
+        the daemon started after a crash (None: forget it)."""
+        await self._require_core().outbox.set_meta(DAEMON_KEY + key, value)
 
     async def send_telemetry(self, payload: UavTelemetry | LandingBaseTelemetry) -> None:
         """Queue one telemetry sample (durable: sent, replayed if needed, acked)."""

@@ -82,10 +82,13 @@ class StateFile:
         """A free-form value kept in the state file."""
         return self._meta(key)
 
-    def set_meta(self, key: str, value: str) -> None:
-        """Keep a free-form value in the state file."""
+    def set_meta(self, key: str, value: str | None) -> None:
+        """Keep a free-form value in the state file (None: forget it)."""
         with self._tx():
-            self._set(key, value)
+            if value is None:
+                self._db.execute("DELETE FROM meta WHERE key = ?", (key,))
+            else:
+                self._set(key, value)
 
     def close(self) -> None:
         """Close the database."""

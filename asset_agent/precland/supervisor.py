@@ -15,8 +15,9 @@ along. Every source is optional and may be unreachable: then nothing is sent and
 lands on GNSS alone. When the sources run but none has seen the pad within `[precland.search]
 acquire_s`, the agent takes the vehicle to search for it and applies the fallback rule before it
 hands the descent back (takeover.py); an abandoned landing is reported as a `landing_aborted`
-event. The autopilot's states are stamped with the `SensorClock` (clock.py), so the
-loop runs in the sensors' seconds.
+event. Restarted while the agent flew the landing itself, it hands the descent back (resume.py).
+The autopilot's states are stamped with the `SensorClock` (clock.py), so the loop runs in the
+sensors' seconds.
 """
 
 from __future__ import annotations
@@ -24,9 +25,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import math
 import time
-from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
 
@@ -40,6 +39,8 @@ from asset_agent.precland.clock import SensorClock
 from asset_agent.precland.config import SOURCES, AutopilotDescentConfig, FaultConfig
 from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import Tick, VehicleState
+from asset_agent.precland.report import LandingStats, PadFix, pad_offset_ned
+from asset_agent.precland.resume import Decision, Memory, TakeoverRecord
 from asset_agent.precland.takeover import Takeover
 from asset_agent.precland.transport import IrReceiver, frames_forever
 from assetlink.dispatch import CommandRequest, result
@@ -49,56 +50,7 @@ from protocol.vocabulary import PreclandFault
 
 log = logging.getLogger(__name__)
 
-EARTH_RADIUS_M = 6_378_137.0
 ATTITUDE, LOCAL_POSITION_NED, EXTENDED_SYS_STATE = 30, 32, 245
-
-
-@dataclass
-class LandingStats:
-    """What precision landing did, for logs and tests."""
-
-    landings: int = 0  # times the loop was started
-    frames: int = 0
-    ir_readings: int = 0
-    targets_sent: int = 0
-    first_sent_t: float | None = None  # sensor clock
-    last_sent_t: float | None = None
-
-    @property
-    def target_rate_hz(self) -> float | None:
-        """LANDING_TARGET messages per sensor-clock second over the span they were sent."""
-        if self.first_sent_t is None or self.last_sent_t is None:
-            return None
-        span = self.last_sent_t - self.first_sent_t
-        return (self.targets_sent - 1) / span if span > 0 else None
-
-
-@dataclass(frozen=True)
-class PadFix:
-    """The last measured (not held) pad position relative to the vehicle, in sensor seconds."""
-
-    t: float
-    rel_ned: tuple[float, float, float]
-    sources: tuple[str, ...]
-
-    def touchdown(self, now: float) -> dict[str, Any]:
-        """The agent's measured touchdown offset, as scalars for the `landed` event's data."""
-        north, east, down = self.rel_ned
-        return {
-            "offset_m": round(math.hypot(north, east), 3),
-            "offset_north_m": round(north, 3),
-            "offset_east_m": round(east, 3),
-            "fix_height_m": round(down, 2),
-            "fix_age_s": round(max(0.0, now - self.t), 2),
-            "fix_sources": "+".join(self.sources),
-        }
-
-
-def pad_offset_ned(lat: float, lon: float, pad_lat: float, pad_lon: float) -> tuple[float, float]:
-    """(north, east) metres from (lat, lon) to the pad, flat-earth (fine over a landing)."""
-    dn = math.radians(pad_lat - lat) * EARTH_RADIUS_M
-    de = math.radians(pad_lon - lon) * EARTH_RADIUS_M * math.cos(math.radians(lat))
-    return dn, de
 
 
 def descending(state: Any) -> bool:
@@ -116,7 +68,10 @@ def landing_now(state: Any, activation_height_m: float) -> bool:
 class PrecisionLander:
     """Runs precision landing for one autopilot; `run(stop)` is the daemon's task."""
 
-    def __init__(self, autopilot: Any, section: PreclandSection) -> None:
+    def __init__(
+        self, autopilot: Any, section: PreclandSection, memory: Memory | None = None
+    ) -> None:
+        """`memory`: where the agent's hold on the vehicle outlives a restart (resume.py)."""
         self.autopilot = autopilot
         self.section = section
         self.config = section.pipeline()
@@ -135,6 +90,8 @@ class PrecisionLander:
         self._gate_task: asyncio.Task[None] | None = None  # PLND_XY_DIST_MAX for this landing
         self.xy_dist_max: float | None = None  # the value the autopilot last confirmed
         self._armed = False
+        self.record = TakeoverRecord(memory)
+        self._resume_task: asyncio.Task[None] | None = None
         self.events: list[Event] = []  # for the daemon's event stream (drained by the reporter)
         if self.config.mode != "landing_target":
             log.warning(
@@ -177,6 +134,10 @@ class PrecisionLander:
 
     async def run(self, stop: asyncio.Event) -> None:
         """Watch the autopilot; run the landing loop while it lands. Never raises but cancel."""
+        try:
+            await self.record.load()
+        except Exception:  # the state file is the link's: it says why it failed
+            log.exception("precland: what the previous agent kept could not be read")
         tasks = [asyncio.create_task(self._states(), name="precland-states")]
         ir: IrReceiver | None = None
         ir_port = self.section.ir_port  # the receiver exists only when a port is configured
@@ -206,7 +167,7 @@ class PrecisionLander:
                     await asyncio.wait_for(stop.wait(), 0.05)
         finally:
             await self._stop_loop()
-            await cancel_and_wait([self._camera_task, *tasks])
+            await cancel_and_wait([self._camera_task, self._resume_task, *tasks])
             if ir is not None:
                 ir.close()
 
@@ -215,6 +176,10 @@ class PrecisionLander:
         taken = self.takeover is not None and self.takeover.active  # the agent searches
         if state.armed and not self._armed:
             self.takeover = None  # a new flight searches afresh
+        decision = self.record.first_sight(state)
+        disarmed = self._armed and not state.armed and self.record.current is not None
+        if decision is not None or disarmed:
+            self._resume_task = asyncio.create_task(self._resume(decision or "none"))
         self._armed = bool(state.armed)
         lands = descending(state) or taken
         if lands and self.section.camera_port is not None and self._camera_task is None:
@@ -251,13 +216,35 @@ class PrecisionLander:
         path = self.takeover.path if self.takeover is not None else None
         path = None if path == "aborted-climb" else path
         self.takeover = Takeover(
-            self.autopilot, loop.pipeline, config, self.clock.now, self.clock.sleep, path
+            self.autopilot,
+            loop.pipeline,
+            config,
+            self.clock.now,
+            self.clock.sleep,
+            path,
+            self.record.keep,
         )
         self._takeover_task = asyncio.create_task(self._take_over(self.takeover))
         if config.mode == "landing_target" and config.autopilot.xy_dist_max_m is not None:
             self._gate_task = asyncio.create_task(self._descent_gate(config.autopilot))
         self.stats.landings += 1
         log.info("precland: active at %.1f m (pad prior %s)", state.alt_rel or 0.0, prior)
+
+    async def _resume(self, decision: Decision) -> None:
+        """A restarted agent's first look at the vehicle (resume.py), or a disarm: hand the
+        landing it finds its predecessor flying back to the autopilot (kept as flying until this
+        landing's takeover says otherwise, or the disarm), leave an abandoned one holding;
+        otherwise forget what was kept."""
+        try:
+            if decision == "resume":
+                log.warning("precland: the previous agent was flying the landing (GUIDED): LAND")
+                await self.autopilot.set_mode("LAND")
+            elif decision == "hold":
+                log.warning("precland: the previous agent abandoned the landing: left holding")
+            else:
+                await self.record.keep(None)
+        except Exception:  # a refused mode change, the state file: the autopilot holds it
+            log.exception("precland: the landing the previous agent flew was not handed back")
 
     async def _take_over(self, takeover: Takeover) -> None:
         try:

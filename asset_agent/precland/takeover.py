@@ -16,6 +16,9 @@ setpoints, with the same rule after it:
 After the hand-over the same rule guards the descent (`guard`, guard.py): on a fix short of RTK
 fixed a pad lost above the final stretch is not left to the autopilot's blind descent; the agent
 flies the cautious retry and, the retries used up, climbs and holds ("aborted-climb").
+
+Each hold on the vehicle is kept in the daemon's state file before it is taken, and again when
+it is handed back or abandoned (`keep`; resume.py), for an agent restarted in the middle of it.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from asset_agent.precland.control import clip_xy
 from asset_agent.precland.guard import LossGuard
 from asset_agent.precland.kalman import Estimate
 from asset_agent.precland.pipeline import LandingPipeline, VehicleState
+from asset_agent.precland.resume import FLYING, HOLDING
 from asset_agent.precland.sequence import LandingSequence
 
 log = logging.getLogger(__name__)
@@ -50,7 +54,9 @@ class Takeover:
         now_fn: Callable[[], float],
         sleep_fn: Callable[[float], Awaitable[None]],
         path: str | None = None,
+        keep: Callable[[str | None], Awaitable[None]] | None = None,
     ) -> None:
+        """`keep`: where the agent's hold on the vehicle is kept (resume.TakeoverRecord.keep)."""
         self.autopilot = autopilot
         self.pipeline = pipeline
         self.config = config
@@ -61,6 +67,7 @@ class Takeover:
         search = config.search.model_copy(update={"acquire_s": 0.0})  # waited for already
         self.sequence = LandingSequence(config.control, config.retry, search, config.camera)
         self.loss_guard: LossGuard | None = None  # after the hand-over (guard.py)
+        self.keep = keep or _forget
 
     async def run(self) -> None:
         """Search unless decided (a first measurement within `acquire_s`, else search and fall
@@ -85,9 +92,8 @@ class Takeover:
             self.path = "precision"
             return
         log.info("precland: the pad is not in view: searching")
-        self.active = True
         try:
-            await self.autopilot.set_mode("GUIDED")
+            await self._take()
             await self._fly()
         finally:
             self.active = False
@@ -108,8 +114,7 @@ class Takeover:
                         "the agent flies the retry",
                         guard.losses[-1],
                     )
-                    self.active = True
-                    await self.autopilot.set_mode("GUIDED")
+                    await self._take()
                 if act.setpoint is not None:
                     sp = act.setpoint
                     self.autopilot.send_velocity_ned(sp.vn, sp.ve, sp.vd)
@@ -117,6 +122,7 @@ class Takeover:
                     await self._land()
                     self.active = False
                 if act.kind == "hold":
+                    await self.keep(HOLDING)
                     self.path = "aborted-climb"
                     log.warning("precland: %s: holding at a safe height", self.abort_reason)
                     return
@@ -134,10 +140,17 @@ class Takeover:
         """Heights (above touchdown) at which the guard took the vehicle, this landing."""
         return self.loss_guard.losses if self.loss_guard is not None else []
 
+    async def _take(self) -> None:
+        """Take the vehicle (GUIDED), kept first: a restart in the middle resumes the landing."""
+        await self.keep(FLYING)
+        self.active = True
+        await self.autopilot.set_mode("GUIDED")
+
     async def _land(self) -> None:
         """Hand the descent back (LAND), staying active until the autopilot reports it, so that
         the supervisor does not see a gap between our mode and the autopilot's landing."""
         await self.autopilot.set_mode("LAND")
+        await self.keep(None)
         for _ in range(round(MODE_WAIT_S / PERIOD_S)):
             if getattr(self.autopilot.state, "mode", None) == "LAND":
                 return
@@ -168,6 +181,7 @@ class Takeover:
                 sp = cmd.setpoint
                 self.autopilot.send_velocity_ned(sp.vn, sp.ve, sp.vd)
                 if self.sequence.holding_safe:
+                    await self.keep(HOLDING)
                     self.path = "aborted-climb"
                     log.warning(
                         "precland: no pad found, no RTK fixed GNSS: holding at a safe height"
@@ -183,3 +197,7 @@ class Takeover:
             state = self.pipeline.state_at(now)
             if state is not None:
                 return now, state, self.pipeline.kalman.estimate()
+
+
+async def _forget(value: str | None) -> None:
+    """`keep` for a takeover whose daemon keeps nothing (the evaluation, tests)."""

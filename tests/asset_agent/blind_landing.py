@@ -13,6 +13,7 @@ from asset_agent.autopilot import Autopilot
 from asset_agent.autopilot.config import DEFAULT_STREAMS
 from asset_agent.config import PreclandSection
 from asset_agent.precland.config import FaultConfig
+from asset_agent.precland.resume import Memory
 from asset_agent.precland.supervisor import PrecisionLander, stream_rates
 from sim.ir import IrBeaconSensor
 from sim.vehicle.server import VehicleServer
@@ -37,10 +38,16 @@ async def precland_adapter(vehicle: VehicleServer) -> AsyncIterator[Autopilot]:
 
 @contextlib.asynccontextmanager
 async def blind_beacon_lander(
-    ap: Autopilot, vehicle: VehicleServer, /, fault: FaultConfig | None = None, **section: Any
+    ap: Autopilot,
+    vehicle: VehicleServer,
+    /,
+    fault: FaultConfig | None = None,
+    memory: Memory | None = None,
+    **section: Any,
 ) -> AsyncIterator[PrecisionLander]:
-    """The daemon's precision landing (`PreclandSection(**section)`) with an IR beacon whose
-    every reading is dropped (or those `fault` drops): the loop runs, it never sees the pad."""
+    """The daemon's precision landing (`PreclandSection(**section)`, its state file `memory`)
+    with an IR beacon whose every reading is dropped (or those `fault` drops): the loop runs, it
+    never sees the pad."""
     copter = vehicle.copter
 
     def pose() -> tuple[float, float, float, float, float, float]:
@@ -53,6 +60,7 @@ async def blind_beacon_lander(
     lander = PrecisionLander(
         ap,
         PreclandSection(ir_port=port, faults={"ir": fault or FaultConfig(r_drop=1.0)}, **section),
+        memory,
     )
     stop = asyncio.Event()
     task = asyncio.create_task(lander.run(stop))

@@ -12,15 +12,14 @@ from asset_agent.autopilot.flight_state import infer_landed_state
 from asset_agent.autopilot.state import UavState
 from asset_agent.config import PreclandSection
 from asset_agent.events import Event
+from asset_agent.precland.report import PadFix, pad_offset_ned
 from asset_agent.precland.supervisor import (
     ATTITUDE,
     EXTENDED_SYS_STATE,
     LOCAL_POSITION_NED,
-    PadFix,
     PrecisionLander,
     descending,
     landing_now,
-    pad_offset_ned,
     stream_rates,
 )
 

@@ -2,7 +2,10 @@
 autopilot over MAVLink and the simulated IR beacon over UDP: a landing whose pad is never seen is
 searched for, then abandoned by a climb on a plain fix, or landed on the RTK fixed GNSS; a pad
 lost low is retried or abandoned on a plain fix; a blind descent blown off the pad by the wind is
-flown by the agent (the guard's blind wait) and handed back, or abandoned."""
+flown by the agent (the guard's blind wait) and handed back, or abandoned. An agent restarted in
+its own search, with the daemon's state file (the link's, offline), hands the descent back and
+lands again; restarted in the hold after an abandoned landing, it leaves the hold; a GUIDED
+vehicle it never took it leaves alone (resume.py)."""
 
 from __future__ import annotations
 
@@ -10,12 +13,15 @@ import asyncio
 import contextlib
 import math
 from collections.abc import AsyncIterator, Callable
+from pathlib import Path
 
 import pytest
 
 from asset_agent.autopilot import Autopilot
 from asset_agent.precland.config import FaultConfig, RetryConfig, SearchConfig
+from asset_agent.precland.resume import FLYING, HOLDING, KEY
 from asset_agent.precland.supervisor import PrecisionLander
+from assetlink.link import Link
 from asynckit.tasks import cancel_and_wait
 from sim.vehicle.server import VehicleServer, WindFn, run_vehicle
 from tests.asset_agent.blind_landing import (
@@ -25,6 +31,7 @@ from tests.asset_agent.blind_landing import (
 )
 from tests.asset_agent.test_autopilot_flight import corrections
 from tests.polling import eventually
+from tests.protocol.test_assetlink_link import closed_port_url
 
 SEARCH = SearchConfig(acquire_s=1.0, max_radius_m=3.0, max_time_s=8.0, abort_height_m=13.0)
 
@@ -263,3 +270,68 @@ async def test_a_blind_descent_blown_off_by_a_gust_is_flown_back_and_landed() ->
         # LAND left to itself came down where the gust put it: 80 cm off (on the blind estimate,
         # after the flight back: 2-15 cm)
         assert vehicle.copter.pad_distance() < 0.3
+
+
+@contextlib.asynccontextmanager
+async def state_file(path: Path) -> AsyncIterator[Link]:
+    """The daemon's link on its state file, offline (nothing listens at its server URL)."""
+    link = Link(closed_port_url(), "uav-1", "secret", path)
+    await link.start()
+    try:
+        yield link
+    finally:
+        await link.stop()
+
+
+def searching_lander(autopilot: Autopilot, vehicle: VehicleServer, memory: Link):
+    """The daemon's precision landing with its beacon blind (it searches) and its state file."""
+    return blind_beacon_lander(autopilot, vehicle, search=SEARCH, pad_sigma_m=0.5, memory=memory)
+
+
+async def test_an_agent_restarted_in_its_search_lands_again_and_one_restarted_in_the_hold_holds(
+    autopilot: Autopilot, vehicle: VehicleServer, tmp_path: Path
+) -> None:
+    """Stopped while it searched (GUIDED), the agent leaves the vehicle hovering where the search
+    was; the next one hands the descent back (LAND) and the landing starts afresh: a search, no
+    pad on a plain fix, a climb and a hold. Stopped in that hold, the one after leaves it."""
+    copter = vehicle.copter
+    async with state_file(tmp_path / "agent.db") as memory:
+        async with searching_lander(autopilot, vehicle, memory) as first:
+            await take_off_and_land(autopilot, vehicle)
+            await eventually(lambda: first.takeover and first.takeover.active, 20, "a search")
+            await eventually(lambda: autopilot.state.mode == "GUIDED", 10, "the agent flying")
+            assert await memory.recall(KEY) == FLYING
+        assert autopilot.state.mode == "GUIDED" and copter.armed  # the search left hovering
+
+        async with searching_lander(autopilot, vehicle, memory) as second:
+            # LAND: a landing again (the loop starts), then at once its search (in GUIDED), too
+            # quick for the mode in a 1 Hz HEARTBEAT
+            await eventually(lambda: second.stats.landings, 10, "the descent handed back")
+            assert second.record.decision == "resume"
+            await eventually(lambda: second.takeover and second.takeover.path, 40, "a new search")
+            assert second.takeover is not None and second.takeover.path == "aborted-climb"
+            assert [e.kind for e in second.drain_events()] == ["landing_aborted"]
+            assert await memory.recall(KEY) == HOLDING
+
+        async with searching_lander(autopilot, vehicle, memory) as third:
+            await eventually(lambda: third.record.decision, 10, "the first look")
+            assert third.record.decision == "hold"
+            assert autopilot.state.mode == "GUIDED" and copter.dyn.state.altitude > 10.5
+            assert await memory.recall(KEY) == HOLDING  # a further restart holds too
+
+
+async def test_a_guided_vehicle_the_agent_never_took_is_left_alone(
+    autopilot: Autopilot, vehicle: VehicleServer, tmp_path: Path
+) -> None:
+    """Nothing kept: a GUIDED hover is someone else's (a pilot's ground station), not a landing."""
+    await autopilot.set_mode("GUIDED")
+    await autopilot.arm()
+    await autopilot.takeoff(11)
+    await eventually(lambda: vehicle.copter.dyn.state.altitude > 10.5, 20, "takeoff")
+    async with (
+        state_file(tmp_path / "agent.db") as memory,
+        searching_lander(autopilot, vehicle, memory) as lander,
+    ):
+        await eventually(lambda: lander.record.decision, 10, "the first look")
+        assert lander.record.decision == "none"
+        assert autopilot.state.mode == "GUIDED" and lander.takeover is None

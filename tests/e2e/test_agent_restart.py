@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from sim.vehicle.constants import AUTO
+from sim.vehicle.constants import AUTO, GUIDED
 from tests.conftest import Tenant
 from tests.e2e.harness import FINAL, Platform, platform
 from tests.e2e.test_autonomous_run import WHOLE_SEQUENCE
@@ -89,3 +89,40 @@ async def test_a_return_home_waiting_for_a_restarted_agent_reads_the_mission_bef
         assert "the mission's own return-home" in home["reason"], home
         body = await p.wait_state(run_id, FINAL, 150)
         assert body["state"] == "completed", (body["reason"], body["timeline"])
+
+
+# every precision source blind above 6 m: the landing loop starts at 10 m, sees nothing, and the
+# agent searches (GUIDED); the search over, it flies over the surveyed pad on its RTK fixed GNSS,
+# hands LAND back, and the sources see the pad below 6 m
+BLIND_ABOVE_6M = {
+    "faults": {source: {"fail_above_m": 6.0} for source in ("pattern", "aruco", "ir")},
+    "search": {"max_time_s": 20.0, "max_radius_m": 3.0},
+}
+
+
+async def test_an_agent_restarted_in_its_own_search_hands_the_descent_back_and_the_run_lands(
+    live_server, tenant: Tenant, tmp_path
+):
+    """Restarted while it flew the search itself (GUIDED): ArduPilot holds a GUIDED vehicle where
+    it is once the setpoints stop, so a new agent that did not know the hover was its
+    predecessor's landing would leave it there, and the run would fail by its landing budget with
+    the base open. The state file says it was: the new agent hands LAND back, and the landing
+    starts afresh (a search again, the RTK fallback, the pad in view low) to the end of the run."""
+    async with platform(live_server.url, tenant, tmp_path, speed=4.0, precland=BLIND_ABOVE_6M) as p:
+        run_id = await p.start_run()
+        first = p.agent.lander
+        await eventually(
+            lambda: first.takeover and first.takeover.active and p.copter.mode == GUIDED,
+            150,
+            "the agent searching",
+        )
+        await p.restart_agent()
+        assert p.copter.mode == GUIDED and p.copter.armed  # left hovering
+
+        body = await p.wait_state(run_id, FINAL, 150)
+        assert body["state"] == "completed", (body["reason"], body["timeline"])
+        lander = p.agent.lander
+        assert lander.record.decision == "resume"
+        assert lander.takeover is not None and lander.takeover.path == "rtk-fallback"
+        names = [e["name"] for e in await p.uav_events()]
+        assert "landing_aborted" not in names and names.count("landed") == 1, names

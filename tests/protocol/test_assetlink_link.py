@@ -94,6 +94,28 @@ async def test_offline_link_queues_durably_and_keeps_its_stream(tmp_path: Path) 
     assert [e.type for e in box.take(10)] == ["telemetry"] * 4 + ["event"]
 
 
+async def test_what_a_daemon_remembers_outlives_it_apart_from_the_links_own_keys(
+    tmp_path: Path,
+) -> None:
+    """`remember` is committed when it returns: the next daemon on the state file recalls it."""
+    state, url = tmp_path / "link.sqlite", closed_port_url()
+    link = Link(url, "uav-1", "secret", state)
+    await link.start()
+    assert await link.recall("precland.takeover") is None
+    await link.remember("precland.takeover", "flying")
+    await link.remember("identity", "not the link's")  # a daemon's key never overwrites the link's
+    await link.stop()
+
+    again = Link(url, "uav-1", "secret", state)
+    await again.start()
+    assert await again.recall("precland.takeover") == "flying"
+    assert await again.recall("identity") == "not the link's"
+    assert Outbox(state).meta("identity") == f"{url}|uav-1"
+    await again.remember("precland.takeover", None)
+    assert await again.recall("precland.takeover") is None
+    await again.stop()
+
+
 def test_link_pacing_stays_under_the_servers_default_limit() -> None:
     """Over any span t, the link sends at most burst + rate*t, the server accepts 400 + 200*t."""
     link = Link("http://127.0.0.1:1", "uav-1", "secret", "unused.sqlite")

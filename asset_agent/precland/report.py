@@ -1,0 +1,58 @@
+"""What a landing did, for the daemon's logs and its `landed` event: the loop's counters, the last
+measured fix of the pad (the agent's touchdown offset) and the pad's offset from a GNSS position."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+EARTH_RADIUS_M = 6_378_137.0
+
+
+@dataclass
+class LandingStats:
+    """What precision landing did, for logs and tests."""
+
+    landings: int = 0  # times the loop was started
+    frames: int = 0
+    ir_readings: int = 0
+    targets_sent: int = 0
+    first_sent_t: float | None = None  # sensor clock
+    last_sent_t: float | None = None
+
+    @property
+    def target_rate_hz(self) -> float | None:
+        """LANDING_TARGET messages per sensor-clock second over the span they were sent."""
+        if self.first_sent_t is None or self.last_sent_t is None:
+            return None
+        span = self.last_sent_t - self.first_sent_t
+        return (self.targets_sent - 1) / span if span > 0 else None
+
+
+@dataclass(frozen=True)
+class PadFix:
+    """The last measured (not held) pad position relative to the vehicle, in sensor seconds."""
+
+    t: float
+    rel_ned: tuple[float, float, float]
+    sources: tuple[str, ...]
+
+    def touchdown(self, now: float) -> dict[str, Any]:
+        """The agent's measured touchdown offset, as scalars for the `landed` event's data."""
+        north, east, down = self.rel_ned
+        return {
+            "offset_m": round(math.hypot(north, east), 3),
+            "offset_north_m": round(north, 3),
+            "offset_east_m": round(east, 3),
+            "fix_height_m": round(down, 2),
+            "fix_age_s": round(max(0.0, now - self.t), 2),
+            "fix_sources": "+".join(self.sources),
+        }
+
+
+def pad_offset_ned(lat: float, lon: float, pad_lat: float, pad_lon: float) -> tuple[float, float]:
+    """(north, east) metres from (lat, lon) to the pad, flat-earth (fine over a landing)."""
+    dn = math.radians(pad_lat - lat) * EARTH_RADIUS_M
+    de = math.radians(pad_lon - lon) * EARTH_RADIUS_M * math.cos(math.radians(lat))
+    return dn, de
