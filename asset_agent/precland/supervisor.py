@@ -41,7 +41,7 @@ from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import Tick, VehicleState
 from asset_agent.precland.report import LandingStats, PadFix, pad_offset_ned
 from asset_agent.precland.resume import Decision, Memory, TakeoverRecord
-from asset_agent.precland.takeover import Takeover
+from asset_agent.precland.takeover import Takeover, hand_back
 from asset_agent.precland.transport import IrReceiver, frames_forever
 from assetlink.dispatch import CommandRequest, result
 from asynckit.tasks import cancel_and_wait
@@ -238,7 +238,7 @@ class PrecisionLander:
         try:
             if decision == "resume":
                 log.warning("precland: the previous agent was flying the landing (GUIDED): LAND")
-                await self.autopilot.set_mode("LAND")
+                await hand_back(self.autopilot, self.clock.sleep)
             elif decision == "hold":
                 log.warning("precland: the previous agent abandoned the landing: left holding")
             else:

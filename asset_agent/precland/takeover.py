@@ -19,6 +19,8 @@ flies the cautious retry and, the retries used up, climbs and holds ("aborted-cl
 
 Each hold on the vehicle is kept in the daemon's state file before it is taken, and again when
 it is handed back or abandoned (`keep`; resume.py), for an agent restarted in the middle of it.
+The hand-back (`hand_back`) is sent again until the autopilot takes it: a vehicle left in GUIDED
+hovers until its battery fails.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import math
 from collections.abc import Awaitable, Callable
 from typing import Any
 
+from asset_agent.autopilot.errors import AutopilotError
 from asset_agent.precland.config import PrecisionLandingConfig
 from asset_agent.precland.control import clip_xy
 from asset_agent.precland.guard import LossGuard
@@ -41,6 +44,7 @@ log = logging.getLogger(__name__)
 PERIOD_S = 0.1  # setpoints at 10 Hz of sensor time
 OVER_PAD_M = 0.3  # the RTK fallback hands LAND over this close to the surveyed pad
 MODE_WAIT_S = 3.0  # sensor seconds to see the autopilot report LAND
+RETRY_S = 1.0  # sensor seconds between hand-backs the autopilot did not take
 
 
 class Takeover:
@@ -149,7 +153,7 @@ class Takeover:
     async def _land(self) -> None:
         """Hand the descent back (LAND), staying active until the autopilot reports it, so that
         the supervisor does not see a gap between our mode and the autopilot's landing."""
-        await self.autopilot.set_mode("LAND")
+        await hand_back(self.autopilot, self.sleep_fn)
         await self.keep(None)
         for _ in range(round(MODE_WAIT_S / PERIOD_S)):
             if getattr(self.autopilot.state, "mode", None) == "LAND":
@@ -201,3 +205,22 @@ class Takeover:
 
 async def _forget(value: str | None) -> None:
     """`keep` for a takeover whose daemon keeps nothing (the evaluation, tests)."""
+
+
+async def hand_back(autopilot: Any, sleep_fn: Callable[[float], Awaitable[None]]) -> int:
+    """LAND, sent again every RETRY_S while the autopilot has not taken it (no COMMAND_ACK, the
+    link down, a refusal) and the vehicle still flies in GUIDED: left there, it would hover until
+    its battery fails. Gives up (raises) once the vehicle is no longer the agent's (disarmed, or
+    another mode: a pilot took it). Returns the number of tries."""
+    tries = 0
+    while True:
+        tries += 1
+        try:
+            await autopilot.set_mode("LAND")
+            return tries
+        except AutopilotError as err:
+            state = autopilot.state
+            if not (state.armed and state.mode == "GUIDED"):
+                raise
+            log.warning("precland: LAND not taken (%s): sending it again", err)
+        await sleep_fn(RETRY_S)

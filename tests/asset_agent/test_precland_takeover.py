@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
+import time
 from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 
@@ -21,8 +22,10 @@ from asset_agent.autopilot import Autopilot
 from asset_agent.precland.config import FaultConfig, RetryConfig, SearchConfig
 from asset_agent.precland.resume import FLYING, HOLDING, KEY
 from asset_agent.precland.supervisor import PrecisionLander
+from asset_agent.precland.takeover import hand_back
 from assetlink.link import Link
 from asynckit.tasks import cancel_and_wait
+from sim.vehicle.constants import LAND
 from sim.vehicle.server import VehicleServer, WindFn, run_vehicle
 from tests.asset_agent.blind_landing import (
     blind_beacon_lander,
@@ -335,3 +338,19 @@ async def test_a_guided_vehicle_the_agent_never_took_is_left_alone(
         await eventually(lambda: lander.record.decision, 10, "the first look")
         assert lander.record.decision == "none"
         assert autopilot.state.mode == "GUIDED" and lander.takeover is None
+
+
+async def test_a_hand_back_the_autopilot_did_not_take_is_sent_again_until_it_does(
+    autopilot: Autopilot, vehicle: VehicleServer
+) -> None:
+    """The agent hands a vehicle it flew back (LAND) while the autopilot hears nothing (3 wall s:
+    a radio dropout, a starved link): no COMMAND_ACK, the link lost. Given up there, the vehicle
+    would hover in GUIDED until its battery failed; the LAND goes again until it is taken."""
+    await autopilot.set_mode("GUIDED")
+    await autopilot.arm()
+    await autopilot.takeoff(11)
+    await eventually(lambda: vehicle.copter.dyn.state.altitude > 10.5, 20, "takeoff")
+    vehicle.copter.faults.mute_until = time.monotonic() + 3.0
+    tries = await asyncio.wait_for(hand_back(autopilot, asyncio.sleep), 30)
+    assert tries > 1
+    assert vehicle.copter.mode == LAND
