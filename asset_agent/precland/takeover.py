@@ -209,9 +209,10 @@ async def _forget(value: str | None) -> None:
 
 async def hand_back(autopilot: Any, sleep_fn: Callable[[float], Awaitable[None]]) -> int:
     """LAND, sent again every RETRY_S while the autopilot has not taken it (no COMMAND_ACK, the
-    link down, a refusal) and the vehicle still flies in GUIDED: left there, it would hover until
-    its battery fails. Gives up (raises) once the vehicle is no longer the agent's (disarmed, or
-    another mode: a pilot took it). Returns the number of tries."""
+    link down, a refusal) and the vehicle may still fly in GUIDED: left there, it would hover
+    until its battery fails. Done when the autopilot acknowledges it or reports LAND (an answer
+    lost); gives up (raises) once the vehicle is known not to be the agent's any more (disarmed,
+    or another mode: a pilot took it). Returns the number of tries."""
     tries = 0
     while True:
         tries += 1
@@ -220,7 +221,15 @@ async def hand_back(autopilot: Any, sleep_fn: Callable[[float], Awaitable[None]]
             return tries
         except AutopilotError as err:
             state = autopilot.state
-            if not (state.armed and state.mode == "GUIDED"):
+            if state.mode == "LAND":
+                return tries
+            if state.link_up and not (state.armed and state.mode == "GUIDED"):
+                log.warning(
+                    "precland: LAND not taken (%s), the vehicle %s in %s: left to it",
+                    err,
+                    "armed" if state.armed else "disarmed",
+                    state.mode,
+                )
                 raise
             log.warning("precland: LAND not taken (%s): sending it again", err)
         await sleep_fn(RETRY_S)
