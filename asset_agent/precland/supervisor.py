@@ -6,7 +6,9 @@ While the autopilot lands, the camera's frames, the IR beacon's readings and the
 MAV_FRAME_BODY_FRD) at the configured rate.
 
 Active while the autopilot is landing (landed_state LANDING — LAND mode, RTL's or a mission's final
-descent — or mode LAND) below `activation_height_m`. landed_state is the autopilot's own
+descent — or mode LAND) below `activation_height_m`, once the pad's position is known (surveyed,
+or home: an agent just started may not have heard HOME_POSITION yet, and a search or a fallback
+would centre on its own position). landed_state is the autopilot's own
 EXTENDED_SYS_STATE when it sends one; for those that send none (ArduPilot 3.x) the adapter infers
 it (autopilot/flight_state.py): a descent in LAND mode or on a mission's NAV_LAND item, or an
 RTL descent within 5 m of home — never a climb, and never a descent on the way home. The camera is
@@ -166,17 +168,25 @@ class PrecisionLander:
                 with contextlib.suppress(TimeoutError):
                     await asyncio.wait_for(stop.wait(), 0.05)
         finally:
-            await self._stop_loop()
-            await cancel_and_wait([self._camera_task, self._resume_task, *tasks])
-            if ir is not None:
-                ir.close()
+            # cancelled while stopping (the daemon's own stop), the landing's tasks still end:
+            # a takeover left behind would fly on with a closed link
+            await asyncio.shield(self._close(tasks, ir))
+
+    async def _close(self, tasks: list[asyncio.Task[None]], ir: IrReceiver | None) -> None:
+        await self._stop_loop()
+        await cancel_and_wait([self._camera_task, self._resume_task, *tasks])
+        if ir is not None:
+            ir.close()
 
     def _supervise(self) -> None:
         state = self.autopilot.state
         taken = self.takeover is not None and self.takeover.active  # the agent searches
         if state.armed and not self._armed:
             self.takeover = None  # a new flight searches afresh
-        decision = self.record.first_sight(state)
+        # where the pad is, from the survey or home: without it a search or a fallback would
+        # centre on nothing (an agent just started has not heard HOME_POSITION yet)
+        prior = self._pad_prior(state)
+        decision = self.record.first_sight(state) if prior is not None else None
         disarmed = self._armed and not state.armed and self.record.current is not None
         if decision is not None or disarmed:
             self._resume_task = asyncio.create_task(self._resume(decision or "none"))
@@ -188,8 +198,9 @@ class PrecisionLander:
             self._camera_task.cancel()
             self._camera_task = None
         active = landing_now(state, self.section.activation_height_m) or taken
-        if active and self._loop_task is None and self.clock.ready and self._position is not None:
-            self._start_loop(state)
+        ready = self.clock.ready and self._position is not None
+        if active and self._loop_task is None and ready and prior is not None:
+            self._start_loop(state, prior)
         elif not active and self._loop_task is not None:
             self._loop_task.cancel()
             for task in (self._takeover_task, self._gate_task):
@@ -198,14 +209,12 @@ class PrecisionLander:
             self._loop_task = self.loop = self._takeover_task = self._gate_task = None
             log.info("precland: inactive (%d LANDING_TARGET sent)", self.stats.targets_sent)
 
-    def _start_loop(self, state: Any) -> None:
+    def _start_loop(self, state: Any, prior: tuple[float, float, float]) -> None:
         config = self.config.model_copy(update={"faults": dict(self.faults)})
         loop = PrecisionLandingLoop(
             config, on_tick=self._on_tick, now_fn=self.clock.now, sleep_fn=self.clock.sleep
         )
-        prior = self._pad_prior(state)
-        if prior is not None:
-            loop.pipeline.set_pad_prior(prior, self.section.pad_sigma_m)
+        loop.pipeline.set_pad_prior(prior, self.section.pad_sigma_m)
         now = self.clock.now()
         for source, fault in self.faults.items():
             loop.pipeline.set_fault(source, fault, now)
