@@ -198,8 +198,7 @@ class PrecisionLander:
             self._camera_task.cancel()
             self._camera_task = None
         active = landing_now(state, self.section.activation_height_m) or taken
-        ready = self.clock.ready and self._position is not None
-        if active and self._loop_task is None and ready and prior is not None:
+        if active and self._loop_task is None and self.ready and prior is not None:
             self._start_loop(state, prior)
         elif not active and self._loop_task is not None:
             self._loop_task.cancel()
@@ -208,6 +207,12 @@ class PrecisionLander:
                     task.cancel()
             self._loop_task = self.loop = self._takeover_task = self._gate_task = None
             log.info("precland: inactive (%d LANDING_TARGET sent)", self.stats.targets_sent)
+
+    @property
+    def ready(self) -> bool:
+        """The sensors' clock has a timestamp and the autopilot's position is known: a landing
+        loop can start (once the pad's position is known too)."""
+        return self.clock.ready and self._position is not None
 
     def _start_loop(self, state: Any, prior: tuple[float, float, float]) -> None:
         config = self.config.model_copy(update={"faults": dict(self.faults)})

@@ -11,7 +11,11 @@ import pytest
 
 from asset_agent.autopilot import Autopilot
 from asset_agent.autopilot.config import DEFAULT_STREAMS
-from asset_agent.autopilot.streams import CMD_GET_HOME_POSITION, HOME_POSITION
+from asset_agent.autopilot.streams import (
+    CMD_GET_HOME_POSITION,
+    CMD_SET_MESSAGE_INTERVAL,
+    HOME_POSITION,
+)
 from asset_agent.config import PreclandSection
 from asset_agent.precland.supervisor import stream_rates
 from sim.vehicle.server import VehicleServer, run_vehicle
@@ -27,36 +31,43 @@ async def vehicle() -> AsyncIterator[VehicleServer]:
         yield server
 
 
-@pytest.fixture
-async def autopilot(vehicle: VehicleServer) -> AsyncIterator[Autopilot]:
-    """An adapter that never asks for HOME_POSITION: home stays unknown until the test asks."""
+def adapter(vehicle: VehicleServer) -> Autopilot:
+    """An adapter that never asks for HOME_POSITION."""
     streams = {**DEFAULT_STREAMS, **stream_rates(PreclandSection())}
     del streams[HOME_POSITION]
-    ap = Autopilot(fast_config(f"udpout:127.0.0.1:{vehicle.udp_port}", streams=streams))
-    await ap.start()
+    return Autopilot(fast_config(f"udpout:127.0.0.1:{vehicle.udp_port}", streams=streams))
+
+
+async def test_the_landing_loop_waits_for_the_pads_position(vehicle: VehicleServer) -> None:
+    """The agent starts (or restarts) with the vehicle already landing: ArduPilot sends
+    HOME_POSITION when home is set, at arming, and then only as asked (here: never)."""
+    first = adapter(vehicle)
+    await first.start()
+    await first.wait_link(10)
+    await eventually(lambda: first.state.lat is not None, 10, "a position")
+    await first.command(CMD_SET_MESSAGE_INTERVAL, HOME_POSITION, -1)  # the simulator's default
+    await take_off_and_land(first, vehicle)
+    await first.close()
+    autopilot = adapter(vehicle)
+    await autopilot.start()
     try:
-        await ap.wait_link(10)
-        await eventually(lambda: ap.state.lat is not None, 10, "a position")
-        yield ap
+        await autopilot.wait_link(10)
+        await landing_without_home(autopilot, vehicle)
     finally:
-        await ap.close()
+        await autopilot.close()
 
 
-async def test_the_landing_loop_waits_for_the_pads_position(
-    autopilot: Autopilot, vehicle: VehicleServer
-) -> None:
+async def landing_without_home(autopilot: Autopilot, vehicle: VehicleServer) -> None:
     async with blind_beacon_lander(autopilot, vehicle, search=SEARCH, pad_sigma_m=0.5) as lander:
-        await take_off_and_land(autopilot, vehicle)
-        # (or a loop started without the pad's position, which this test is to catch)
+        await eventually(lambda: lander.ready, 10, "the sensors' clock and the position")
+        # in LAND from above the activation height (10 m) down to 6 m: a loop would have started
+        # (and this ends the wait at once, to fail below)
         await eventually(
-            lambda: (
-                (autopilot.state.mode == "LAND" and autopilot.state.alt_rel < 9.5)
-                or lander.stats.landings
-            ),
-            10,
-            "LAND below the activation height",
+            lambda: (autopilot.state.alt_rel or 99.0) < 6.0 or lander.stats.landings,
+            15,
+            "LAND down to 6 m",
         )
-        assert autopilot.state.home_lat is None
+        assert autopilot.state.mode == "LAND" and autopilot.state.home_lat is None
         assert lander.stats.landings == 0 and lander.takeover is None  # no pad: no loop
         await autopilot.command(CMD_GET_HOME_POSITION)
         await eventually(lambda: lander.stats.landings, 5, "the loop, once home is known")
