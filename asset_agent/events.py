@@ -58,8 +58,7 @@ def derive_events(prev: UavState, cur: UavState, limits: EventLimits | None = No
         out.append(_event("autopilot_lost"))
     # what the agent first hears is no change: started (or restarted) with the vehicle armed in
     # the air, it did not arm, take off or start landing then
-    heard = prev.custom_mode is not None  # a HEARTBEAT: armed known
-    placed = prev.landed_state != "UNDEFINED"  # the landed state known
+    heard, placed = prev.mode_known, prev.landed_known
     if heard and not prev.armed and cur.armed:
         out.append(_event("armed", mode=cur.mode))
     # HEARTBEAT (armed) and EXTENDED_SYS_STATE (landed state) arrive independently, so the

@@ -71,6 +71,16 @@ class UavState:
         return FIX_NAMES.get(self.fix_type, str(self.fix_type))
 
     @property
+    def mode_known(self) -> bool:
+        """A HEARTBEAT has been heard: the mode and whether armed are the autopilot's word."""
+        return self.custom_mode is not None
+
+    @property
+    def landed_known(self) -> bool:
+        """The landed state is known (EXTENDED_SYS_STATE, or inferred: flight_state.py)."""
+        return self.landed_state != "UNDEFINED"
+
+    @property
     def in_air(self) -> bool:
         """True when the autopilot reports it is not on the ground."""
         return self.landed_state in ("IN_AIR", "TAKEOFF", "LANDING")

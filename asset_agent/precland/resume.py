@@ -49,9 +49,7 @@ def decide(left: str | None, state: Any) -> Decision:
 def known(state: Any) -> bool:
     """The vehicle's state is known enough to decide: a HEARTBEAT (mode, armed) and its landed
     state (EXTENDED_SYS_STATE, or inferred: autopilot/flight_state.py)."""
-    return bool(
-        state.link_up and state.custom_mode is not None and state.landed_state != "UNDEFINED"
-    )
+    return bool(state.link_up and state.mode_known and state.landed_known)
 
 
 @dataclass

@@ -93,7 +93,8 @@ class PrecisionLander:
         self.xy_dist_max: float | None = None  # the value the autopilot last confirmed
         self._armed = False
         self.record = TakeoverRecord(memory)
-        self._resume_task: asyncio.Task[None] | None = None
+        # what a restarted agent does with the vehicle it first finds (resume.py), or a disarm
+        self.first_look: asyncio.Task[None] | None = None
         self.events: list[Event] = []  # for the daemon's event stream (drained by the reporter)
         if self.config.mode != "landing_target":
             log.warning(
@@ -174,7 +175,7 @@ class PrecisionLander:
 
     async def _close(self, tasks: list[asyncio.Task[None]], ir: IrReceiver | None) -> None:
         await self._stop_loop()
-        await cancel_and_wait([self._camera_task, self._resume_task, *tasks])
+        await cancel_and_wait([self._camera_task, self.first_look, *tasks])
         if ir is not None:
             ir.close()
 
@@ -189,7 +190,7 @@ class PrecisionLander:
         decision = self.record.first_sight(state) if prior is not None else None
         disarmed = self._armed and not state.armed and self.record.current is not None
         if decision is not None or disarmed:
-            self._resume_task = asyncio.create_task(self._resume(decision or "none"))
+            self.first_look = asyncio.create_task(self._resume(decision or "none"))
         self._armed = bool(state.armed)
         lands = descending(state) or taken
         if lands and self.section.camera_port is not None and self._camera_task is None:

@@ -21,10 +21,15 @@ from tests.asset_agent.conftest import fast_config
 from tests.polling import eventually
 
 
+def precland_streams() -> dict[int, float]:
+    """The streams the daemon asks for with precision landing on (msg id -> Hz)."""
+    return {**DEFAULT_STREAMS, **stream_rates(PreclandSection())}
+
+
 @contextlib.asynccontextmanager
 async def precland_adapter(vehicle: VehicleServer) -> AsyncIterator[Autopilot]:
     """An adapter streaming what precision landing needs, as the daemon asks for it."""
-    streams = {**DEFAULT_STREAMS, **stream_rates(PreclandSection())}
+    streams = precland_streams()
     ap = Autopilot(fast_config(f"udpout:127.0.0.1:{vehicle.udp_port}", streams=streams))
     await ap.start()
     try:

@@ -10,16 +10,17 @@ from collections.abc import AsyncIterator
 import pytest
 
 from asset_agent.autopilot import Autopilot
-from asset_agent.autopilot.config import DEFAULT_STREAMS
 from asset_agent.autopilot.streams import (
     CMD_GET_HOME_POSITION,
     CMD_SET_MESSAGE_INTERVAL,
     HOME_POSITION,
 )
-from asset_agent.config import PreclandSection
-from asset_agent.precland.supervisor import stream_rates
 from sim.vehicle.server import VehicleServer, run_vehicle
-from tests.asset_agent.blind_landing import blind_beacon_lander, take_off_and_land
+from tests.asset_agent.blind_landing import (
+    blind_beacon_lander,
+    precland_streams,
+    take_off_and_land,
+)
 from tests.asset_agent.conftest import fast_config
 from tests.asset_agent.test_precland_takeover import SEARCH
 from tests.polling import eventually
@@ -33,7 +34,7 @@ async def vehicle() -> AsyncIterator[VehicleServer]:
 
 def adapter(vehicle: VehicleServer) -> Autopilot:
     """An adapter that never asks for HOME_POSITION."""
-    streams = {**DEFAULT_STREAMS, **stream_rates(PreclandSection())}
+    streams = precland_streams()
     del streams[HOME_POSITION]
     return Autopilot(fast_config(f"udpout:127.0.0.1:{vehicle.udp_port}", streams=streams))
 

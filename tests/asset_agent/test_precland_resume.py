@@ -3,19 +3,19 @@
 
 from __future__ import annotations
 
-from types import SimpleNamespace
+from dataclasses import replace
+from typing import Any
 
 import pytest
 
+from asset_agent.autopilot.state import UavState
 from asset_agent.precland.resume import FLYING, HOLDING, TakeoverRecord, decide
 
 
-def found(**changes: object) -> SimpleNamespace:
+def found(**changes: Any) -> UavState:
     """What a restarted agent first finds: armed in the air in GUIDED, its state known."""
-    base = dict(
-        link_up=True, custom_mode=4, armed=True, in_air=True, mode="GUIDED", landed_state="IN_AIR"
-    )
-    return SimpleNamespace(**{**base, **changes})
+    base = UavState(link_up=True, custom_mode=4, armed=True, mode="GUIDED", landed_state="IN_AIR")
+    return replace(base, **changes)
 
 
 @pytest.mark.parametrize(
@@ -25,7 +25,11 @@ def found(**changes: object) -> SimpleNamespace:
         (HOLDING, {}, "hold"),
         (None, {}, "none"),  # a pilot's GUIDED
         (FLYING, {"mode": "LAND"}, "none"),  # handed back already
-        (FLYING, {"armed": False, "in_air": False}, "none"),  # landed (by hand, or a failsafe)
+        (
+            FLYING,
+            {"armed": False, "landed_state": "ON_GROUND"},
+            "none",
+        ),  # landed (by hand, or a failsafe)
     ],
 )
 def test_a_restarted_agent_resumes_only_the_landing_its_predecessor_flew(

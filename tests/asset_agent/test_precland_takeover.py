@@ -25,7 +25,7 @@ from asset_agent.precland.supervisor import PrecisionLander
 from asset_agent.precland.takeover import hand_back
 from assetlink.link import Link
 from asynckit.tasks import cancel_and_wait
-from sim.vehicle.constants import LAND
+from sim.vehicle.constants import GUIDED, LAND
 from sim.vehicle.server import VehicleServer, WindFn, run_vehicle
 from tests.asset_agent.blind_landing import (
     blind_beacon_lander,
@@ -286,6 +286,11 @@ async def state_file(path: Path) -> AsyncIterator[Link]:
         await link.stop()
 
 
+async def acted(lander: PrecisionLander) -> None:
+    """Until the lander has decided what to do with the vehicle it first found, and done it."""
+    await eventually(lambda: lander.first_look and lander.first_look.done(), 10, "the first look")
+
+
 def searching_lander(autopilot: Autopilot, vehicle: VehicleServer, memory: Link):
     """The daemon's precision landing with its beacon blind (it searches) and its state file."""
     return blind_beacon_lander(autopilot, vehicle, search=SEARCH, pad_sigma_m=0.5, memory=memory)
@@ -317,9 +322,9 @@ async def test_an_agent_restarted_in_its_search_lands_again_and_one_restarted_in
             assert await memory.recall(KEY) == HOLDING
 
         async with searching_lander(autopilot, vehicle, memory) as third:
-            await eventually(lambda: third.record.decision, 10, "the first look")
+            await acted(third)
             assert third.record.decision == "hold"
-            assert autopilot.state.mode == "GUIDED" and copter.dyn.state.altitude > 10.5
+            assert copter.mode == GUIDED and copter.dyn.state.altitude > 10.5  # nothing sent
             assert await memory.recall(KEY) == HOLDING  # a further restart holds too
 
 
@@ -335,9 +340,9 @@ async def test_a_guided_vehicle_the_agent_never_took_is_left_alone(
         state_file(tmp_path / "agent.db") as memory,
         searching_lander(autopilot, vehicle, memory) as lander,
     ):
-        await eventually(lambda: lander.record.decision, 10, "the first look")
+        await acted(lander)
         assert lander.record.decision == "none"
-        assert autopilot.state.mode == "GUIDED" and lander.takeover is None
+        assert vehicle.copter.mode == GUIDED and lander.takeover is None  # nothing sent
 
 
 async def test_a_hand_back_the_autopilot_did_not_take_is_sent_again_until_it_does(
