@@ -47,7 +47,7 @@ class Processes:
 
     def start(self, name: str, args: list[str], env: dict[str, str]) -> subprocess.Popen[bytes]:
         """Start `aerobase <args>` as a child called `name`, with `env` added to ours."""
-        log = open(self.folder / f"{name}.log", "wb")
+        log = open(self.folder / f"{name}.log", "ab")  # a restart adds to the first log
         proc = subprocess.Popen(
             [sys.executable, "-m", "aerobase.cli", *args],
             env={**os.environ, **env},
@@ -57,6 +57,10 @@ class Processes:
         )
         self.children.append((name, proc))
         return proc
+
+    def forget(self, name: str) -> None:
+        """Stop watching the exited child `name` (before starting it again)."""
+        self.children = [(n, p) for n, p in self.children if n != name or p.poll() is None]
 
     def check(self) -> None:
         """Raise RuntimeError if a child has exited."""

@@ -50,6 +50,7 @@ from aerobase.demo.processes import (
 from sim.mavlink_link import BadUrl, parse_url
 
 PASSWORD_LEN = 18
+NTRIP_PORT = 2101  # NTRIP casters' own port
 
 
 def prepare(args: argparse.Namespace) -> tuple[Path, dict[str, str], dict[str, str]]:
@@ -65,7 +66,7 @@ def prepare(args: argparse.Namespace) -> tuple[Path, dict[str, str], dict[str, s
         # everything runs on this machine: WebRTC peers may use loopback (server/video)
         "AEROBASE_VIDEO_ICE_LOOPBACK": "true",
         # the NTRIP caster for version 1 clients (str2str): 2101 as casters use, if it is free
-        "AEROBASE_NTRIP_PORT": str(2101 if port_free(2101) else free_port()),
+        "AEROBASE_NTRIP_PORT": str(NTRIP_PORT if port_free(NTRIP_PORT) else free_port()),
     }
     say(f"files, logs and the database go to {folder}")
     create_superuser(ROOT_EMAIL, secrets_["root"], env)
@@ -106,13 +107,42 @@ async def start_world_and_server(
         say(f"starting the simulated world at {args.speed:g}x real time (ports {ports})")
     procs.start("world", world, env)
     say(f"starting the server on {server_url}")
-    procs.start("server", ["server", "--port", str(args.port)], env)
+    await start_server(args, procs, env, server_url)
     await wait_http(f"http://127.0.0.1:{ports['control']}/health", procs, limit_s)
     async with httpx.AsyncClient() as sim:  # the camera and IR sensor pick their own ports
         served = (await sim.get(f"http://127.0.0.1:{ports['control']}/health")).json()["ports"]
     ports.update({k: served[k] for k in ("camera", "ir") if k in served})
-    await wait_http(f"{server_url}/api/health", procs)
     return ports
+
+
+async def start_server(
+    args: argparse.Namespace, procs: Processes, env: dict[str, str], server_url: str
+) -> None:
+    """Start the server and wait until it answers. 2101 was free when `prepare` looked, but
+    another demo starting beside this one (or any caster) may bind it first: the server then
+    exits at start-up, and starts once more with its caster on a free port."""
+    procs.start("server", ["server", "--port", str(args.port)], env)
+    try:
+        await wait_http(f"{server_url}/api/health", procs)
+    except RuntimeError:
+        if not ntrip_port_taken(procs, env):
+            raise
+        env["AEROBASE_NTRIP_PORT"] = str(free_port())
+        say(
+            f"port {NTRIP_PORT} was taken meanwhile: the NTRIP caster takes {env['AEROBASE_NTRIP_PORT']}"
+        )
+        procs.forget("server")
+        procs.start("server", ["server", "--port", str(args.port)], env)
+        await wait_http(f"{server_url}/api/health", procs)
+
+
+def ntrip_port_taken(procs: Processes, env: dict[str, str]) -> bool:
+    """The server exited because its caster could not bind 2101."""
+    server = dict(procs.children).get("server")
+    if server is None or server.poll() is None or env["AEROBASE_NTRIP_PORT"] != str(NTRIP_PORT):
+        return False
+    log = (procs.folder / "server.log").read_text(errors="replace")
+    return f", {NTRIP_PORT}): address already in use" in log
 
 
 async def run_mission(
