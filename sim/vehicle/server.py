@@ -9,7 +9,8 @@ Addressing:
   own HEARTBEAT). Until someone has sent, nothing goes out on UDP.
 
 Telemetry rates and the mission-protocol timers run on wall time; flight runs on the
-`SimClock` (speed factor). Replies go to the link the request came on; STATUSTEXT and
+`SimClock` (speed factor), and falls behind it when the process is starved, as SITL's does (see
+`MAX_CATCH_UP_WALL_S`). Replies go to the link the request came on; STATUSTEXT and
 MISSION_ITEM_REACHED go to every link.
 """
 
@@ -36,6 +37,14 @@ log = logging.getLogger(__name__)
 
 WindFn = Callable[[float], tuple[float, float]]
 MAX_SUBSTEP_S = 0.05
+# ArduPilot SITL advances its physics one fixed frame per loop, reading and sending its MAVLink
+# between frames, and sleeps while it is ahead of the wall clock; behind it, it catches up at most
+# 0.1 s (SIM_Aircraft.cpp, sync_frame_time: the sleep debt is capped at -1e5 us) and otherwise
+# lets simulated time fall behind. A process starved for a second on a busy machine therefore
+# never flies seconds of simulated time in one step, deaf to the LANDING_TARGETs that arrived
+# meanwhile. The own loop does the same: a step covers at most this much wall time more than
+# its sleep, at the clock's speed; the rest is given up (`behind_s`).
+MAX_CATCH_UP_WALL_S = 0.1
 
 
 def _no_wind(t: float) -> tuple[float, float]:
@@ -113,6 +122,7 @@ class VehicleServer:
         self._task: asyncio.Task[None] | None = None
         self._writers: set[asyncio.StreamWriter] = set()
         self.received = 0
+        self.behind_s = 0.0  # simulated seconds the own loop has given up (MAX_CATCH_UP_WALL_S)
         self._boots_seen = copter.boots
 
     def fresh_streams(self) -> StreamScheduler:
@@ -210,13 +220,23 @@ class VehicleServer:
 
     async def _run(self) -> None:
         last_sim = self.clock.now()
+        most = (self.step_s + MAX_CATCH_UP_WALL_S) * self.clock.speed
         while True:
             await asyncio.sleep(self.step_s)
             now_sim = self.clock.now()
+            elapsed = now_sim - last_sim
             try:
-                self.step(now_sim - last_sim)
+                self.step(min(elapsed, most))
             except Exception:
                 log.exception("simulation step failed")
+            if elapsed > most:
+                self.behind_s += elapsed - most
+            if elapsed - most >= 0.5:
+                log.info(
+                    "simulated autopilot: starved for %.2f s of wall time, %.2f s of simulated "
+                    "time given up (%.1f s in all, as SITL's clock falls behind)",
+                    elapsed / self.clock.speed, elapsed - most, self.behind_s,
+                )  # fmt: skip
             last_sim = now_sim
 
     def step(self, dt_sim: float) -> None:
