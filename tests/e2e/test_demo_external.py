@@ -60,6 +60,22 @@ def start_autopilot(folder: Path, habits: str) -> tuple[subprocess.Popen[bytes],
     return proc, f"tcp:127.0.0.1:{port}", f"tcp:127.0.0.1:{port2}"
 
 
+def landing_story(folder: Path) -> str:
+    """What the logs of a run say about its landing, for a failure's message: the agent's
+    precision-landing lines, the world's follower lines, the simulated autopilot's stalls."""
+    lines = ["", "-- the landing, as the logs tell it --"]
+    for name, keep in (
+        ("demo/agent.log", ("precland", "guard", "takeover", "landing")),
+        ("demo/world.log", ("follower:",)),
+        ("autopilot.log", ("starved", "landed", "lifted off", "PrecLand")),
+    ):
+        path = folder / name
+        text = path.read_text(errors="replace") if path.is_file() else ""
+        picked = [line for line in text.splitlines() if any(k in line for k in keep)]
+        lines += [f"{name}: {len(picked)} lines, the last 40:", *picked[-40:]]
+    return "\n".join(lines)
+
+
 def run_demo(folder: Path, habits: str) -> tuple[str, list[str]]:
     """The demo against a separately started autopilot: its output and the UAV's events."""
     proc, url, watch = start_autopilot(folder, habits)
@@ -83,7 +99,8 @@ def run_demo(folder: Path, habits: str) -> tuple[str, list[str]]:
         assert step in out, (step, out)
     # precision landing seated the charging contacts (within 5 cm of the pad centre): charging
     # started; a landing beside them completes the run with an alert instead, and fails here
-    assert "Completed: charging; the run is over" in out, out
+    # (with the agent's landing as its log tells it, and the autopilot's stalls: see landing_story)
+    assert "Completed: charging; the run is over" in out, out + landing_story(folder)
     assert "UAV contacts not seated on the pad" not in out, out
     assert "around the autopilot at " + url in out
     timeline = next(line for line in out.splitlines() if "timeline:" in line)
