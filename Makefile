@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test test-fast lint bench bench-console clean
+.PHONY: run test test-fast test-durations lint bench bench-console clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -24,11 +24,16 @@ lint: $(STAMP)
 # three pytest-xdist workers, a test file each at a time (a file's fixtures stay in one worker; each
 # worker has a PostgreSQL database of its own: tests/conftest.py); the slowest tests are listed.
 # Three on two cores: with two, a third of the CPU sat idle while tests waited on sockets and
-# simulated flights (README, "Other figures", the `make test` row)
-PARALLEL ?= -n 3 --dist loadfile
+# simulated flights (README, "Other figures", the `make test` row). The files go out longest first,
+# by their seconds in a recorded run (tests/schedule.py, tests/durations.json), not xdist's order
+PARALLEL ?= -n 3 --dist loadfile --no-loadscope-reorder
 
 test: $(STAMP) lint
 	$(BIN)/python -m pytest $(PARALLEL) --durations=25 $(PYTEST_ARGS)
+
+# `make test`, recording each file's seconds for the order the files are handed out in
+test-durations: $(STAMP)
+	AEROBASE_RECORD_DURATIONS=tests/durations.json $(BIN)/python -m pytest $(PARALLEL) -q $(PYTEST_ARGS)
 
 # the inner loop: ruff and the import contracts, then every test not marked slow (under 2 min)
 test-fast: $(STAMP)

@@ -15,6 +15,12 @@ import httpx
 import pytest
 
 from tests.polling import wait_for
+from tests.schedule import (  # noqa: F401  (hooks: the longest files first, durations recorded)
+    pytest_collection_modifyitems,
+    pytest_configure,
+    pytest_runtest_logreport,
+    pytest_sessionfinish,
+)
 
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 
