@@ -43,7 +43,7 @@ from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import Tick, VehicleState
 from asset_agent.precland.report import LandingStats, PadFix, pad_offset_ned
 from asset_agent.precland.resume import Decision, Memory, TakeoverRecord
-from asset_agent.precland.takeover import Takeover, hand_back
+from asset_agent.precland.takeover import Takeover, descending, hand_back
 from asset_agent.precland.transport import IrReceiver, frames_forever
 from assetlink.dispatch import CommandRequest, result
 from asynckit.tasks import cancel_and_wait
@@ -53,13 +53,6 @@ from protocol.vocabulary import PreclandFault
 log = logging.getLogger(__name__)
 
 ATTITUDE, LOCAL_POSITION_NED, EXTENDED_SYS_STATE = 30, 32, 245
-
-
-def descending(state: Any) -> bool:
-    """True when the armed autopilot is landing (LAND, or any final descent), at any height."""
-    return bool(
-        state.armed and (state.landed_state == "LANDING" or (state.mode == "LAND" and state.in_air))
-    )
 
 
 def landing_now(state: Any, activation_height_m: float) -> bool:

@@ -20,7 +20,8 @@ flies the cautious retry and, the retries used up, climbs and holds ("aborted-cl
 Each hold on the vehicle is kept in the daemon's state file before it is taken, and again when
 it is handed back or abandoned (`keep`; resume.py), for an agent restarted in the middle of it.
 The hand-back (`hand_back`) is sent again until the autopilot takes it: a vehicle left in GUIDED
-hovers until its battery fails.
+hovers until its battery fails; so is the take (`take`) while the autopilot still lands by itself:
+its LAND would go on descending blind.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from typing import Any
 from asset_agent.autopilot.errors import AutopilotError
 from asset_agent.precland.config import PrecisionLandingConfig
 from asset_agent.precland.control import clip_xy
-from asset_agent.precland.guard import LossGuard
+from asset_agent.precland.guard import TOUCHING_DOWN_M, LossGuard
 from asset_agent.precland.kalman import Estimate
 from asset_agent.precland.pipeline import LandingPipeline, VehicleState
 from asset_agent.precland.resume import FLYING, HOLDING
@@ -44,7 +45,14 @@ log = logging.getLogger(__name__)
 PERIOD_S = 0.1  # setpoints at 10 Hz of sensor time
 OVER_PAD_M = 0.3  # the RTK fallback hands LAND over this close to the surveyed pad
 MODE_WAIT_S = 3.0  # sensor seconds to see the autopilot report LAND
-RETRY_S = 1.0  # sensor seconds between hand-backs the autopilot did not take
+RETRY_S = 1.0  # sensor seconds between hand-backs (or takes) the autopilot did not take
+
+
+def descending(state: Any) -> bool:
+    """True when the armed autopilot is landing (LAND, or any final descent), at any height."""
+    return bool(
+        state.armed and (state.landed_state == "LANDING" or (state.mode == "LAND" and state.in_air))
+    )
 
 
 class Takeover:
@@ -97,8 +105,8 @@ class Takeover:
             return
         log.info("precland: the pad is not in view: searching")
         try:
-            await self._take()
-            await self._fly()
+            if await self._take():  # else the autopilot's landing goes on, guarded
+                await self._fly()
         finally:
             self.active = False
 
@@ -118,7 +126,9 @@ class Takeover:
                         "the agent flies the retry",
                         guard.losses[-1],
                     )
-                    await self._take()
+                    if not await self._take():  # its LAND goes on: watched to its end
+                        guard.flying = False
+                        continue
                 if act.setpoint is not None:
                     sp = act.setpoint
                     self.autopilot.send_velocity_ned(sp.vn, sp.ve, sp.vd)
@@ -144,11 +154,21 @@ class Takeover:
         """Heights (above touchdown) at which the guard took the vehicle, this landing."""
         return self.loss_guard.losses if self.loss_guard is not None else []
 
-    async def _take(self) -> None:
-        """Take the vehicle (GUIDED), kept first: a restart in the middle resumes the landing."""
+    async def _take(self) -> bool:
+        """Take the vehicle (GUIDED), kept first: a restart in the middle resumes the landing.
+        False when the autopilot never took it and the landing is its own again (`take`)."""
         await self.keep(FLYING)
         self.active = True
-        await self.autopilot.set_mode("GUIDED")
+        if await take(self.autopilot, self.sleep_fn, self._not_touching_down):
+            return True
+        await self.keep(None)
+        self.active = False
+        return False
+
+    def _not_touching_down(self) -> bool:
+        """Above the height where the guard takes the vehicle no more (guard.TOUCHING_DOWN_M)."""
+        height = float(self.pipeline.kalman.estimate().rel_ned[2])
+        return height - self.config.control.touchdown_height > TOUCHING_DOWN_M
 
     async def _land(self) -> None:
         """Hand the descent back (LAND), staying active until the autopilot reports it, so that
@@ -207,29 +227,62 @@ async def _forget(value: str | None) -> None:
     """`keep` for a takeover whose daemon keeps nothing (the evaluation, tests)."""
 
 
-async def hand_back(autopilot: Any, sleep_fn: Callable[[float], Awaitable[None]]) -> int:
-    """LAND, sent again every RETRY_S while the autopilot has not taken it (no COMMAND_ACK, the
-    link down, a refusal) and the vehicle may still fly in GUIDED: left there, it would hover
-    until its battery fails. Done when the autopilot acknowledges it or reports LAND (an answer
-    lost); gives up (raises) once the vehicle is known not to be the agent's any more (disarmed,
-    or another mode: a pilot took it). Returns the number of tries."""
+async def insist(
+    autopilot: Any,
+    sleep_fn: Callable[[float], Awaitable[None]],
+    mode: str,
+    keep_trying: Callable[[Any], bool],
+) -> int:
+    """`mode`, sent again every RETRY_S while the autopilot has not taken it (no COMMAND_ACK, the
+    link down, a refusal). Done when acknowledged, or when the autopilot reports the mode (an
+    answer lost): returns the tries. Raises the last error once `keep_trying(state)` says no."""
     tries = 0
     while True:
         tries += 1
         try:
-            await autopilot.set_mode("LAND")
+            await autopilot.set_mode(mode)
             return tries
         except AutopilotError as err:
             state = autopilot.state
-            if state.mode == "LAND":
+            if state.mode == mode:
                 return tries
-            if state.link_up and not (state.armed and state.mode == "GUIDED"):
+            if not keep_trying(state):
                 log.warning(
-                    "precland: LAND not taken (%s), the vehicle %s in %s: left to it",
+                    "precland: %s not taken (%s), the vehicle %s in %s: given up",
+                    mode,
                     err,
                     "armed" if state.armed else "disarmed",
                     state.mode,
                 )
                 raise
-            log.warning("precland: LAND not taken (%s): sending it again", err)
+            log.warning("precland: %s not taken (%s): sending it again", mode, err)
         await sleep_fn(RETRY_S)
+
+
+async def take(
+    autopilot: Any, sleep_fn: Callable[[float], Awaitable[None]], wanted: Callable[[], bool]
+) -> bool:
+    """GUIDED, insisted on while the autopilot still lands by itself: left to it, its LAND would
+    descend blind, what the take is there to stop. False (the landing is the autopilot's) once
+    `wanted()` says no more (touching down) or the vehicle is known (link up) not to be landing
+    by itself (landed, disarmed, a pilot's mode)."""
+
+    def landing_by_itself(state: Any) -> bool:
+        return (descending(state) or not state.link_up) and wanted()
+
+    try:
+        await insist(autopilot, sleep_fn, "GUIDED", landing_by_itself)
+    except AutopilotError:
+        return False
+    return True
+
+
+async def hand_back(autopilot: Any, sleep_fn: Callable[[float], Awaitable[None]]) -> int:
+    """LAND, insisted on while the vehicle may still fly in GUIDED: left there, it would hover
+    until its battery fails. Gives up (raises) once the vehicle is known (link up) not to be the
+    agent's any more (disarmed, or another mode: a pilot took it). Returns the number of tries."""
+
+    def still_ours(state: Any) -> bool:
+        return not state.link_up or (state.armed and state.mode == "GUIDED")
+
+    return await insist(autopilot, sleep_fn, "LAND", still_ours)

@@ -22,7 +22,7 @@ from asset_agent.autopilot import Autopilot
 from asset_agent.precland.config import FaultConfig, RetryConfig, SearchConfig
 from asset_agent.precland.resume import FLYING, HOLDING, KEY
 from asset_agent.precland.supervisor import PrecisionLander
-from asset_agent.precland.takeover import hand_back
+from asset_agent.precland.takeover import descending, hand_back, take
 from assetlink.link import Link
 from asynckit.tasks import cancel_and_wait
 from sim.vehicle.constants import GUIDED, LAND
@@ -358,4 +358,44 @@ async def test_a_hand_back_the_autopilot_did_not_take_is_sent_again_until_it_doe
     vehicle.copter.faults.mute_until = time.monotonic() + 3.0
     tries = await asyncio.wait_for(hand_back(autopilot, asyncio.sleep), 30)
     assert tries > 1
+    assert vehicle.copter.mode == LAND
+
+
+async def test_a_take_the_autopilot_did_not_hear_is_sent_again_while_its_land_goes_on(
+    autopilot: Autopilot, vehicle: VehicleServer, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The agent takes the vehicle from the autopilot's LAND (the guard: the pad lost too high on
+    a float fix) while the autopilot hears nothing (5 wall s: longer than the adapter's own three
+    tries of one second). Given up there, the guard ended and
+    LAND went on descending blind, what the take is there to stop; GUIDED goes again until
+    taken, in the air."""
+    await autopilot.set_mode("GUIDED")
+    await autopilot.arm()
+    await autopilot.takeoff(30)
+    await eventually(lambda: vehicle.copter.dyn.state.altitude > 29.5, 20, "takeoff")
+    await autopilot.set_mode("LAND")
+    # in LAND by its HEARTBEAT (1 Hz): a GUIDED heard before counts as the take's answer
+    await eventually(
+        lambda: descending(autopilot.state) and autopilot.state.mode == "LAND", 10, "LAND"
+    )
+    vehicle.copter.faults.mute_until = time.monotonic() + 5.0
+    assert await asyncio.wait_for(take(autopilot, asyncio.sleep, lambda: True), 30)
+    assert "GUIDED not taken" in caplog.text and "sending it again" in caplog.text
+    assert vehicle.copter.mode == GUIDED
+    assert vehicle.copter.dyn.state.altitude > 3.0 and vehicle.copter.armed
+
+
+async def test_a_take_not_heard_while_touching_down_leaves_the_landing_to_the_autopilot(
+    autopilot: Autopilot, vehicle: VehicleServer
+) -> None:
+    """Touching down (by the agent's estimate: `wanted` says no), a take the autopilot did not
+    hear is not sent again: a climb sent then lifts the vehicle off the pad (guard.py)."""
+    await autopilot.set_mode("GUIDED")
+    await autopilot.arm()
+    await autopilot.takeoff(5)
+    await eventually(lambda: vehicle.copter.dyn.state.altitude > 4.5, 20, "takeoff")
+    await autopilot.set_mode("LAND")
+    vehicle.copter.faults.mute_until = time.monotonic() + 30.0
+    assert not await asyncio.wait_for(take(autopilot, asyncio.sleep, lambda: False), 30)
+    vehicle.copter.faults.mute_until = 0.0
     assert vehicle.copter.mode == LAND
