@@ -94,8 +94,15 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         assert landing["agent_landing_path"] == "precision", landing
         assert landing["base_confirmed"] and landing["base_mass_g"] > 0, landing
         # the autopilot steered its descent with the agent's LANDING_TARGETs (its PLND took them),
-        # descending only within the radius the daemon set
-        assert copter.param("PLND_XY_DIST_MAX") == pytest.approx(GATE_M), seen
+        # descending only within the radius the daemon set: GATE_M, or ArduPilot's default once
+        # the landing has lasted relax_after_s, held by gusts it could not beat (once on a loaded
+        # machine: 181 s of targets, relaxed, landed 3.2 cm off). Near that age, either.
+        gate = lander.config.autopilot
+        lasted = lander.stats.last_sent_t - lander.stats.first_sent_t
+        radii = {gate.xy_dist_max_at(lasted - 2.0), gate.xy_dist_max_at(lasted + 2.0)}
+        assert GATE_M == gate.xy_dist_max_at(0.0)
+        held = copter.param("PLND_XY_DIST_MAX")
+        assert any(held == pytest.approx(r) for r in radii), (held, lasted, radii, seen)
         assert lander.stats.landings >= 1 and lander.stats.targets_sent > 20, seen
         assert copter.plnd.was_acquired, seen
         assert copter.plnd.accepted > 20 and copter.plnd.rejected == 0, seen
