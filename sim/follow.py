@@ -6,8 +6,10 @@ read-only MAVLink connection (`sim.mavlink_link`) and makes the rest of the simu
 - the base stands at the vehicle's home: the first ``HOME_POSITION`` (`Follower.wait_home`) is
   the pad (and so the GNSS base receiver's antenna). ArduPilot moves home to where it arms; the
   pad stays where it was built;
-- the downward camera and the IR beacon see the pad from the vehicle's reported pose
-  (`FollowerPart.pose`): north/east of the pad from ``GLOBAL_POSITION_INT`` lat/lon (1e-7°,
+- the downward camera and the IR beacon see the pad from the vehicle's pose
+  (`FollowerPart.pose`): north/east of the pad from ``SIMSTATE`` lat/lng when the autopilot is a
+  SITL (its simulator's truth, in the EXTRA1 group: a camera sees where the vehicle is, not where
+  its GNSS says it is), else from ``GLOBAL_POSITION_INT`` lat/lon (the autopilot's estimate; 1e-7°,
   about 1 cm), height from its ``relative_alt`` (above home), attitude from ``ATTITUDE``; the
   position is carried forward by the reported velocity over the age of the sample (at most
   `MAX_EXTRAPOLATION_S`) so a 25 Hz stream renders 30 fps smoothly;
@@ -41,15 +43,18 @@ from sim.vehicle.geo import GeoOrigin
 
 log = logging.getLogger(__name__)
 
-ATTITUDE, GLOBAL_POSITION_INT, SYS_STATUS = 30, 33, 1
+ATTITUDE, GLOBAL_POSITION_INT, SYS_STATUS, SIMSTATE = 30, 33, 1, 164
 HOME_POSITION, EXTENDED_SYS_STATE = 242, 245
 POSE_HZ = 25.0
 # REQUEST_DATA_STREAM groups (ArduPilot): EXTENDED_STATUS, POSITION, EXTRA1 (attitude)
 DATA_STREAMS = ((2, 2), (6, int(POSE_HZ)), (10, int(POSE_HZ)))
-INTERVALS_HZ = {GLOBAL_POSITION_INT: POSE_HZ, ATTITUDE: POSE_HZ, EXTENDED_SYS_STATE: 5.0}
+INTERVALS_HZ = {
+    GLOBAL_POSITION_INT: POSE_HZ, ATTITUDE: POSE_HZ, SIMSTATE: POSE_HZ, EXTENDED_SYS_STATE: 5.0,
+}  # fmt: skip
 SILENT_S = 2.0  # wall seconds without a pose before asking for the streams again
 HOME_ASK_S = 1.0  # wall seconds between requests for HOME_POSITION until it comes
 MAX_EXTRAPOLATION_S = 0.3
+TRUTH_FRESH_S = 1.0  # wall seconds a SIMSTATE position stands for the vehicle's
 LANDED_ALT_M = 0.3
 LANDED_VZ_MPS = 0.3
 EXT_STATE_FRESH_S = 3.0
@@ -81,6 +86,7 @@ class Follower:
         )
         self.latest_home: tuple[float, float, float] | None = None
         self.sample: Sample | None = None
+        self.truth: tuple[float, float, float] | None = None  # SIMSTATE: lat, lon, wall time
         self.attitude = (0.0, 0.0, 0.0)
         self.armed = False
         self.battery_pct: float | None = None
@@ -106,6 +112,14 @@ class Follower:
         await asyncio.wait_for(self._home_event.wait(), timeout_s)
         assert self.home is not None
         return self.home
+
+    def position(self) -> tuple[float, float, float] | None:
+        """Where the vehicle is: lat, lon and the wall time of the reading — a SITL's own truth
+        (SIMSTATE) while it comes, else the autopilot's estimate (None before either)."""
+        t, s = self.truth, self.sample
+        if t is not None and time.monotonic() - t[2] < TRUTH_FRESH_S:
+            return t
+        return None if s is None else (s.lat, s.lon, s.wall)
 
     def landed(self) -> bool | None:
         """On the ground? (None before the first position.) See the module docstring."""
@@ -166,6 +180,8 @@ class Follower:
             )  # fmt: skip
         elif kind == "ATTITUDE":
             self.attitude = (msg.roll, msg.pitch, msg.yaw)
+        elif kind == "SIMSTATE":
+            self.truth = (msg.lat / 1e7, msg.lng / 1e7, time.monotonic())
         elif kind == "HOME_POSITION":
             self.latest_home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0)
             if self.home is None:
@@ -221,20 +237,24 @@ class FollowerPart:
 
     def pose(self) -> Pose:
         """The vehicle's reported pose relative to the pad centre (sitting on it before any report)."""
-        s, pad = self.follower.sample, self.pad
-        if s is None or pad is None:
+        s, pad, where = self.follower.sample, self.pad, self.follower.position()
+        if s is None or pad is None or where is None:
             return (0.0, 0.0, self.seat_height_m, 0.0, 0.0, 0.0)
-        dt = min(max(0.0, (time.monotonic() - s.wall) * self.speed), MAX_EXTRAPOLATION_S)
-        n, e, _ = pad.to_ned(s.lat, s.lon, pad.alt)
+        now = time.monotonic()
+        dt, dt_h = (
+            min(max(0.0, (now - w) * self.speed), MAX_EXTRAPOLATION_S) for w in (s.wall, where[2])
+        )
+        n, e, _ = pad.to_ned(where[0], where[1], pad.alt)
         up = max(0.0, s.rel_alt - s.vd * dt)
-        return (n + s.vn * dt, e + s.ve * dt, self.seat_height_m + up, *self.follower.attitude)
+        return (n + s.vn * dt_h, e + s.ve * dt_h, self.seat_height_m + up, *self.follower.attitude)
 
     def pad_distance(self) -> float | None:
-        """Horizontal distance of the reported position from the pad centre (None before any)."""
-        s, pad = self.follower.sample, self.pad
-        if s is None or pad is None:
+        """Horizontal distance of the vehicle (`Follower.position`) from the pad centre (None
+        before any)."""
+        where, pad = self.follower.position(), self.pad
+        if where is None or pad is None:
             return None
-        n, e, _ = pad.to_ned(s.lat, s.lon, pad.alt)
+        n, e, _ = pad.to_ned(where[0], where[1], pad.alt)
         return math.hypot(n, e)
 
     def step(self, dt_sim: float) -> None:

@@ -17,6 +17,7 @@ if TYPE_CHECKING:
 HEARTBEAT, SYS_STATUS, SYSTEM_TIME, GPS_RAW_INT, ATTITUDE = 0, 1, 2, 24, 30
 LOCAL_POSITION_NED, GLOBAL_POSITION_INT, MISSION_CURRENT, VFR_HUD = 32, 33, 42, 74
 BATTERY_STATUS, HOME_POSITION, EXTENDED_SYS_STATE = 147, 242, 245
+SIMSTATE = 164  # ArduPilot SITL's own truth (ardupilotmega dialect), in the EXTRA1 group
 
 # MAV_SYS_STATUS_SENSOR bits: gyro, accel, mag, baro, gps, motor outputs, battery, prearm
 SENSORS = 0x1 | 0x2 | 0x4 | 0x8 | 0x20 | 0x8000 | 0x2000000 | 0x10000000
@@ -78,6 +79,17 @@ def _local_position(c: Copter) -> Any:
     n, e, d = c.estimated_position()
     v = c.dyn.state.velocity
     return mavlink.MAVLink_local_position_ned_message(c.time_boot_ms, n, e, d, v[0], v[1], v[2])
+
+
+def _simstate(c: Copter) -> Any:
+    """The simulator's truth, as SITL sends it (SITL::simstate_send): attitude and lat/lng of the
+    simulated vehicle, not of the autopilot's estimate."""
+    s = c.dyn.state
+    lat, lon, _ = c.origin.to_geodetic(*s.position)
+    yaw = (s.yaw + math.pi) % (2 * math.pi) - math.pi
+    return mavlink.MAVLink_simstate_message(
+        s.roll, s.pitch, yaw, 0, 0, 0, 0, 0, 0, round(lat * 1e7), round(lon * 1e7)
+    )
 
 
 def _attitude(c: Copter) -> Any:
@@ -149,6 +161,7 @@ BUILDERS: dict[int, Callable[[Copter], Any]] = {
     BATTERY_STATUS: _battery,
     HOME_POSITION: _home,
     EXTENDED_SYS_STATE: _extended_sys_state,
+    SIMSTATE: _simstate,
 }
 
 DEFAULT_INTERVALS: dict[int, float | None] = {
@@ -164,6 +177,7 @@ DEFAULT_INTERVALS: dict[int, float | None] = {
     BATTERY_STATUS: 1.0,
     HOME_POSITION: 5.0,
     EXTENDED_SYS_STATE: 1.0,
+    SIMSTATE: 0.1,
 }
 
 # REQUEST_DATA_STREAM groups, as ArduCopter files its messages (GCS_Mavlink.cpp STREAM_*_msgs);
@@ -173,7 +187,7 @@ DATA_STREAMS: dict[int, tuple[int, ...]] = {
     2: (SYS_STATUS, GPS_RAW_INT, MISSION_CURRENT),  # EXTENDED_STATUS
     3: (),  # RC_CHANNELS
     6: (GLOBAL_POSITION_INT, LOCAL_POSITION_NED),  # POSITION
-    10: (ATTITUDE,),  # EXTRA1
+    10: (ATTITUDE, SIMSTATE),  # EXTRA1 (SIMSTATE in SITL builds)
     11: (VFR_HUD,),  # EXTRA2
     12: (SYSTEM_TIME, BATTERY_STATUS),  # EXTRA3
 }

@@ -84,6 +84,26 @@ async def test_the_world_builds_the_base_at_home_and_sees_the_vehicle_where_it_r
         assert body["home"] == list(world.base.pad_geodetic)
 
 
+async def test_a_sitl_is_seen_where_its_simulator_has_it_not_where_its_gnss_says():
+    """A camera sees where the vehicle is. With the autopilot's GNSS 2.2 m off (a bias), the world
+    renders from SIMSTATE, the simulator's truth that SITL sends, not from GLOBAL_POSITION_INT's
+    estimate. Before, the rendered pad moved with the GNSS error: without RTK corrections the
+    external demo's descent gate never settled and it landed 11 cm off the contacts."""
+    async with _following() as (sim, _world, follower):
+        c = sim.copter
+        c.gnss.bias_ne_m = (2.0, -1.0)
+        peer = Peer(f"tcp:127.0.0.1:{sim.tcp_port}")
+        await _take_off(peer, 5.0)
+        await eventually(lambda: follower.pose()[2] > SEAT_HEIGHT + 4.5, 10, "up 5 m")
+        await eventually(lambda: abs(c.dyn.state.velocity[2]) < 0.05, 10, "hovering")
+        n, e, *_ = follower.pose()
+        true_n, true_e, _ = c.dyn.state.position
+        est_n, est_e, _ = c.estimated_position()
+        assert math.hypot(est_n - true_n, est_e - true_e) > 2.0  # the autopilot's estimate
+        assert math.hypot(n - true_n, e - true_e) < 0.05, (n, e, true_n, true_e)
+        assert follower.pad_distance() == pytest.approx(math.hypot(true_n, true_e), abs=0.05)
+
+
 @pytest.mark.slow  # two flights: about 3.5 s
 async def test_the_scale_carries_the_vehicle_when_it_lands_on_the_pad_not_beside_it():
     async with _following() as (sim, world, follower):
