@@ -121,19 +121,19 @@ async def start_server(
     """Start the server and wait until it answers. 2101 was free when `prepare` looked, but
     another demo starting beside this one (or any caster) may bind it first: the server then
     exits at start-up, and starts once more with its caster on a free port."""
-    procs.start("server", ["server", "--port", str(args.port)], env)
-    try:
-        await wait_http(f"{server_url}/api/health", procs)
-    except RuntimeError:
-        if not ntrip_port_taken(procs, env):
-            raise
+    for retried in (False, True):
+        procs.start("server", ["server", "--port", str(args.port)], env)
+        try:
+            await wait_http(f"{server_url}/api/health", procs)
+            return
+        except RuntimeError:
+            if retried or not ntrip_port_taken(procs, env):
+                raise
         env["AEROBASE_NTRIP_PORT"] = str(free_port())
         say(
             f"port {NTRIP_PORT} was taken meanwhile: the NTRIP caster takes {env['AEROBASE_NTRIP_PORT']}"
         )
         procs.forget("server")
-        procs.start("server", ["server", "--port", str(args.port)], env)
-        await wait_http(f"{server_url}/api/health", procs)
 
 
 def ntrip_port_taken(procs: Processes, env: dict[str, str]) -> bool:

@@ -81,21 +81,24 @@ def _local_position(c: Copter) -> Any:
     return mavlink.MAVLink_local_position_ned_message(c.time_boot_ms, n, e, d, v[0], v[1], v[2])
 
 
+def _yaw(c: Copter) -> float:
+    """The vehicle's heading as MAVLink carries it: radians in [-pi, pi)."""
+    return (c.dyn.state.yaw + math.pi) % (2 * math.pi) - math.pi
+
+
 def _simstate(c: Copter) -> Any:
     """The simulator's truth, as SITL sends it (SITL::simstate_send): attitude and lat/lng of the
     simulated vehicle, not of the autopilot's estimate."""
     s = c.dyn.state
     lat, lon, _ = c.origin.to_geodetic(*s.position)
-    yaw = (s.yaw + math.pi) % (2 * math.pi) - math.pi
     return mavlink.MAVLink_simstate_message(
-        s.roll, s.pitch, yaw, 0, 0, 0, 0, 0, 0, round(lat * 1e7), round(lon * 1e7)
+        s.roll, s.pitch, _yaw(c), 0, 0, 0, 0, 0, 0, round(lat * 1e7), round(lon * 1e7)
     )
 
 
 def _attitude(c: Copter) -> Any:
     s = c.dyn.state
-    yaw = (s.yaw + math.pi) % (2 * math.pi) - math.pi
-    return mavlink.MAVLink_attitude_message(c.time_boot_ms, s.roll, s.pitch, yaw, 0, 0, 0)
+    return mavlink.MAVLink_attitude_message(c.time_boot_ms, s.roll, s.pitch, _yaw(c), 0, 0, 0)
 
 
 def _gps_raw(c: Copter) -> Any:
