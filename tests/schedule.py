@@ -5,7 +5,8 @@ sorts them by how many tests they hold, which puts the files of one long test (t
 the compose stack, the external-autopilot demos: minutes each) last, and the run's last minutes to
 one or two of them while the other workers sit idle. `make test` passes `--no-loadscope-reorder`,
 and this orders the files by the seconds they took in a recorded full run (`durations.json`,
-longest first; a file not in it counts as `UNKNOWN_S`). `make test-durations` records it again:
+longest first; a file not in it counts as `UNKNOWN_S`; `AEROBASE_DURATIONS=path` reads another
+file). `make test-durations` records it again:
 `AEROBASE_RECORD_DURATIONS=path` makes the run write each file's seconds (setup, call and teardown
 of its tests, summed on the controller) there at its end.
 """
@@ -34,8 +35,9 @@ def file_of(nodeid: str) -> str:
 
 def expected_seconds() -> dict[str, float]:
     """Seconds per file from the recorded run (empty when there is none)."""
+    path = Path(os.environ.get("AEROBASE_DURATIONS") or DURATIONS)
     try:
-        data = json.loads(DURATIONS.read_text())
+        data = json.loads(path.read_text())
     except FileNotFoundError:
         return {}
     return {str(k): float(v) for k, v in data.get("seconds", {}).items()}
