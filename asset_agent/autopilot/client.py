@@ -27,6 +27,7 @@ from typing import Any
 
 from asset_agent.autopilot import mission, translate
 from asset_agent.autopilot.actions import ActionsMixin
+from asset_agent.autopilot.boot import BootWatch
 from asset_agent.autopilot.config import AutopilotConfig
 from asset_agent.autopilot.errors import AutopilotTimeout, CommandRejected, LinkLost
 from asset_agent.autopilot.fence import FenceMixin
@@ -43,7 +44,6 @@ log = logging.getLogger(__name__)
 
 CMD_SET_MESSAGE_INTERVAL, CMD_REQUEST_MESSAGE = 511, 512
 MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS = 0, 5
-REBOOT_SHIFT_S = 1.0  # the boot instant (arrival - time_boot_ms) moving later: a reboot
 
 
 class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
@@ -76,7 +76,7 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
         self.mission_watch = MissionWatch()
         self.thresholds = Thresholds()
         self.extended_state_seen = False  # EXTENDED_SYS_STATE arrived: no landed-state inference
-        self._booted_at: float | None = None  # monotonic time the autopilot booted
+        self.boot = BootWatch()  # its reboots, from time_boot_ms (boot.py)
         self.reboots = 0
         self.unanswered_params: dict[str, int] = {}  # name -> `reboots` when it went unanswered
         self.round_trips = RoundTrips()  # COMMAND_LONG sent -> its final COMMAND_ACK
@@ -180,22 +180,16 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
         return self.mission_watch.on_change(prev, cur, now)
 
     def _check_reboot(self, boot_ms: int | None, now: float) -> None:
-        """A reboot: the boot instant implied by time_boot_ms (SYSTEM_TIME, ATTITUDE,
-        GLOBAL_POSITION_INT) moves later by more than REBOOT_SHIFT_S; on a running autopilot it
-        stays put whatever its uptime (kept as the least-delayed estimate, creeping 1 ms a
-        message for clock drift)."""
-        if boot_ms is None:
+        """A reboot, told from messages read late by `BootWatch` (boot.py): counted, the
+        operator told, every stream asked for again."""
+        why = None if boot_ms is None else self.boot.check(boot_ms, now)
+        if why is None:
             return
-        booted = now - boot_ms / 1000.0
-        last = self._booted_at
-        self._booted_at = booted if last is None else min(booted, last + 0.001)
-        if last is not None and booted - last > REBOOT_SHIFT_S:
-            self._booted_at = booted
-            self.reboots += 1
-            log.warning("the autopilot rebooted (its boot moved %.1f s later)", booted - last)
-            self.extended_state_seen = False
-            self._notify(Notification("statustext", "autopilot rebooted", 4))
-            self._renegotiate()
+        self.reboots += 1
+        log.warning("the autopilot rebooted (%s)", why)
+        self.extended_state_seen = False
+        self._notify(Notification("statustext", "autopilot rebooted", 4))
+        self._renegotiate()
 
     def _reconnected(self) -> None:
         """A new TCP connection is a new channel to the autopilot: ask for every stream again."""
