@@ -159,3 +159,16 @@ def test_a_blind_descent_blown_off_as_land_touches_down_is_left_to_land():
         assert f.lose(1.5) == "watch" and f.guard.sequence.state == "blind"  # over the pad
         assert f.step(height, False, north=0.5) == kind, height
         assert f.guard.losses == ([] if kind == "watch" else [round(height - TOUCHDOWN, 2)])
+
+
+@pytest.mark.parametrize("fix", [FIX_RTK_FLOAT, FIX_3D])
+def test_the_agents_own_stall_is_a_loss(fix):
+    """Stopped longer than the fusion's hold (the agent starved, or frozen), the agent sent the
+    autopilot no LANDING_TARGET either: its LAND went on blind (ArduPilot drops the target after
+    2 s). Waking, the guard takes the vehicle at once, before the frames that queued are read —
+    deliberately: judged on those frames instead (tried once, the time asleep not counted), the
+    external demo's companion stopped 1.2 s every 3 s on a float fix left LAND descending blind:
+    2.09 m off the pad, against 20.1 cm when it took the vehicle (one run each)."""
+    f = Flight(fix)
+    assert f.step(3.0, True) == "watch"
+    assert f.step(2.0, False, dt=2.4) == "take"
