@@ -1,64 +1,85 @@
 """Telling an autopilot's reboot from its messages read late, by their `time_boot_ms`.
 
-While the autopilot runs, its boot instant — a message's arrival time minus its `time_boot_ms`
-(SYSTEM_TIME, ATTITUDE, GLOBAL_POSITION_INT) — stays put. A reboot shows in two ways:
+While the autopilot runs, its uptime (`time_boot_ms` of SYSTEM_TIME, ATTITUDE,
+GLOBAL_POSITION_INT) grows with the arrival time at its clock's rate: the wall's on a flight
+controller, the simulation's on a SITL (`--speedup` times the wall's; slower when the machine is
+too busy for real time). A reboot shows in two ways:
 
 - the uptime goes back (`UPTIME_BACK_MS`): the new boot counts from zero. Messages read late
   never do this: a link keeps their order. This is nearly every reboot, seen at once;
-- the boot instant moves more than `SHIFT_S` later and stays there for `HOLD_S` of arrivals: a
-  reboot its link did not see (the uptime had not gone back: a link outage longer than the uptime
-  it had, or a reboot within a second of starting).
+- the uptime falls short of what the arrival time says it should be (the last message on time,
+  plus the time since at the clock's rate) by at least the uptime last seen — the old boot lasted
+  that long before the new one began — and stays short for `HOLD_S` of arrivals: a reboot whose
+  uptime had not gone back (a link outage longer than the uptime it had, or a reboot within
+  seconds of starting).
 
-A backlog — the agent stopped for seconds, a telemetry radio's buffer — also moves the boot
-instant later, but only for the messages that waited: once it is read, the messages on time show
-the old instant again. Judged at the first late message, a companion stopped 1.2 s every 3 s saw
-the autopilot "reboot" seven times in its return and landing (a notification for the operator
-each time).
+Two things make the uptime fall short without a reboot, by less than the uptime:
+
+- a backlog — the agent stopped for seconds, a telemetry radio's buffer — for the messages that
+  waited; the messages on time after them are not short. Judged on the boot instant at the first
+  late message, a companion stopped 1.2 s every 3 s saw the autopilot "reboot" seven times in
+  its return and landing (a notification for the operator each time);
+- a SITL's clock falling behind: the simulation's time, which a starved process loses for good
+  (`sync_frame_time` catches up 0.1 s at most); from then on the uptime runs on from there.
 """
 
 from __future__ import annotations
 
-SHIFT_S = 1.0  # the boot instant this much later: a reboot, if it stays
-HOLD_S = 0.5  # arrival seconds it must stay later (a backlog is read in milliseconds)
+from collections import deque
+
+SHORT_S = 1.0  # the least shortfall (the clock's seconds) that may be a reboot
+HOLD_S = 0.5  # arrival seconds it must stay short (a backlog is read in milliseconds)
 # time_boot_ms this much below the highest seen: a reboot at once. An autopilot stamps its
 # messages from one clock as it sends them (PX4 with the sample's time: some ms older); a new boot
-# mostly speaks with seconds less uptime than the old had (not always: the simulator rebooted at
-# 1.0 s of uptime spoke again at 0.99 s, which the second rule tells)
+# mostly speaks with seconds less uptime than the old had (not always: the simulator at 20x,
+# rebooted at 20.2 s of uptime, spoke again at 20.7 s, which the second rule tells)
 UPTIME_BACK_MS = 200
+RATE_WINDOW_S = 10.0  # arrival seconds of messages on time the clock's rate is taken over
+RATE_MIN_SPAN_S = 1.0  # until they span this long the rate is taken as the wall's
 
 
 class BootWatch:
-    """One autopilot's boot instant, from the `time_boot_ms` of its messages as they arrive."""
+    """One autopilot's boot, from the `time_boot_ms` of its messages as they arrive."""
 
     def __init__(self) -> None:
-        self.booted_at: float | None = None  # arrival clock of the boot (least delayed)
-        self._uptime_ms: int | None = None  # the highest time_boot_ms of this boot
-        self._later_since: float | None = None  # first arrival showing a later instant
+        self.uptime_ms: int | None = None  # the highest time_boot_ms of this boot
+        self._on_time: deque[tuple[float, int]] = deque()  # (arrival, uptime ms) not short
+        self._short_since: float | None = None  # first arrival of a shortfall that may be one
+
+    @property
+    def rate(self) -> float:
+        """The autopilot's clock seconds per arrival second, over the messages on time."""
+        s = self._on_time
+        span = s[-1][0] - s[0][0] if s else 0.0
+        if span < RATE_MIN_SPAN_S:
+            return 1.0
+        return max((s[-1][1] - s[0][1]) / 1000 / span, 1e-3)
 
     def check(self, boot_ms: int, now: float) -> str | None:
         """Feed one message's `time_boot_ms`, arrived at `now`: why it is a reboot, or None."""
-        booted = now - boot_ms / 1000.0
-        last, uptime = self.booted_at, self._uptime_ms
-        if last is None or uptime is None:
-            self.booted_at, self._uptime_ms = booted, boot_ms
-            return None
+        uptime = self.uptime_ms
+        if uptime is None or not self._on_time:
+            return self._restart(boot_ms, now)
         if boot_ms < uptime - UPTIME_BACK_MS:
-            return self._rebooted(
-                booted, boot_ms, f"its uptime went back from {uptime / 1000:.1f} s to "
-                f"{boot_ms / 1000:.1f} s"
-            )  # fmt: skip
-        self._uptime_ms = max(uptime, boot_ms)
-        shift = booted - last
-        if shift <= SHIFT_S:
-            self._later_since = None  # on time (again): a later instant seen was a backlog
-            self.booted_at = min(booted, last + 0.001)  # the least delayed; clocks drift
+            self._restart(boot_ms, now)
+            return f"its uptime went back from {uptime / 1000:.1f} s to {boot_ms / 1000:.1f} s"
+        last_t, last_ms = self._on_time[-1]
+        short = (now - last_t) * self.rate - (boot_ms - last_ms) / 1000
+        if short < max(SHORT_S, (uptime - UPTIME_BACK_MS) / 1000):
+            self._short_since = None  # on time, read late, or a clock that fell behind
+            self.uptime_ms = max(uptime, boot_ms)
+            self._on_time.append((now, boot_ms))
+            while now - self._on_time[0][0] > RATE_WINDOW_S:
+                self._on_time.popleft()
             return None
-        if self._later_since is None:
-            self._later_since = now
-        if now - self._later_since < HOLD_S:
+        if self._short_since is None:
+            self._short_since = now
+        if now - self._short_since < HOLD_S:
             return None
-        return self._rebooted(booted, boot_ms, f"its boot moved {shift:.1f} s later")
+        self._restart(boot_ms, now)
+        return f"its uptime {short:.1f} s short of the time since it last spoke"
 
-    def _rebooted(self, booted: float, boot_ms: int, why: str) -> str:
-        self.booted_at, self._uptime_ms, self._later_since = booted, boot_ms, None
-        return why
+    def _restart(self, boot_ms: int, now: float) -> None:
+        self.uptime_ms, self._short_since = boot_ms, None
+        self._on_time.clear()
+        self._on_time.append((now, boot_ms))

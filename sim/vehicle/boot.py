@@ -59,9 +59,11 @@ class BootMixin:
 
     @property
     def time_boot_ms(self) -> int:
-        """Wall milliseconds since the autopilot (re)booted, as its messages' time_boot_ms.
-
-        Wall time, as a real autopilot's clock, whatever the simulation's speed factor."""
+        """Milliseconds since the autopilot (re)booted, as its messages' time_boot_ms: wall ones,
+        as a flight controller's clock whatever the speed factor, or simulated ones, as SITL's
+        (`Habits.uptime`: at the speed factor, and behind the wall when starved)."""
+        if self.config.habits.uptime == "simulated":
+            return round((self.t - self.t_boot) * 1000) & 0xFFFFFFFF
         if self.wall_boot is None:
             return 0
         return round((self.wall - self.wall_boot) * 1000) & 0xFFFFFFFF

@@ -14,6 +14,7 @@ did when an agent flew them (issue 13: ArduCopter 3.7-dev and 4.7.0-dev SITL):
 | `streams_at_boot` | HEARTBEAT only | HEARTBEAT only | a companion port's `SRn_*` rates default to 0 |
 | `boot_s` | ~35 s to armable | ~40 s | pre-arm checks fail until the EKF and GPS are ready |
 | reboot | `MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN`, refused when armed | same | `GCS_MAVLINK::handle_preflight_reboot` |
+| `uptime` | `time_boot_ms` on the simulation's clock (SITL) | same | `AP_HAL_SITL/system.cpp`: `millis64()` is the scheduler's stopped clock, the simulated time: `--speedup` times the wall's, and behind it when the process is starved |
 | speed | `WPNAV_SPEED` (10 m/s) until DO_CHANGE_SPEED | same | `AC_WPNav` defaults |
 | `mission_fence` | fence and rally over the mission protocol (types 1, 2), said in AUTOPILOT_VERSION | the old FENCE_POINT protocol only | `MissionItemProtocol_Fence` / `_Rally` came with 4.0 |
 | `plnd` | ArduPilot's PLND (plnd.py) | same, angle fields only | `AC_PrecLand*`, `PosVelEKF`, Copter `mode.cpp` |
@@ -51,6 +52,8 @@ class Habits:
     streams_at_boot: Literal["all", "heartbeat"] = "all"
     boot_s: float = 0.0  # simulated seconds from boot to armable
     reboot_s: float = 2.0  # wall seconds of silence while rebooting
+    # time_boot_ms: wall milliseconds since boot (a flight controller) or simulated ones (SITL)
+    uptime: Literal["wall", "simulated"] = "wall"
     # precision landing: None, the simulator's own (a LANDING_TARGET moves the landing point at
     # once); PlndParams, ArduPilot's PLND with the companion backend (sim/vehicle/plnd.py)
     plnd: PlndParams | None = None
@@ -63,7 +66,11 @@ class Habits:
 
 PROFILES: dict[str, Habits] = {
     "ardupilot-4": Habits(
-        name="ardupilot-4", streams_at_boot="heartbeat", boot_s=35.0, plnd=PlndParams()
+        name="ardupilot-4",
+        streams_at_boot="heartbeat",
+        boot_s=35.0,
+        plnd=PlndParams(),
+        uptime="simulated",
     ),
     "ardupilot-3.7": Habits(
         name="ardupilot-3.7",
@@ -73,6 +80,7 @@ PROFILES: dict[str, Habits] = {
         mission_fence=False,
         streams_at_boot="heartbeat",
         boot_s=40.0,
+        uptime="simulated",
         prearm_texts=("EKF attitude is bad", "Need 3D Fix", "Need Position Estimate"),
         # 3.x read the angle fields only, and LAND never held its descent for the target
         plnd=PlndParams(position_fields=False, xy_dist_max=0.0, has_xy_dist_max=False),

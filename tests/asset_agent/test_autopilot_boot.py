@@ -1,11 +1,17 @@
 """Reboot detection (autopilot/boot.py) over a real MAVLink link to the simulated autopilot in
-its own process: messages read late — the agent stopped, a radio's buffer — are not a reboot; a
-reboot is, whether its uptime starts again or the link was down for longer than it."""
+its own process: messages read late — the agent stopped, a radio's buffer — are not a reboot, nor
+is a SITL's clock falling behind; a reboot is, whether its uptime starts again or the link was
+down for longer than it."""
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import os
+import signal
+import subprocess
 import time
+from collections.abc import AsyncIterator
 from pathlib import Path
 
 import pytest
@@ -13,19 +19,31 @@ import pytest
 from asset_agent.autopilot import Autopilot
 from asset_agent.autopilot.boot import BootWatch
 from tests.asset_agent.conftest import fast_config
-from tests.e2e.test_demo_external import start_autopilot
+from tests.e2e.test_demo_external import SPEED, start_autopilot
 from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # an autopilot process, seconds of real link
 
 
-async def test_messages_read_late_are_not_a_reboot_and_a_reboot_is(tmp_path: Path):
-    proc, url, _ = start_autopilot(tmp_path, "ardupilot-4")
+@contextlib.asynccontextmanager
+async def sitl(folder: Path) -> AsyncIterator[tuple[subprocess.Popen[bytes], Autopilot]]:
+    """`aerobase sim autopilot` (ArduPilot 4, SITL's clock) in its own process, and an adapter
+    connected to it whose link outlasts the faults below."""
+    proc, url, _ = start_autopilot(folder, "ardupilot-4")
     ap = Autopilot(fast_config(url, link_timeout_s=10.0))
-    notes = ap.subscribe()
     try:
         await ap.start()
         await eventually(lambda: ap.state.lat is not None and ap.state.roll_deg is not None, 10)
+        yield proc, ap
+    finally:
+        await ap.close()
+        proc.terminate()
+        proc.wait(10)
+
+
+async def test_messages_read_late_are_not_a_reboot_and_a_reboot_is(tmp_path: Path):
+    async with sitl(tmp_path) as (_, ap):
+        notes = ap.subscribe()
         time.sleep(2.5)  # noqa: ASYNC251  (the fault: the agent stopped, the autopilot sends on)
         with ap.tap(lambda m: m.get_type() == "SYSTEM_TIME") as q:
             for _ in range(4):  # the backlog read, then four seconds of SYSTEM_TIME on time
@@ -35,10 +53,6 @@ async def test_messages_read_late_are_not_a_reboot_and_a_reboot_is(tmp_path: Pat
         assert "autopilot rebooted" not in texts
         await ap.reboot()
         await eventually(lambda: ap.reboots == 1, 20, "the reboot seen")
-    finally:
-        await ap.close()
-        proc.terminate()
-        proc.wait(10)
 
 
 def test_uptime_going_back_is_a_reboot_at_once():
@@ -49,9 +63,9 @@ def test_uptime_going_back_is_a_reboot_at_once():
     assert w.check(3_200, 1000.6) is None  # the new boot: on time
 
 
-def test_a_later_boot_instant_is_a_reboot_once_it_stays():
-    """A link down 60 s across a reboot 45 s in: the uptime (15 s) has not gone back, the boot
-    instant is 50 s later and stays there."""
+def test_an_uptime_short_of_the_time_since_is_a_reboot_once_it_stays():
+    """A link down 60 s across a reboot 45 s in: the uptime (15 s) has not gone back; it is 50 s
+    short of the old one's 5 s plus the 60 s since, and stays short."""
     w = BootWatch()
     assert w.check(5_000, 1000.0) is None
     t, uptime, seen = 1060.0, 15_000, []
@@ -59,5 +73,40 @@ def test_a_later_boot_instant_is_a_reboot_once_it_stays():
         seen.append(w.check(uptime, t))
         t, uptime = t + 0.5, uptime + 500
     assert seen[0] is None  # what a backlog's first message looks like
-    assert seen[1] is not None and "50.0 s later" in seen[1]  # still later half a second on
+    assert seen[1] is not None and "50.0 s short" in seen[1]  # still short half a second on
     assert seen[2:] == [None] * (len(seen) - 2)
+
+
+async def test_a_sitl_whose_clock_fell_behind_has_not_rebooted(tmp_path: Path):
+    """The simulated autopilot keeps SITL's clock (simulated time since boot); stopped 2 s, it
+    loses that time for good, as a starved SITL does: its uptime is short from then on."""
+    async with sitl(tmp_path) as (proc, ap):
+        await eventually(lambda: (ap.boot.uptime_ms or 0) > 10_000, 15, "10 s of uptime")
+        with ap.tap(lambda m: m.get_type() == "SYSTEM_TIME") as q:
+            before = (time.monotonic(), (await asyncio.wait_for(q.get(), 5)).time_boot_ms)
+            os.kill(proc.pid, signal.SIGSTOP)
+            try:
+                await asyncio.sleep(2.0)  # the fault's length: the autopilot starved this long
+            finally:
+                os.kill(proc.pid, signal.SIGCONT)
+            while not q.empty():
+                q.get_nowait()
+            after = (time.monotonic(), (await asyncio.wait_for(q.get(), 5)).time_boot_ms)
+            lost = (after[0] - before[0]) - (after[1] - before[1]) / 1000 / float(SPEED)
+            assert lost > 1.5  # the premise: its clock fell behind the wall
+            for _ in range(4):  # four more seconds of SYSTEM_TIME
+                await asyncio.wait_for(q.get(), 5)
+        assert ap.reboots == 0
+
+
+def test_a_clock_at_half_the_walls_speed_has_not_rebooted():
+    w = BootWatch()
+    verdicts = [w.check(60_000 + i * 50, 1000.0 + i * 0.1) for i in range(600)]  # a minute
+    assert verdicts == [None] * 600
+
+
+def test_a_clock_that_lost_3_s_at_100_s_of_uptime_has_not_rebooted():
+    w = BootWatch()
+    assert w.check(100_000, 1000.0) is None
+    verdicts = [w.check(100_100 + i * 100, 1003.1 + i * 0.1) for i in range(40)]
+    assert verdicts == [None] * 40
