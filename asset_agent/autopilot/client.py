@@ -180,7 +180,7 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
         return self.mission_watch.on_change(prev, cur, now)
 
     def _check_reboot(self, boot_ms: int | None, now: float) -> None:
-        """A reboot, told from messages read late by `BootWatch` (boot.py): counted, the
+        """A reboot, told from late messages and slow clocks by `BootWatch` (boot.py): counted, the
         operator told, every stream asked for again."""
         why = None if boot_ms is None else self.boot.check(boot_ms, now)
         if why is None:
