@@ -59,7 +59,8 @@ class BootWatch:
         """Feed one message's `time_boot_ms`, arrived at `now`: why it is a reboot, or None."""
         uptime = self.uptime_ms
         if uptime is None or not self._on_time:
-            return self._restart(boot_ms, now)
+            self._restart(boot_ms, now)  # the first message
+            return None
         if boot_ms < uptime - UPTIME_BACK_MS:
             self._restart(boot_ms, now)
             return f"its uptime went back from {uptime / 1000:.1f} s to {boot_ms / 1000:.1f} s"
