@@ -85,8 +85,12 @@ async def test_a_reboot_brings_the_streams_back_without_restarting_the_agent(nam
             await asyncio.wait_for(q.get(), 5)
         # seen by its uptime going back or, when the new boot speaks with more uptime than the
         # old had (its streams back only when re-asked), by an uptime short of the time since
-        await eventually(lambda: ap.reboots == 1, 5, "the reboot seen")
-        assert ap.streams.negotiations == negotiations + 1
+        await eventually(
+            lambda: ap.reboots == 1 and ap.streams.negotiations > negotiations,
+            5,
+            "the reboot seen and the streams asked for again (a task started on it)",
+        )
+        assert ap.reboots == 1 and ap.streams.negotiations == negotiations + 1
         print(f"{name}: position streaming again {time.monotonic() - since:.2f} s after the reboot")
 
 
