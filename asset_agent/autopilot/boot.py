@@ -58,7 +58,7 @@ class BootWatch:
     def check(self, boot_ms: int, now: float) -> str | None:
         """Feed one message's `time_boot_ms`, arrived at `now`: why it is a reboot, or None."""
         uptime = self.uptime_ms
-        if uptime is None or not self._on_time:
+        if uptime is None:
             self._restart(boot_ms, now)  # the first message
             return None
         if boot_ms < uptime - UPTIME_BACK_MS:

@@ -105,6 +105,26 @@ def test_a_clock_at_half_the_walls_speed_has_not_rebooted():
     assert verdicts == [None] * 600
 
 
+def test_a_half_speed_clock_heard_again_after_an_outage_has_not_rebooted():
+    """Early in its boot (1.5 s of uptime) a SITL at half the wall's speed goes unheard for 6 s:
+    3 s of uptime in 6 s of arrivals is on time at its rate (taken as the wall's, 3 s short)."""
+    w = BootWatch()
+    verdicts = [w.check(500 + i * 50, 1000.0 + i * 0.1) for i in range(21)]  # 2 s heard
+    verdicts += [w.check(4_500 + i * 50, 1008.0 + i * 0.1) for i in range(20)]  # after 6 s
+    assert verdicts == [None] * 41
+
+
+def test_a_fast_clocks_reboot_is_told_at_its_rate():
+    """A SITL at 20x, 20 s of uptime, unheard for 3 s across a reboot: the new boot speaks at 40 s
+    of uptime, more than the old had. At 20x, 3 s of arrivals are 60 s of its clock: 40 s short."""
+    w = BootWatch()
+    verdicts = [w.check(i * 2_000, 999.0 + i * 0.1) for i in range(11)]  # 0-20 s of uptime
+    verdicts += [w.check(40_000 + i * 2_000, 1003.0 + i * 0.1) for i in range(8)]
+    assert verdicts[:12] == [None] * 12  # the first message after: maybe a backlog
+    told = [v for v in verdicts if v]
+    assert len(told) == 1 and "40.0 s short" in told[0]  # half a second on, still short
+
+
 def test_a_clock_that_lost_3_s_at_100_s_of_uptime_has_not_rebooted():
     w = BootWatch()
     assert w.check(100_000, 1000.0) is None
