@@ -15,10 +15,12 @@ driven by the daemon (takeover.py, over MAVLink) and by the evaluation's autopil
   acceptance cone (LAND would come down where the vehicle is: fused-wind8 seed 1012, held 30 cm
   up by the descent gate, swung 20 cm off by the gusts, lost the pad and landed 15.7 cm off):
   "take" the vehicle (GUIDED) and fly the sequence's cautious retry (pause, climb back above
-  where the pad was last measured); in view again: "land" (LAND again, the autopilot descends on
-  the LANDING_TARGETs); the retries used up: on RTK fixed the sequence's blind descent is handed
-  to LAND, otherwise its abort (climb to the safe height) and "hold" once there — the landing is
-  abandoned ("aborted-climb");
+  where the pad was last measured); in view again and inside the cone (the agent's approach
+  flies it there): "land" (LAND again, the autopilot descends on the LANDING_TARGETs; handed
+  back the moment the pad was in view, 0.3 m up, ArduPilot 3.7's LAND, which holds no descent
+  for the target, came down 8.5 cm off in the external demo); the retries used up: on RTK
+  fixed the sequence's blind descent is handed to LAND, otherwise its abort (climb to the safe
+  height) and "hold" once there — the landing is abandoned ("aborted-climb");
 - a blind descent the sequence holds outside the cone (the wind keeps the vehicle off the pad:
   at 12 m/s LAND came down 3.5 m off) is flown by the agent too, handed back to LAND once inside
   the cone, and abandoned the same way when held off for `retry.blind_hold_max_s` in all;
@@ -92,7 +94,7 @@ class LossGuard:
         if self.flying:
             if self.sequence.holding_safe:
                 return GuardAction("hold", cmd.setpoint)
-            if wait:
+            if wait or not self._inside_cone(est):
                 return GuardAction("fly", cmd.setpoint)
             self.flying = False  # in view again, or back over the pad: the autopilot lands
             return GuardAction("land")
@@ -104,15 +106,22 @@ class LossGuard:
         self.sequence.restart_pause(now)  # the autopilot lands through this loss: no retry spent
         return GuardAction("watch")
 
+    def _inside_cone(self, est: Estimate) -> bool:
+        """The pad within the acceptance cone at the vehicle's height: LAND may descend from here.
+        Handed back outside it, LAND comes down where the vehicle is (ArduPilot 3.x holds no
+        descent for the target; 4.x only within PLND_XY_DIST_MAX, where set)."""
+        n, e, height = (float(v) for v in est.rel_ned)
+        above = height - self.config.control.touchdown_height
+        return math.hypot(n, e) <= allowed_pos_error(above, self.config.control)
+
     def _blind_unsafe(self, est: Estimate, state: VehicleState) -> bool:
         """The autopilot's blind descent from here would land off the contacts: on a fix short
         of RTK fixed from above the final stretch (the fix's drift), or on any fix with the pad
         outside the acceptance cone (LAND descends where the vehicle is, not over the pad)."""
         if self.config.retry.blind_max_height_unfixed_m is None:  # the thesis: blind anywhere
             return False
-        n, e, height = (float(v) for v in est.rel_ned)
+        height = float(est.rel_ned[2])
         # LAND went on descending through the fusion's hold: blind since the last measurement
         if not blind_allowed(self.sequence.blind_from(height), state.gnss_fix, self.config.retry):
             return True
-        above = height - self.config.control.touchdown_height
-        return math.hypot(n, e) > allowed_pos_error(above, self.config.control)
+        return not self._inside_cone(est)

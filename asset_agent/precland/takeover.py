@@ -133,6 +133,12 @@ class Takeover:
                     sp = act.setpoint
                     self.autopilot.send_velocity_ned(sp.vn, sp.ve, sp.vd)
                 if act.kind == "land":
+                    n, e, height = (float(v) for v in est.rel_ned)
+                    log.info(
+                        "precland: the pad in view %.2f m off, %.1f m up: LAND again",
+                        math.hypot(n, e),
+                        height - self.config.control.touchdown_height,
+                    )
                     await self._land()
                     self.active = False
                 if act.kind == "hold":

@@ -103,6 +103,21 @@ def test_on_rtk_fixed_a_pad_lost_off_centre_is_flown_back_not_landed_beside():
     assert g.lose(low, north=0.02) == "watch" and g.guard.losses == []
 
 
+def test_a_pad_seen_again_off_centre_is_handed_back_only_inside_the_cone():
+    """The ArduPilot 3.7 external demo under load: taken 0.3 m up, handed back the moment the pad
+    was in view again, LAND (3.x holds no descent for the target) came down where the vehicle
+    was, 8.5 cm off. Off the cone, the agent's approach flies it into the cone first."""
+    low = TOUCHDOWN + 0.3
+    f = Flight(FIX_RTK_FLOAT)
+    f.step(low, True, north=0.2)
+    assert f.lose(low, north=0.2) == "take"
+    assert f.step(low, True, north=0.2) == "fly"  # in view, 20 cm off: not LAND yet
+    assert f.guard.sequence.state == "approach"
+    assert f.step(low, True, north=0.05) == "fly"
+    assert f.step(low, True, north=0.02) == "land"  # inside the cone (3.5 cm at 0.3 m)
+    assert f.step(low - 0.05, True, north=0.02) == "watch"
+
+
 def test_losses_the_autopilot_lands_through_spend_no_retry():
     """On RTK fixed over the pad the guard watches a loss; its sequence must not count it as a
     retry, or a later loss off the cone finds none left and LAND comes down beside the pad."""
