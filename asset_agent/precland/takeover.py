@@ -135,7 +135,7 @@ class Takeover:
                 if act.kind == "land":
                     n, e, height = (float(v) for v in est.rel_ned)
                     log.info(
-                        "precland: the pad in view %.2f m off, %.1f m up: LAND again",
+                        "precland: %.3f m off the pad, %.2f m up (the agent's estimate): LAND again",
                         math.hypot(n, e),
                         height - self.config.control.touchdown_height,
                     )

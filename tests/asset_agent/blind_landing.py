@@ -1,6 +1,7 @@
 """Shared by the precision-landing daemon tests against the simulated autopilot: an adapter
 streaming what precision landing needs, the daemon's lander fed by an IR beacon that runs (so the
-landing loop starts) with every reading dropped, and a take-off to 11 m followed by LAND."""
+landing loop starts) with every reading dropped, a take-off to 11 m followed by LAND, and the
+vehicle's lowest altitude meanwhile."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from asset_agent.config import PreclandSection
 from asset_agent.precland.config import FaultConfig
 from asset_agent.precland.resume import Memory
 from asset_agent.precland.supervisor import PrecisionLander, stream_rates
+from asynckit.tasks import cancel_and_wait
 from sim.ir import IrBeaconSensor
 from sim.vehicle.server import VehicleServer
 from tests.asset_agent.conftest import fast_config
@@ -84,3 +86,23 @@ async def take_off_and_land(autopilot: Autopilot, vehicle: VehicleServer) -> Non
     await autopilot.takeoff(11)
     await eventually(lambda: vehicle.copter.dyn.state.altitude > 10.5, 20, "takeoff")
     await autopilot.land()
+
+
+@contextlib.asynccontextmanager
+async def lowest_altitude(vehicle: VehicleServer) -> AsyncIterator[list[float]]:
+    """The vehicle's lowest altitude while the block runs (as the simulator knows it), once
+    it has climbed above 5 m."""
+    lowest: list[float] = []
+
+    async def watch() -> None:
+        while True:
+            alt = vehicle.copter.dyn.state.altitude
+            if lowest or alt > 5.0:
+                lowest[:] = [min(lowest[0], alt) if lowest else alt]
+            await asyncio.sleep(0.01)
+
+    task = asyncio.create_task(watch())
+    try:
+        yield lowest
+    finally:
+        await cancel_and_wait([task])

@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
+import re
 import time
 from collections.abc import AsyncIterator, Callable
 from pathlib import Path
@@ -20,6 +21,7 @@ import pytest
 
 from asset_agent.autopilot import Autopilot
 from asset_agent.precland.config import FaultConfig, RetryConfig, SearchConfig
+from asset_agent.precland.control import allowed_pos_error
 from asset_agent.precland.resume import FLYING, HOLDING, KEY
 from asset_agent.precland.supervisor import PrecisionLander
 from asset_agent.precland.takeover import descending, hand_back, take
@@ -29,6 +31,7 @@ from sim.vehicle.constants import GUIDED, LAND
 from sim.vehicle.server import VehicleServer, WindFn, run_vehicle
 from tests.asset_agent.blind_landing import (
     blind_beacon_lander,
+    lowest_altitude,
     precland_adapter,
     take_off_and_land,
 )
@@ -92,26 +95,6 @@ async def test_no_pad_found_on_rtk_fixed_lands_on_the_gnss_over_the_surveyed_pad
 
 BELOW_3M = FaultConfig(fail_below_m=3.0)  # the beacon sees the pad from above 3 m only
 ONE_RETRY = RetryConfig(pause_s=1.0, max_attempts=1)
-
-
-@contextlib.asynccontextmanager
-async def lowest_altitude(vehicle: VehicleServer) -> AsyncIterator[list[float]]:
-    """The vehicle's lowest altitude while the block runs (as the simulator knows it), once
-    it has climbed above 5 m."""
-    lowest: list[float] = []
-
-    async def watch() -> None:
-        while True:
-            alt = vehicle.copter.dyn.state.altitude
-            if lowest or alt > 5.0:
-                lowest[:] = [min(lowest[0], alt) if lowest else alt]
-            await asyncio.sleep(0.01)
-
-    task = asyncio.create_task(watch())
-    try:
-        yield lowest
-    finally:
-        await cancel_and_wait([task])
 
 
 async def test_a_pad_lost_at_3_m_on_a_plain_fix_is_retried_then_abandoned_not_landed_blind(
@@ -259,17 +242,26 @@ async def test_a_blind_descent_blown_off_the_pad_is_held_by_the_agent_then_aband
 
 
 @pytest.mark.slow  # ~12 s: the landing from 10 m at 4x
-async def test_a_blind_descent_blown_off_by_a_gust_is_flown_back_and_landed() -> None:
+async def test_a_blind_descent_blown_off_by_a_gust_is_flown_back_and_landed(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
     """The same, but the wind drops after 1.5 s: the agent takes the vehicle, brings it back
     inside the cone and hands LAND back; the autopilot lands on the pad and, touching down, is
     left to it. Blown 1.5-5 m off, the flight back on a loaded machine took longer than the
     default `blind_hold_max_s` (10 s) in one run of eight: the wait may take 30 s here."""
+    caplog.set_level("INFO", logger="asset_agent.precland.takeover")
     retry = RetryConfig(max_attempts=0, blind_hold_max_s=30.0)  # see the docstring
     async with landing_into_a_storm(retry, 1.5) as (vehicle, autopilot, lander):
         await eventually(lambda: lander.takeover and lander.takeover.losses, 30, "taken")
         # handed back: LAND lands it (the agent, holding it, would not)
         await eventually(lambda: not autopilot.state.armed, 60, "landed and disarmed")
         assert lander.takeover is not None and lander.takeover.path == "precision"
+        # each hand-back logged, and made inside the acceptance cone (by the agent's estimate)
+        handed = re.findall(r"([\d.]+) m off the pad, ([\d.-]+) m up .*: LAND again", caplog.text)
+        cone = lander.config.control
+        assert handed, caplog.text
+        inside = [float(o) <= allowed_pos_error(float(u) + 5e-3, cone) + 5e-4 for o, u in handed]
+        assert all(inside), handed  # (within the log's rounding)
         # LAND left to itself came down where the gust put it: 80 cm off (on the blind estimate,
         # after the flight back: 2-15 cm)
         assert vehicle.copter.pad_distance() < 0.3
@@ -371,8 +363,9 @@ async def test_a_take_the_autopilot_did_not_hear_is_sent_again_while_its_land_go
     taken, in the air."""
     await autopilot.set_mode("GUIDED")
     await autopilot.arm()
-    await autopilot.takeoff(30)
-    await eventually(lambda: vehicle.copter.dyn.state.altitude > 29.5, 20, "takeoff")
+    # from 30 m a full run's load let LAND reach 2.99 m before the take was heard: 40
+    await autopilot.takeoff(40)
+    await eventually(lambda: vehicle.copter.dyn.state.altitude > 39.5, 30, "takeoff")
     await autopilot.set_mode("LAND")
     # in LAND by its HEARTBEAT (1 Hz): a GUIDED heard before counts as the take's answer
     await eventually(
