@@ -82,6 +82,19 @@ def allowed_pos_error(a: float, cfg: ControlConfig) -> float:
     return cfg.min_pos_error * math.exp(cfg.max_pos_error * max(a, 0.0))
 
 
+def cone_position(rel_ned, cfg: ControlConfig) -> tuple[float, float]:
+    """(horizontal distance to the pad, altitude above touchdown) of an estimate `rel_ned` (pad
+    minus vehicle, NED; `rel_ned[2]` the camera's height above the pad): where it is in the cone."""
+    n, e, height = (float(v) for v in rel_ned)
+    return math.hypot(n, e), height - cfg.touchdown_height
+
+
+def inside_cone(rel_ned, cfg: ControlConfig) -> bool:
+    """The pad within the acceptance cone at the vehicle's height (eq. 3)."""
+    off, a = cone_position(rel_ned, cfg)
+    return off <= allowed_pos_error(a, cfg)
+
+
 @dataclass(frozen=True)
 class VelocitySetpoint:
     """A GUIDED velocity setpoint in local NED (m/s), a yaw rate (rad/s), and "land now"."""

@@ -33,11 +33,15 @@ driven by the daemon (takeover.py, over MAVLink) and by the evaluation's autopil
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from asset_agent.precland.config import PrecisionLandingConfig
-from asset_agent.precland.control import VelocitySetpoint, allowed_pos_error, blind_allowed
+from asset_agent.precland.control import (
+    VelocitySetpoint,
+    blind_allowed,
+    cone_position,
+    inside_cone,
+)
 from asset_agent.precland.kalman import Estimate
 from asset_agent.precland.pipeline import VehicleState
 from asset_agent.precland.sequence import LandingSequence
@@ -94,25 +98,19 @@ class LossGuard:
         if self.flying:
             if self.sequence.holding_safe:
                 return GuardAction("hold", cmd.setpoint)
-            if wait or not self._inside_cone(est):
+            # handed back outside the cone LAND comes down where the vehicle is (ArduPilot 3.x
+            # holds no descent for the target; 4.x only within PLND_XY_DIST_MAX, where set)
+            if wait or not inside_cone(est.rel_ned, self.config.control):
                 return GuardAction("fly", cmd.setpoint)
             self.flying = False  # in view again, or back over the pad: the autopilot lands
             return GuardAction("land")
-        above = float(est.rel_ned[2]) - self.config.control.touchdown_height
+        above = cone_position(est.rel_ned, self.config.control)[1]
         if wait and above > TOUCHING_DOWN_M and self._blind_unsafe(est, state):
             self.flying = True
             self.losses.append(round(above, 2))
             return GuardAction("take", cmd.setpoint)
         self.sequence.restart_pause(now)  # the autopilot lands through this loss: no retry spent
         return GuardAction("watch")
-
-    def _inside_cone(self, est: Estimate) -> bool:
-        """The pad within the acceptance cone at the vehicle's height: LAND may descend from here.
-        Handed back outside it, LAND comes down where the vehicle is (ArduPilot 3.x holds no
-        descent for the target; 4.x only within PLND_XY_DIST_MAX, where set)."""
-        n, e, height = (float(v) for v in est.rel_ned)
-        above = height - self.config.control.touchdown_height
-        return math.hypot(n, e) <= allowed_pos_error(above, self.config.control)
 
     def _blind_unsafe(self, est: Estimate, state: VehicleState) -> bool:
         """The autopilot's blind descent from here would land off the contacts: on a fix short
@@ -124,4 +122,4 @@ class LossGuard:
         # LAND went on descending through the fusion's hold: blind since the last measurement
         if not blind_allowed(self.sequence.blind_from(height), state.gnss_fix, self.config.retry):
             return True
-        return not self._inside_cone(est)
+        return not inside_cone(est.rel_ned, self.config.control)

@@ -48,8 +48,10 @@ from asset_agent.precland.control import (
     blind_allowed,
     blind_profile,
     clip_xy,
+    cone_position,
     cone_setpoint,
     held_off_centre,
+    inside_cone,
 )
 from asset_agent.precland.kalman import Estimate, rtk_fixed
 from asset_agent.precland.search import ExpandingSquare
@@ -386,11 +388,10 @@ class LandingSequence:
         off) — on an estimate worth waiting on: RTK fixed, or within `blind_recentre_s` of the
         last sighting (else waiting adds drift)."""
         seen, c = self._last_seen, self.control
-        a = float(rel_ned[2]) - c.touchdown_height
+        a = cone_position(rel_ned, c)[1]
         if seen is None or a > self.retry.blind_wait_height_m:
             return False
         recent = now - seen[3] <= self.retry.blind_recentre_s
         if not (recent or rtk_fixed(self._gnss_fix)):
             return False
-        off = math.hypot(float(rel_ned[0]), float(rel_ned[1])) > allowed_pos_error(a, c)
-        return off and (a >= c.slow_height or c.final_inside_cone_only)
+        return not inside_cone(rel_ned, c) and (a >= c.slow_height or c.final_inside_cone_only)

@@ -33,7 +33,7 @@ from typing import Any
 
 from asset_agent.autopilot.errors import AutopilotError
 from asset_agent.precland.config import PrecisionLandingConfig
-from asset_agent.precland.control import clip_xy
+from asset_agent.precland.control import clip_xy, cone_position
 from asset_agent.precland.guard import TOUCHING_DOWN_M, LossGuard
 from asset_agent.precland.kalman import Estimate
 from asset_agent.precland.pipeline import LandingPipeline, VehicleState
@@ -133,11 +133,9 @@ class Takeover:
                     sp = act.setpoint
                     self.autopilot.send_velocity_ned(sp.vn, sp.ve, sp.vd)
                 if act.kind == "land":
-                    n, e, height = (float(v) for v in est.rel_ned)
                     log.info(
                         "precland: %.3f m off the pad, %.2f m up (the agent's estimate): LAND again",
-                        math.hypot(n, e),
-                        height - self.config.control.touchdown_height,
+                        *cone_position(est.rel_ned, self.config.control),
                     )
                     await self._land()
                     self.active = False
