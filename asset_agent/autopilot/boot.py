@@ -21,6 +21,11 @@ Two things make the uptime fall short without a reboot, by less than the uptime:
   its return and landing (a notification for the operator each time);
 - a SITL's clock falling behind: the simulation's time, which a starved process loses for good
   (`sync_frame_time` catches up 0.1 s at most); from then on the uptime runs on from there.
+
+And one thing makes it go back without a reboot: `time_boot_ms` is a uint32 of milliseconds
+(ArduPilot's `AP_HAL::millis()`, PX4's boot time cast down), so it wraps to zero after 49.7 days
+of uptime — a drone left powered on its charging base reaches that. Counted on past the wrap
+(`WRAP_MS`), the uptime is on time, where a new boot's is ahead of the time since.
 """
 
 from __future__ import annotations
@@ -36,13 +41,15 @@ HOLD_S = 0.5  # arrival seconds it must stay short (a backlog is read in millise
 UPTIME_BACK_MS = 200
 RATE_WINDOW_S = 10.0  # arrival seconds of messages on time the clock's rate is taken over
 RATE_MIN_SPAN_S = 1.0  # until they span this long the rate is taken as the wall's
+WRAP_MS = 1 << 32  # time_boot_ms wraps to zero after this many milliseconds (49.7 days)
 
 
 class BootWatch:
     """One autopilot's boot, from the `time_boot_ms` of its messages as they arrive."""
 
     def __init__(self) -> None:
-        self.uptime_ms: int | None = None  # the highest time_boot_ms of this boot
+        self.uptime_ms: int | None = None  # the highest time_boot_ms of this boot, unwrapped
+        self._wraps = 0  # how many times this boot's time_boot_ms has wrapped
         self._on_time: deque[tuple[float, int]] = deque()  # (arrival, uptime ms) not short
         self._short_since: float | None = None  # first arrival of a shortfall that may be one
 
@@ -61,11 +68,14 @@ class BootWatch:
         if uptime is None:
             self._restart(boot_ms, now)  # the first message
             return None
+        raw, boot_ms = boot_ms, boot_ms + self._wraps * WRAP_MS
         if boot_ms < uptime - UPTIME_BACK_MS:
-            self._restart(boot_ms, now)
-            return f"its uptime went back from {uptime / 1000:.1f} s to {boot_ms / 1000:.1f} s"
-        last_t, last_ms = self._on_time[-1]
-        short = (now - last_t) * self.rate - (boot_ms - last_ms) / 1000
+            if self._shortfall(boot_ms + WRAP_MS, now) <= -SHORT_S:
+                self._restart(raw, now)  # a new boot: ahead of the time since, counted on
+                return f"its uptime went back from {uptime / 1000:.1f} s to {raw / 1000:.1f} s"
+            self._wraps += 1  # the uint32 wrapped: the uptime goes on
+            boot_ms += WRAP_MS
+        short = self._shortfall(boot_ms, now)
         if short < max(SHORT_S, (uptime - UPTIME_BACK_MS) / 1000):
             self._short_since = None  # on time, read late, or a clock that fell behind
             self.uptime_ms = max(uptime, boot_ms)
@@ -77,10 +87,16 @@ class BootWatch:
             self._short_since = now
         if now - self._short_since < HOLD_S:
             return None
-        self._restart(boot_ms, now)
+        self._restart(raw, now)
         return f"its uptime {short:.1f} s short of the time since it last spoke"
 
+    def _shortfall(self, boot_ms: int, now: float) -> float:
+        """Seconds of its clock `boot_ms` falls short of the last message on time plus the time
+        since at the clock's rate: a little for a message read late, below zero when ahead."""
+        last_t, last_ms = self._on_time[-1]
+        return (now - last_t) * self.rate - (boot_ms - last_ms) / 1000
+
     def _restart(self, boot_ms: int, now: float) -> None:
-        self.uptime_ms, self._short_since = boot_ms, None
+        self.uptime_ms, self._short_since, self._wraps = boot_ms, None, 0
         self._on_time.clear()
         self._on_time.append((now, boot_ms))

@@ -6,7 +6,7 @@
                           [--no-message-interval] [--silent-message-interval]
                           [--no-extended-sys-state]
                           [--keep-params] [--streams-at-boot all|heartbeat]
-                          [--plnd ardupilot|simple]
+                          [--plnd ardupilot|simple] [--uptime-s S]
 
 Without a profile it keeps the simulator's defaults (ArduPilot 4.x habits, every stream on, no
 boot delay); a profile brings that release's habits (sim/vehicle/habits.py), 35-40 s of booting
@@ -61,7 +61,17 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         default=None,
         help="precision landing as ArduPilot's PLND (companion backend) or the simulator's own",
     )
-    return ap.parse_args(argv)
+    ap.add_argument(
+        "--uptime-s",
+        type=float,
+        default=0.0,
+        help="the autopilot's uptime at the start, as if left powered on its base "
+        "(time_boot_ms wraps after 4294967.296 s, 49.7 days)",
+    )
+    args = ap.parse_args(argv)
+    if args.uptime_s < 0:
+        ap.error("--uptime-s must not be negative")
+    return args
 
 
 def habits_of(args: argparse.Namespace) -> Habits:
@@ -92,7 +102,8 @@ def habits_of(args: argparse.Namespace) -> Habits:
 
 def setup(args: argparse.Namespace) -> VehicleServer:
     """Build the vehicle server (nothing bound yet)."""
-    copter = Copter(OpenPad(), CopterConfig(seed=args.seed, habits=habits_of(args)))
+    config = CopterConfig(seed=args.seed, habits=habits_of(args), powered_s=args.uptime_s)
+    copter = Copter(OpenPad(), config)
     return VehicleServer(
         copter, SimClock(args.speed), host=args.host, tcp_port=args.tcp_port, udp_port=args.udp_port
     )

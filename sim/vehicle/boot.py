@@ -61,12 +61,17 @@ class BootMixin:
     def time_boot_ms(self) -> int:
         """Milliseconds since the autopilot (re)booted, as its messages' time_boot_ms: wall ones,
         as a flight controller's clock whatever the speed factor, or simulated ones, as SITL's
-        (`Habits.uptime`: at the speed factor, and behind the wall when starved)."""
+        (`Habits.uptime`: at the speed factor, and behind the wall when starved). A uint32, as
+        ArduPilot's `AP_HAL::millis()`: it wraps to 0 after 49.7 days. Until the first reboot it
+        counts from `CopterConfig.powered_s` (a flight controller left on in its base)."""
+        powered = self.config.powered_s if self.boots == 0 else 0.0
         if self.config.habits.uptime == "simulated":
-            return round((self.t - self.t_boot) * 1000) & 0xFFFFFFFF
-        if self.wall_boot is None:
-            return 0
-        return round((self.wall - self.wall_boot) * 1000) & 0xFFFFFFFF
+            since = self.t - self.t_boot
+        elif self.wall_boot is None:
+            since = 0.0
+        else:
+            since = self.wall - self.wall_boot
+        return round((powered + since) * 1000) & 0xFFFFFFFF
 
     def rebooting(self, wall: float) -> bool:
         """True while the autopilot is restarting (silent)."""

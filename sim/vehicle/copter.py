@@ -91,6 +91,7 @@ class CopterConfig:
     airflow: AirflowParams = field(default_factory=AirflowParams)  # shear and turbulence
     gnss: GnssParams = field(default_factory=GnssParams)
     habits: Habits = field(default_factory=Habits)  # which ArduPilot release it behaves as
+    powered_s: float = 0.0  # its uptime at the start: time_boot_ms wraps at 49.7 days (boot.py)
 
 
 @dataclass

@@ -1,7 +1,7 @@
 """Reboot detection (autopilot/boot.py) over a real MAVLink link to the simulated autopilot in
 its own process: messages read late — the agent stopped, a radio's buffer — are not a reboot, nor
-is a SITL's clock falling behind; a reboot is, whether its uptime starts again or the link was
-down for longer than it."""
+is a SITL's clock falling behind, nor time_boot_ms wrapping after 49.7 days; a reboot is, whether
+its uptime starts again or the link was down for longer than it."""
 
 from __future__ import annotations
 
@@ -17,7 +17,9 @@ from pathlib import Path
 import pytest
 
 from asset_agent.autopilot import Autopilot
-from asset_agent.autopilot.boot import BootWatch
+from asset_agent.autopilot.boot import WRAP_MS, BootWatch
+from sim.vehicle.copter import CopterConfig
+from sim.vehicle.server import run_vehicle
 from tests.asset_agent.conftest import fast_config
 from tests.e2e.test_demo_external import SPEED, start_autopilot
 from tests.polling import eventually
@@ -130,3 +132,51 @@ def test_a_clock_that_lost_3_s_at_100_s_of_uptime_has_not_rebooted():
     assert w.check(100_000, 1000.0) is None
     verdicts = [w.check(100_100 + i * 100, 1003.1 + i * 0.1) for i in range(40)]
     assert verdicts == [None] * 40
+
+
+def test_time_boot_ms_wrapping_after_49_7_days_is_not_a_reboot():
+    """A uint32 of milliseconds wraps to 0 after 49.7 days of uptime: counted on, on time."""
+    w = BootWatch()
+    start = WRAP_MS - 2_000  # 2 s before the wrap, heard at 10 Hz for 6 s
+    verdicts = [w.check((start + i * 100) % WRAP_MS, 1000.0 + i * 0.1) for i in range(60)]
+    assert verdicts == [None] * 60
+    assert w.uptime_ms == start + 59 * 100  # counted on past the wrap
+    assert "uptime went back" in (w.check(1_500, 1006.1) or "")  # then a reboot, 1.5 s in
+
+
+def test_a_reboot_just_before_or_after_the_wrap_is_still_a_reboot():
+    """A new boot's first words, counted on past the wrap, would be ahead of the time since."""
+    for before_wrap_ms in (5_000, -5_000):  # rebooted 5 s before the wrap, or 5 s after it
+        w = BootWatch()
+        for i in range(11):
+            assert (
+                w.check((WRAP_MS - before_wrap_ms - 1_000 + i * 100) % WRAP_MS, 999 + i * 0.1)
+                is None
+            )
+        assert "uptime went back" in (w.check(2_000, 1000.5) or "")  # up again 2 s in
+
+
+async def test_an_autopilot_up_49_7_days_is_heard_through_the_wrap_without_a_reboot():
+    """The simulated flight controller left powered 6 s short of the wrap: the agent hears its
+    time_boot_ms go back to 0 and tells no reboot; a real reboot after it is told."""
+    config = CopterConfig(seed=3, powered_s=WRAP_MS / 1000 - 6.0)
+    async with run_vehicle(speed=1.0, config=config) as vehicle:
+        ap = Autopilot(fast_config(f"udpout:127.0.0.1:{vehicle.udp_port}"))
+        await ap.start()
+        try:
+            notes = ap.subscribe()
+            await eventually(lambda: ap.boot.uptime_ms is not None, 5, "the first message")
+            assert (ap.boot.uptime_ms or 0) < WRAP_MS  # the premise: heard before the wrap
+            with ap.tap(lambda m: m.get_type() == "SYSTEM_TIME") as q:
+                while (await asyncio.wait_for(q.get(), 10)).time_boot_ms > 3_000:
+                    pass  # until the autopilot's own time_boot_ms has wrapped
+                for _ in range(2):  # and two seconds on
+                    await asyncio.wait_for(q.get(), 5)
+            assert ap.reboots == 0 and (ap.boot.uptime_ms or 0) > WRAP_MS
+            texts = [notes.get_nowait().text for _ in range(notes.qsize())]
+            assert "autopilot rebooted" not in texts
+            await ap.reboot()
+            await eventually(lambda: ap.reboots == 1, 20, "the reboot after the wrap seen")
+            assert (ap.boot.uptime_ms or WRAP_MS) < 60_000  # the new boot counts from 0
+        finally:
+            await ap.close()

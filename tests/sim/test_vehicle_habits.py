@@ -8,7 +8,7 @@ import math
 import pytest
 
 from sim.vehicle import mission as ms
-from sim.vehicle.__main__ import habits_of, parse_args
+from sim.vehicle.__main__ import habits_of, parse_args, setup
 from sim.vehicle.copter import CopterConfig
 from sim.vehicle.habits import PROFILES, Habits, profile, stored
 from sim.vehicle.server import run_vehicle
@@ -51,6 +51,9 @@ def test_profiles_and_the_command_line():
     assert not h.message_interval and not h.ardupilot_storage and h.extended_sys_state
     with pytest.raises(ValueError, match="unknown autopilot profile"):
         profile("px4")
+    assert setup(parse_args(["--uptime-s", "86400"])).copter.time_boot_ms == 86_400_000
+    with pytest.raises(SystemExit):  # "--uptime-s must not be negative"
+        parse_args(["--uptime-s", "-1"])
 
 
 @pytest.mark.slow  # waits 2 s to show a message never comes
