@@ -2,7 +2,9 @@
 
 Negotiation (on every link-up and every autopilot reboot):
 1. MAV_CMD_SET_MESSAGE_INTERVAL for the first stream, answered within `PROBE_TIMEOUT_S` x 2 tries;
-   ACCEPTED: every stream is asked for the same way (ArduPilot 4.x, PX4);
+   ACCEPTED: every stream is asked for the same way (ArduPilot 4.x, PX4), and home once by
+   MAV_CMD_GET_HOME_POSITION too (ArduPilot sends a message first one interval after it is
+   asked for: home at 0.2 Hz would come 5 s after the link);
 2. UNSUPPORTED, DENIED or no answer (ArduPilot 3.x answers UNSUPPORTED): REQUEST_DATA_STREAM for
    the ArduCopter stream groups holding the wanted messages (`GROUPS`, from ArduCopter's
    GCS_Mavlink.cpp STREAM_*_msgs), each at the highest rate wanted in it (whole Hz, at least 1);
@@ -105,6 +107,10 @@ class StreamKeeper:
             else:  # this one message refused, or silence on a link that took others
                 self.by_group.add(msg_id)
         self._request_groups(self.by_group)
+        if HOME_POSITION in self.wanted and HOME_POSITION not in self.by_group:
+            # by interval its first comes one interval later (ArduPilot's new message bucket
+            # waits that long: 5 s at 0.2 Hz), and an agent waits for home: asked once now too
+            self.ap.spawn(self._ask_home(), "autopilot-home")
         if self.method == "interval":  # best effort, last: streams asked off
             for msg_id in self.stopped:
                 await self._try_interval(msg_id, -1.0)

@@ -206,9 +206,13 @@ class StreamScheduler:
             self.intervals = {k: (v if k == HEARTBEAT else None) for k, v in self.intervals.items()}
         self._next: dict[int, float] = dict.fromkeys(self.intervals, now)
         self._once: list[int] = []
+        self._now = now  # the latest time `due` was asked at
 
     def set_interval(self, msg_id: int, interval_us: float) -> bool:
-        """MAV_CMD_SET_MESSAGE_INTERVAL: -1 stops, 0 restores the default, else microseconds."""
+        """MAV_CMD_SET_MESSAGE_INTERVAL: -1 stops, 0 restores the default, else microseconds.
+        The first message comes one interval later, as ArduPilot's: `set_ap_message_interval`
+        puts it in a new bucket whose `last_sent_ms` is now (GCS_Common.cpp) — 5 s for a
+        HOME_POSITION asked at 0.2 Hz; a request (MAV_CMD_REQUEST_MESSAGE) is sent at once."""
         if msg_id not in BUILDERS:
             return False
         if interval_us < 0:
@@ -217,7 +221,8 @@ class StreamScheduler:
             self.intervals[msg_id] = DEFAULT_INTERVALS[msg_id]
         else:
             self.intervals[msg_id] = max(interval_us / 1e6, 0.005)
-        self._next[msg_id] = 0.0
+        interval = self.intervals[msg_id]
+        self._next[msg_id] = self._now + (interval or 0.0)
         return True
 
     def request_data_stream(self, stream_id: int, rate_hz: int, start: int) -> None:
@@ -240,6 +245,7 @@ class StreamScheduler:
     def due(self, now: float) -> list[int]:
         """Message ids to send now; advances their schedule."""
         out, self._once = self._once, []
+        self._now = now
         for msg_id, interval in self.intervals.items():
             if interval is None or now < self._next.get(msg_id, 0.0):
                 continue

@@ -12,7 +12,9 @@ from collections.abc import AsyncIterator
 import pytest
 
 from asset_agent.autopilot import Autopilot, CommandRejected, items_from_dicts
+from asset_agent.autopilot.config import DEFAULT_STREAMS
 from asset_agent.autopilot.params import NoSuchParam, read_param, set_param, unanswered
+from asset_agent.autopilot.streams import HOME_POSITION
 from asset_agent.events import EventTracker
 from sim.vehicle.copter import CopterConfig
 from sim.vehicle.geo import GeoOrigin
@@ -36,6 +38,25 @@ async def flying(
         await ap.start()
         try:
             yield vehicle, ap
+        finally:
+            await ap.close()
+
+
+async def test_home_is_asked_for_at_once_where_its_interval_would_wait_a_whole_period():
+    """ArduPilot sends a message given an interval first one interval later (a new bucket: sent
+    now); the simulated autopilot too. Home asked for at 0.05 Hz would take 20 s to come: the
+    agent asks for it once at each negotiation, and has it within seconds of the link."""
+    config = CopterConfig(seed=5, habits=profile("ardupilot-4", boot_s=0.0))
+    async with run_vehicle(speed=20.0, base=OpenPad(), config=config) as vehicle:
+        streams = {**DEFAULT_STREAMS, HOME_POSITION: 0.05}
+        ap = Autopilot(fast_config(f"udpout:127.0.0.1:{vehicle.udp_port}", streams=streams))
+        await ap.start()
+        try:
+            await ap.wait_link(5)
+            t0 = time.monotonic()
+            await eventually(lambda: ap.state.home_lat is not None, 10, "home")
+            print(f"home {time.monotonic() - t0:.2f} s after the link came up")
+            assert ap.streams.method == "interval"
         finally:
             await ap.close()
 

@@ -137,6 +137,16 @@ async def test_request_data_stream_and_request_message(peer: Peer) -> None:
     assert (home.latitude, home.longitude) == (411780000, -85960000)
 
 
+@pytest.mark.slow  # one interval of 3 s
+async def test_a_message_given_an_interval_comes_first_one_interval_later(peer: Peer) -> None:
+    """As ArduPilot's `set_ap_message_interval`: a new bucket, last sent now."""
+    peer.conn.mav.command_long_send(1, 1, 511, 0, 242, 3e6, 0, 0, 0, 0, 0)  # HOME every 3 s
+    assert (await peer.recv("COMMAND_ACK", command=511)).result == 0
+    t0 = time.monotonic()
+    await peer.recv("HOME_POSITION", within=8)
+    assert time.monotonic() - t0 > 2.5  # not at once: one interval on (a late one only later)
+
+
 async def test_mission_download_starts_with_home_and_clear_all(peer: Peer) -> None:
     peer.conn.mav.mission_request_list_send(1, 1, 0)
     assert (await peer.recv("MISSION_COUNT")).count == 1
