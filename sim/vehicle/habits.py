@@ -8,6 +8,7 @@ did when an agent flew them (issue 13: ArduCopter 3.7-dev and 4.7.0-dev SITL):
 | `message_interval` | honoured | `MAV_RESULT_UNSUPPORTED` | 3.7 SITL answered UNSUPPORTED to every SET_MESSAGE_INTERVAL |
 | `message_interval_silent` | off | off | no release; a link that drops the command (tests the no-answer path) |
 | REQUEST_DATA_STREAM | honoured (groups below) | honoured | `ArduCopter/GCS_Mavlink.cpp` `STREAM_*_msgs` |
+| `stream_buckets` | a message given a rate is sent first one interval later | a stream turned on is sent at the next 50 Hz tick | 4.x `GCS_MAVLINK::set_ap_message_interval` (a new bucket, `last_sent_ms` now; REQUEST_DATA_STREAM goes through it too); 3.x `GCS_MAVLINK::stream_trigger` (a stream that was off has its tick count at 0) |
 | `extended_sys_state` | sent when asked | never | 3.7 SITL sent none; in Copter's stream groups it is in none |
 | `mission_current_extensions` | MISSION_CURRENT.total / mission_state | seq only | MAVLink fields added in 2023 (4.4+) |
 | `ardupilot_storage` | params packed | packed | `AP_Mission::mavlink_int_to_mission_cmd` / `mission_cmd_to_mavlink_int` |
@@ -45,6 +46,7 @@ class Habits:
     name: str = "sim"
     message_interval: bool = True  # False: SET_MESSAGE_INTERVAL -> MAV_RESULT_UNSUPPORTED
     message_interval_silent: bool = False  # True: SET_MESSAGE_INTERVAL gets no answer at all
+    stream_buckets: bool = True  # False: a data stream turned on is sent at once (3.x)
     extended_sys_state: bool = True  # False: EXTENDED_SYS_STATE is never sent
     mission_current_extensions: bool = True  # False: MISSION_CURRENT carries seq only
     ardupilot_storage: bool = True  # pack mission params as AP_Mission stores them
@@ -75,6 +77,7 @@ PROFILES: dict[str, Habits] = {
     "ardupilot-3.7": Habits(
         name="ardupilot-3.7",
         message_interval=False,
+        stream_buckets=False,
         extended_sys_state=False,
         mission_current_extensions=False,
         mission_fence=False,

@@ -127,8 +127,9 @@ class VehicleServer:
 
     def fresh_streams(self) -> StreamScheduler:
         """A link's stream rates at boot: every default, or HEARTBEAT only (habit `streams_at_boot`)."""
-        quiet = self.copter.config.habits.streams_at_boot == "heartbeat"
-        return StreamScheduler(time.monotonic(), quiet=quiet)
+        habits = self.copter.config.habits
+        quiet = habits.streams_at_boot == "heartbeat"
+        return StreamScheduler(time.monotonic(), quiet=quiet, at_once=not habits.stream_buckets)
 
     @property
     def udp_link(self) -> Link | None:

@@ -199,8 +199,10 @@ DATA_STREAMS: dict[int, tuple[int, ...]] = {
 class StreamScheduler:
     """Which telemetry message is due when (wall seconds); SET_MESSAGE_INTERVAL edits it."""
 
-    def __init__(self, now: float = 0.0, quiet: bool = False) -> None:
-        # quiet: only HEARTBEAT until asked (a companion port whose SRn_ rates are 0)
+    def __init__(self, now: float = 0.0, quiet: bool = False, at_once: bool = False) -> None:
+        # quiet: only HEARTBEAT until asked (a companion port whose SRn_ rates are 0); at_once:
+        # a data stream turned on is sent at once (habit `stream_buckets` off, ArduPilot 3.x)
+        self.at_once = at_once
         self.intervals: dict[int, float | None] = dict(DEFAULT_INTERVALS)
         if quiet:
             self.intervals = {k: (v if k == HEARTBEAT else None) for k, v in self.intervals.items()}
@@ -226,12 +228,16 @@ class StreamScheduler:
         return True
 
     def request_data_stream(self, stream_id: int, rate_hz: int, start: int) -> None:
-        """REQUEST_DATA_STREAM: set every message of a group (0 = all) to `rate_hz`, or stop them."""
+        """REQUEST_DATA_STREAM: set every message of a group (0 = all) to `rate_hz`, or stop them;
+        each sent first one interval later (4.x: through `set_interval`) or at once (`at_once`,
+        3.x: `stream_trigger` fires at its next tick for a stream that was off)."""
         groups = DATA_STREAMS.values() if stream_id == 0 else [DATA_STREAMS.get(stream_id, ())]
         for group in groups:
             for msg_id in group:
                 if start and rate_hz > 0:
                     self.set_interval(msg_id, 1e6 / rate_hz)
+                    if self.at_once:
+                        self._next[msg_id] = self._now
                 else:
                     self.set_interval(msg_id, -1)
 

@@ -13,6 +13,7 @@ from sim.vehicle.copter import CopterConfig
 from sim.vehicle.habits import PROFILES, Habits, profile, stored
 from sim.vehicle.server import run_vehicle
 from sim.vehicle.standalone import OpenPad
+from sim.vehicle.streams import GLOBAL_POSITION_INT, StreamScheduler
 from tests.sim.test_vehicle_mavlink import Peer
 
 NAN = math.nan
@@ -54,6 +55,18 @@ def test_profiles_and_the_command_line():
     assert setup(parse_args(["--uptime-s", "86400"])).copter.time_boot_ms == 86_400_000
     with pytest.raises(SystemExit):  # "--uptime-s must not be negative"
         parse_args(["--uptime-s", "-1"])
+
+
+@pytest.mark.parametrize("name", ["ardupilot-4", "ardupilot-3.7"])
+def test_a_data_stream_turned_on_comes_first_as_each_release_sends_it(name: str):
+    """4.x puts REQUEST_DATA_STREAM's messages in buckets (first one interval later); 3.x's
+    `stream_trigger` sends a stream that was off at its next tick."""
+    buckets = PROFILES[name].stream_buckets
+    s = StreamScheduler(0.0, quiet=True, at_once=not buckets)
+    assert GLOBAL_POSITION_INT not in s.due(10.0)
+    s.request_data_stream(6, 1, 1)  # POSITION at 1 Hz
+    assert (GLOBAL_POSITION_INT in s.due(10.02)) is not buckets
+    assert GLOBAL_POSITION_INT in s.due(11.0)  # one interval on: both
 
 
 @pytest.mark.slow  # waits 2 s to show a message never comes
