@@ -25,7 +25,8 @@ Two things make the uptime fall short without a reboot, by less than the uptime:
 And one thing makes it go back without a reboot: `time_boot_ms` is a uint32 of milliseconds
 (ArduPilot's `AP_HAL::millis()`, PX4's boot time cast down), so it wraps to zero after 49.7 days
 of uptime — a drone left powered on its charging base reaches that. Counted on past the wrap
-(`WRAP_MS`), the uptime is on time, where a new boot's is ahead of the time since.
+(`WRAP_MS`), the uptime is on time, where a new boot's is ahead of the time since; the second
+rule's bound is the uptime since the wrap, which a reboot's shortfall still exceeds.
 """
 
 from __future__ import annotations
@@ -76,7 +77,9 @@ class BootWatch:
             self._wraps += 1  # the uint32 wrapped: the uptime goes on
             boot_ms += WRAP_MS
         short = self._shortfall(boot_ms, now)
-        if short < max(SHORT_S, (uptime - UPTIME_BACK_MS) / 1000):
+        # a reboot's shortfall is at least the uptime last seen as the clock counted it: since
+        # the wrap, where there was one (the unwrapped one would hide reboots after it)
+        if short < max(SHORT_S, (uptime % WRAP_MS - UPTIME_BACK_MS) / 1000):
             self._short_since = None  # on time, read late, or a clock that fell behind
             self.uptime_ms = max(uptime, boot_ms)
             self._on_time.append((now, boot_ms))

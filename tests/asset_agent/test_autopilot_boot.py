@@ -156,6 +156,16 @@ def test_a_reboot_just_before_or_after_the_wrap_is_still_a_reboot():
         assert "uptime went back" in (w.check(2_000, 1000.5) or "")  # up again 2 s in
 
 
+def test_a_reboot_across_a_long_outage_soon_after_the_wrap_is_told():
+    """10 s past the wrap, the link down 60 s across a reboot: the new boot's 30 s of uptime has
+    not gone back; it is 40 s short, more than the 10 s the clock had counted since the wrap."""
+    w = BootWatch()
+    verdicts = [w.check((WRAP_MS - 2_000 + i * 1_000) % WRAP_MS, 1000.0 + i) for i in range(13)]
+    assert verdicts == [None] * 13  # through the wrap, 10 s on
+    told = [w.check(30_000 + i * 100, 1072.0 + i * 0.1) for i in range(10)]
+    assert told[0] is None and any(v and "40.0 s short" in v for v in told), told
+
+
 async def test_an_autopilot_up_49_7_days_is_heard_through_the_wrap_without_a_reboot():
     """The simulated flight controller left powered 6 s short of the wrap: the agent hears its
     time_boot_ms go back to 0 and tells no reboot; a real reboot after it is told."""
