@@ -50,7 +50,6 @@ class BootWatch:
 
     def __init__(self) -> None:
         self.uptime_ms: int | None = None  # the highest time_boot_ms of this boot, unwrapped
-        self._wraps = 0  # how many times this boot's time_boot_ms has wrapped
         self._on_time: deque[tuple[float, int]] = deque()  # (arrival, uptime ms) not short
         self._short_since: float | None = None  # first arrival of a shortfall that may be one
 
@@ -69,13 +68,12 @@ class BootWatch:
         if uptime is None:
             self._restart(boot_ms, now)  # the first message
             return None
-        raw, boot_ms = boot_ms, boot_ms + self._wraps * WRAP_MS
+        raw, boot_ms = boot_ms, boot_ms + uptime - uptime % WRAP_MS  # the wraps seen, added
         if boot_ms < uptime - UPTIME_BACK_MS:
             if self._shortfall(boot_ms + WRAP_MS, now) <= -SHORT_S:
                 self._restart(raw, now)  # a new boot: ahead of the time since, counted on
                 return f"its uptime went back from {uptime / 1000:.1f} s to {raw / 1000:.1f} s"
-            self._wraps += 1  # the uint32 wrapped: the uptime goes on
-            boot_ms += WRAP_MS
+            boot_ms += WRAP_MS  # the uint32 wrapped: the uptime goes on
         short = self._shortfall(boot_ms, now)
         # a reboot's shortfall is at least the uptime last seen as the clock counted it: since
         # the wrap, where there was one (the unwrapped one would hide reboots after it)
@@ -100,6 +98,6 @@ class BootWatch:
         return (now - last_t) * self.rate - (boot_ms - last_ms) / 1000
 
     def _restart(self, boot_ms: int, now: float) -> None:
-        self.uptime_ms, self._short_since, self._wraps = boot_ms, None, 0
+        self.uptime_ms, self._short_since = boot_ms, None
         self._on_time.clear()
         self._on_time.append((now, boot_ms))
