@@ -8,7 +8,7 @@ did when an agent flew them (issue 13: ArduCopter 3.7-dev and 4.7.0-dev SITL):
 | `message_interval` | honoured | `MAV_RESULT_UNSUPPORTED` | 3.7 SITL answered UNSUPPORTED to every SET_MESSAGE_INTERVAL |
 | `message_interval_silent` | off | off | no release; a link that drops the command (tests the no-answer path) |
 | REQUEST_DATA_STREAM | honoured (groups below) | honoured | `ArduCopter/GCS_Mavlink.cpp` `STREAM_*_msgs` |
-| `stream_buckets` | a message given a rate is sent first one interval later | a stream turned on is sent at the next 50 Hz tick | 4.x `GCS_MAVLINK::set_ap_message_interval` (a new bucket, `last_sent_ms` now; REQUEST_DATA_STREAM goes through it too); 3.x `GCS_MAVLINK::stream_trigger` (a stream that was off has its tick count at 0) |
+| `stream_buckets` | a message given a rate is sent first one interval later, or with a bucket already at that interval; asked again at its own rate, unchanged | a stream turned on is sent at the next 50 Hz tick; one already on at its old count | 4.x `GCS_MAVLINK::set_ap_message_interval` (the bucket of that interval, else a new one with `last_sent_ms` now; REQUEST_DATA_STREAM goes through it too); 3.x `GCS_MAVLINK::stream_trigger` (a stream that was off has its tick count at 0) |
 | `extended_sys_state` | sent when asked | never | 3.7 SITL sent none; in Copter's stream groups it is in none |
 | `mission_current_extensions` | MISSION_CURRENT.total / mission_state | seq only | MAVLink fields added in 2023 (4.4+) |
 | `ardupilot_storage` | params packed | packed | `AP_Mission::mavlink_int_to_mission_cmd` / `mission_cmd_to_mavlink_int` |

@@ -196,6 +196,9 @@ DATA_STREAMS: dict[int, tuple[int, ...]] = {
 }
 
 
+MIN_INTERVAL_MS = 5  # the simulator's fastest stream (ArduPilot caps at 0.8 x its loop rate)
+
+
 class StreamScheduler:
     """Which telemetry message is due when (wall seconds); SET_MESSAGE_INTERVAL edits it."""
 
@@ -211,35 +214,53 @@ class StreamScheduler:
         self._now = now  # the latest time `due` was asked at
 
     def set_interval(self, msg_id: int, interval_us: float) -> bool:
-        """MAV_CMD_SET_MESSAGE_INTERVAL: -1 stops, 0 restores the default, else microseconds.
-        The first message comes one interval later, as ArduPilot's: `set_ap_message_interval`
-        puts it in a new bucket whose `last_sent_ms` is now (GCS_Common.cpp) — 5 s for a
-        HOME_POSITION asked at 0.2 Hz; a request (MAV_CMD_REQUEST_MESSAGE) is sent at once."""
+        """MAV_CMD_SET_MESSAGE_INTERVAL: -1 stops, 0 restores the default, else microseconds
+        (whole milliseconds, as ArduPilot keeps them). ArduPilot 4.x's message buckets
+        (`set_ap_message_interval`, GCS_Common.cpp): a message given the interval it already has
+        keeps its schedule ("don't need to move it"); given the interval of another message, it
+        joins that message's bucket and is sent with it; else it gets a new bucket whose
+        `last_sent_ms` is now, so its first message comes one interval later (5 s for a
+        HOME_POSITION asked at 0.2 Hz). HEARTBEAT, a deferred message, starts over. A request
+        (MAV_CMD_REQUEST_MESSAGE) is sent at once."""
         if msg_id not in BUILDERS:
             return False
+        old = self.intervals[msg_id]
         if interval_us < 0:
-            self.intervals[msg_id] = None
+            new = None
         elif interval_us == 0:
-            self.intervals[msg_id] = DEFAULT_INTERVALS[msg_id]
+            new = DEFAULT_INTERVALS[msg_id]
         else:
-            self.intervals[msg_id] = max(interval_us / 1e6, 0.005)
-        interval = self.intervals[msg_id]
-        self._next[msg_id] = self._now + (interval or 0.0)
+            new = max(int(interval_us) // 1000, MIN_INTERVAL_MS) / 1000
+        self.intervals[msg_id] = new
+        if new is None or (new == old and msg_id != HEARTBEAT):
+            return True
+        mate = self._bucket_of(new, msg_id) if msg_id != HEARTBEAT else None
+        self._next[msg_id] = self._next[mate] if mate is not None else self._now + new
         return True
 
+    def _bucket_of(self, interval: float, msg_id: int) -> int | None:
+        """Another message sent every `interval` (its bucket), if any."""
+        for other, every in self.intervals.items():
+            if every == interval and other not in (msg_id, HEARTBEAT):
+                return other
+        return None
+
     def request_data_stream(self, stream_id: int, rate_hz: int, start: int) -> None:
-        """REQUEST_DATA_STREAM: set every message of a group (0 = all) to `rate_hz`, or stop them;
-        each sent first one interval later (4.x: through `set_interval`) or at once (`at_once`,
-        3.x: `stream_trigger` fires at its next tick for a stream that was off)."""
+        """REQUEST_DATA_STREAM: set every message of a group (0 = all) to `rate_hz`, or stop them.
+        4.x: each through `set_interval` (its buckets); 3.x (`at_once`): `stream_trigger` fires
+        a stream that was off at its next tick, and one that was on when its old count runs
+        out, at the new rate after that."""
         groups = DATA_STREAMS.values() if stream_id == 0 else [DATA_STREAMS.get(stream_id, ())]
         for group in groups:
             for msg_id in group:
-                if start and rate_hz > 0:
-                    self.set_interval(msg_id, 1e6 / rate_hz)
-                    if self.at_once:
-                        self._next[msg_id] = self._now
-                else:
+                if not (start and rate_hz > 0):
                     self.set_interval(msg_id, -1)
+                elif not self.at_once:
+                    self.set_interval(msg_id, 1e6 / rate_hz)
+                else:
+                    if self.intervals[msg_id] is None:
+                        self._next[msg_id] = self._now
+                    self.intervals[msg_id] = 1.0 / min(rate_hz, 50)
 
     def send_once(self, msg_id: int) -> bool:
         """MAV_CMD_REQUEST_MESSAGE: send `msg_id` at the next opportunity."""

@@ -13,7 +13,7 @@ from sim.vehicle.copter import CopterConfig
 from sim.vehicle.habits import PROFILES, Habits, profile, stored
 from sim.vehicle.server import run_vehicle
 from sim.vehicle.standalone import OpenPad
-from sim.vehicle.streams import GLOBAL_POSITION_INT, StreamScheduler
+from sim.vehicle.streams import ATTITUDE, GLOBAL_POSITION_INT, HEARTBEAT, StreamScheduler
 from tests.sim.test_vehicle_mavlink import Peer
 
 NAN = math.nan
@@ -67,6 +67,49 @@ def test_a_data_stream_turned_on_comes_first_as_each_release_sends_it(name: str)
     s.request_data_stream(6, 1, 1)  # POSITION at 1 Hz
     assert (GLOBAL_POSITION_INT in s.due(10.02)) is not buckets
     assert GLOBAL_POSITION_INT in s.due(11.0)  # one interval on: both
+
+
+def test_a_message_asked_again_at_its_interval_keeps_its_schedule():
+    """ArduPilot 4.x leaves a message in its bucket when asked for the interval it has ("don't
+    need to move it"): an agent renegotiating every stream after a link dropout does not pause
+    them. Restarted, ATTITUDE would next come at 1.7 s, not 1.0 s."""
+    s = StreamScheduler(0.0, quiet=True)
+    s.set_interval(ATTITUDE, 500_000)
+    assert ATTITUDE in s.due(0.5)
+    s.due(0.7)
+    s.set_interval(ATTITUDE, 500_000)  # asked again, 0.2 s on
+    assert ATTITUDE not in s.due(0.99)
+    assert ATTITUDE in s.due(1.0)
+    s.set_interval(ATTITUDE, 1_000_000)  # a new interval: a new bucket, one interval on
+    assert ATTITUDE not in s.due(1.99)
+    assert ATTITUDE in s.due(2.0)
+
+
+def test_a_message_given_the_interval_of_another_is_sent_with_it():
+    """4.x puts a message given an interval that a bucket already has into that bucket: it comes
+    with the bucket's next send, not one whole interval after it was asked for; a heartbeat (a
+    deferred message, not in a bucket) starts over."""
+    s = StreamScheduler(0.0, quiet=True)
+    s.set_interval(ATTITUDE, 1_000_000)
+    s.due(0.7)
+    s.set_interval(GLOBAL_POSITION_INT, 1_000_000.4)  # the same whole milliseconds
+    assert {ATTITUDE, GLOBAL_POSITION_INT} <= set(s.due(1.0))
+    s.due(1.5)
+    s.set_interval(HEARTBEAT, 1_000_000)  # due at 2.0 before
+    assert HEARTBEAT not in s.due(2.0)
+    assert HEARTBEAT in s.due(2.5)
+
+
+def test_ardupilot_3x_sends_a_stream_asked_again_on_its_old_count():
+    """3.x's `stream_trigger` counts a stream that is on down from its old rate: asked again it
+    is not sent at once (only a stream that was off is), then at the new rate."""
+    s = StreamScheduler(0.0, quiet=True, at_once=True)
+    s.request_data_stream(6, 1, 1)  # POSITION at 1 Hz, off before: at once
+    assert GLOBAL_POSITION_INT in s.due(0.02)
+    s.request_data_stream(6, 4, 1)  # at 4 Hz, 0.5 s on
+    assert GLOBAL_POSITION_INT not in s.due(0.52)
+    assert GLOBAL_POSITION_INT in s.due(1.0)  # the old count run out
+    assert GLOBAL_POSITION_INT in s.due(1.25)  # then every 0.25 s
 
 
 @pytest.mark.slow  # waits 2 s to show a message never comes
