@@ -15,7 +15,6 @@ import contextlib
 import json
 import os
 import resource
-import socket
 import subprocess
 import sys
 import time
@@ -29,6 +28,7 @@ import httpx
 import msgspec
 import orjson
 
+from aerobase.ports import free_port
 from assetlink.configfile import decrypt_config
 from bench import _lean as lean
 from bench._lean import LeanSocket
@@ -59,13 +59,6 @@ ASSET_PASSWORD = "bench-asset-password-1"
 IDLE_S = 5.0  # seconds of idle CPU measured with every socket connected, before the load
 
 Progress = Callable[[str], None]
-
-
-def free_port() -> int:
-    """A TCP port free right now on 127.0.0.1."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def raise_fd_limit() -> int:

@@ -37,6 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import httpx
 
+from aerobase.ports import free_port
 from asset_agent.video.rtp import RtpPublisher
 from asset_agent.video.source import CameraTrack
 from asset_agent.video.whip import WhipPublisher
@@ -44,7 +45,7 @@ from asynckit.loopback_ice import loopback_candidates_only
 from bench._aerobase import start_server
 from bench._load import percentile, process_cpu
 from bench._video import Peer, Stamped, encode_reference, set_up
-from tests.video.netns.janus_env import Janus, free_port, in_private_network
+from tests.video.netns.janus_env import Janus, in_private_network
 
 
 def progress(message: str) -> None:

@@ -14,6 +14,7 @@ from typing import Any
 import httpx
 import pytest
 
+from aerobase.ports import free_port
 from tests.polling import wait_for
 from tests.schedule import (  # noqa: F401  (hooks: the longest files first, durations recorded)
     pytest_collection_modifyitems,
@@ -23,13 +24,6 @@ from tests.schedule import (  # noqa: F401  (hooks: the longest files first, dur
 )
 
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
-
-
-def free_port() -> int:
-    """A TCP port that is free right now on 127.0.0.1."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def reachable(host: str, port: int, timeout: float = 1.0) -> bool:

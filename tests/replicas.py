@@ -18,7 +18,8 @@ from typing import IO
 import httpx
 import pytest
 
-from tests.conftest import IN_CI, free_port, need_service
+from aerobase.ports import free_port
+from tests.conftest import IN_CI, need_service
 from tests.polling import wait_for
 
 REDIS_URL = os.environ.get("REDIS_TEST_URL", "redis://127.0.0.1:6379/0")

@@ -39,14 +39,8 @@ from aerobase.demo.fleet import (
     wait_uav_available,
     watch,
 )
-from aerobase.demo.processes import (
-    Processes,
-    free_port,
-    port_free,
-    say,
-    serve_until_stopped,
-    wait_http,
-)
+from aerobase.demo.processes import Processes, say, serve_until_stopped, wait_http
+from aerobase.ports import free_port, port_free
 from sim.mavlink_link import BadUrl, parse_url
 
 PASSWORD_LEN = 18

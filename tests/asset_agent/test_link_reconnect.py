@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import socket
 import time
 
 import pytest
 
+from aerobase.ports import free_port
 from asset_agent.autopilot import Autopilot
 from sim.vehicle.copter import CopterConfig
 from sim.vehicle.habits import profile
@@ -23,15 +23,9 @@ pytestmark = pytest.mark.slow  # an autopilot restart takes seconds
 RTCM = bytes(range(60))  # any bytes: the test counts GPS_RTCM_DATA, not frames
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 async def test_rtcm_keeps_flowing_across_an_autopilot_restart_without_errno_106(caplog):
     caplog.set_level(logging.INFO, logger="asset_agent")
-    port = _free_port()
+    port = free_port()
     pad = OpenPad()
     lag = 0.0
     async with run_vehicle(speed=5, seed=3, base=pad, tcp_port=port) as first:

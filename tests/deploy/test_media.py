@@ -20,7 +20,7 @@ import pytest
 from aioice import turn
 from aioice.stun import TransactionFailed, TransactionTimeout
 
-from tests.conftest import free_port
+from aerobase.ports import free_port
 from tests.deploy.conftest import TURN_CONF, conf_relay_ports, program
 from tests.polling import eventually, wait_for
 

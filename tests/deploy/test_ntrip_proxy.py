@@ -16,10 +16,11 @@ from typing import Any
 import pytest
 from pygnssutils import GNSSNTRIPClient
 
+from aerobase.ports import free_port
 from assetlink.configfile import decrypt_config
 from assetlink.link import Link
 from protocol.rtcm import frame_ok, message_type
-from tests.conftest import Tenant, free_port
+from tests.conftest import Tenant
 from tests.polling import eventually
 from tests.replicas import proxy, replicas
 from tests.rtk import base_sending, frames_in, stop, str2str

@@ -23,10 +23,11 @@ from typing import Any
 import httpx
 import pytest
 
+from aerobase.ports import free_port
 from asset_agent.video.rtp import RtpPublisher
 from asset_agent.video.source import CameraTrack
 from assetlink.configfile import decrypt_config
-from tests.conftest import SUPERUSER_PASSWORD, Tenant, free_port
+from tests.conftest import SUPERUSER_PASSWORD, Tenant
 from tests.console.browser import launch, open_page, shot, sign_in
 from tests.deploy.docker_stack import Stack, base_image, docker_daemon, run
 from tests.e2e.harness import mission_items

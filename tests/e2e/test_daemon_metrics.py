@@ -10,9 +10,10 @@ import httpx
 import pytest
 from prometheus_client.parser import text_string_to_metric_families
 
+from aerobase.ports import free_port
 from asset_agent.config import AgentConfig
 from base_station.config import StationConfig
-from tests.conftest import Tenant, free_port
+from tests.conftest import Tenant
 from tests.e2e.harness import platform
 from tests.metrics import value
 from tests.polling import eventually

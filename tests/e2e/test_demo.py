@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from tests.conftest import free_port
+from aerobase.ports import free_port
 
 pytestmark = [
     pytest.mark.slow,  # whole processes end to end: not in the fast lane

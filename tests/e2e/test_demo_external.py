@@ -15,7 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import free_port, reachable
+from aerobase.ports import free_port
+from tests.conftest import reachable
 from tests.e2e.test_demo import DEMO_STEPS
 from tests.polling import wait_for
 

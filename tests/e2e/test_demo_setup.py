@@ -9,7 +9,8 @@ from types import SimpleNamespace
 
 from aerobase.demo.processes import Processes
 from aerobase.demo.run import NTRIP_PORT, create_superuser, start_server
-from tests.conftest import free_port, reachable
+from aerobase.ports import free_port
+from tests.conftest import reachable
 
 
 def test_the_demo_creates_its_superuser_whatever_its_generated_password_begins_with(tmp_path):

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import socket
 import subprocess
 import tempfile
 import threading
@@ -19,15 +18,10 @@ from pathlib import Path
 import httpx
 import pytest
 
+from aerobase.ports import free_port
+
 DATABASE = "aerobase"
 START_TIMEOUT_S = 30.0
-
-
-def _free_port() -> int:
-    """A TCP port that is free right now on 127.0.0.1."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _config(root: Path, http_port: int, rpc_port: int) -> str:
@@ -78,14 +72,14 @@ class Influxd:
         self.binary = binary
         self._tmp = tempfile.TemporaryDirectory(prefix="aerobase-influxd-")
         self.root = Path(self._tmp.name)
-        self.port = _free_port()
+        self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         self.proc: subprocess.Popen[bytes] | None = None
 
     def start(self) -> Influxd:
         """Write the config, start the process, wait until /ping answers, create the database."""
         config = self.root / "influxdb.conf"
-        config.write_text(_config(self.root, self.port, _free_port()))
+        config.write_text(_config(self.root, self.port, free_port()))
         log = (self.root / "influxd.log").open("wb")
         self.proc = subprocess.Popen(
             [self.binary, "-config", str(config)],

@@ -11,7 +11,8 @@ import uuid
 
 import pytest
 
-from tests.conftest import Tenant, auth, free_port
+from aerobase.ports import free_port
+from tests.conftest import Tenant, auth
 
 
 def _run(

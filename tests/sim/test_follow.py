@@ -14,6 +14,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from aerobase.demo.run import main as demo_main
+from aerobase.ports import free_port
 from sim.assemble import SEAT_HEIGHT, build
 from sim.assemble import main as world_main
 from sim.autopilot import parse_args as autopilot_args
@@ -26,7 +27,6 @@ from sim.vehicle.gnss import GnssParams
 from sim.vehicle.habits import profile
 from sim.vehicle.server import run_vehicle
 from sim.world import World, WorldConfig
-from tests.conftest import free_port
 from tests.polling import eventually
 from tests.sim.test_vehicle_mavlink import Peer
 

@@ -13,7 +13,8 @@ from pathlib import Path
 import httpx
 import pytest
 
-from tests.conftest import LiveServer, Tenant, free_port, test_settings
+from aerobase.ports import free_port
+from tests.conftest import LiveServer, Tenant, test_settings
 from tests.polling import wait_for
 from tests.video.peers import publisher
 from tests.video.test_video_api import uav_with_camera

@@ -16,13 +16,14 @@ import pytest
 from aiortc import RTCConfiguration, RTCPeerConnection, RTCSessionDescription
 from aiortc.mediastreams import MediaStreamError
 
+from aerobase.ports import free_port
 from asset_agent.video.rtp import RtpPublisher
 from asset_agent.video.source import CameraTrack
 from server.realtime import hub as realtime_hub
 from tests.conftest import LiveServer, Tenant, auth, test_settings
 from tests.polling import eventually
 from tests.server.realtime_client import next_of, operator_socket
-from tests.video.netns.janus_env import RTP_PORTS, Janus, free_port, in_private_network
+from tests.video.netns.janus_env import RTP_PORTS, Janus, in_private_network
 from tests.video.peers import pattern
 from tests.video.test_video_api import uav_with_camera
 

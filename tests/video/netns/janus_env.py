@@ -36,12 +36,6 @@ def in_private_network() -> bool:
     return True
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 @dataclass
 class Janus:
     """A running Janus with the HTTP transport and the Streaming plugin only."""
