@@ -8,7 +8,7 @@ from collections.abc import Awaitable, Callable
 
 from asset_agent.autopilot.errors import AutopilotError
 from asset_agent.autopilot.flight_state import MissionWatch
-from asset_agent.autopilot.state import MODE_NUMBERS, UavState
+from asset_agent.autopilot.state import COPTER_MODES, MODE_NUMBERS, UavState
 
 # MAV_CMD numbers
 CMD_NAV_RETURN_TO_LAUNCH, CMD_NAV_LAND, CMD_NAV_TAKEOFF = 20, 21, 22
@@ -22,6 +22,10 @@ class ActionsMixin:
 
     state: UavState
     mission_watch: MissionWatch
+    # the last mode change sent through this adapter that the autopilot took: when
+    # (time.monotonic(), once its COMMAND_ACK was handled) and into which mode; whoever holds the
+    # vehicle can tell another's command from its own
+    mode_changed: tuple[float, str] = (float("-inf"), "")
 
     command: Callable[..., Awaitable[int]]  # COMMAND_LONG awaiting its ACK (Autopilot.command)
 
@@ -30,6 +34,7 @@ class ActionsMixin:
         number = MODE_NUMBERS[mode.upper()] if isinstance(mode, str) else int(mode)
         self.mission_watch.asked_mode(time.monotonic())
         await self.command(CMD_DO_SET_MODE, 1, number)  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        self.mode_changed = (time.monotonic(), COPTER_MODES.get(number, str(number)))
 
     async def arm(self) -> None:
         """Arm (pre-arm checks apply: a failure raises CommandRejected with the PreArm text)."""
@@ -57,6 +62,7 @@ class ActionsMixin:
             await self.arm()
         try:
             await self.command(CMD_MISSION_START, 0, 0)
+            self.mode_changed = (time.monotonic(), "AUTO")
         except AutopilotError:
             if armed_here:
                 with contextlib.suppress(AutopilotError):  # a lost link: the delay disarms it
@@ -75,11 +81,13 @@ class ActionsMixin:
         """Return to launch (the base) and land there (RTL mode: our own mode change)."""
         self.mission_watch.asked_mode(time.monotonic())
         await self.command(CMD_NAV_RETURN_TO_LAUNCH)
+        self.mode_changed = (time.monotonic(), "RTL")
 
     async def land(self) -> None:
         """Land where the vehicle is (LAND mode: our own mode change)."""
         self.mission_watch.asked_mode(time.monotonic())
         await self.command(CMD_NAV_LAND)
+        self.mode_changed = (time.monotonic(), "LAND")
 
     async def abort(self) -> str:
         """RTL when flying, disarm when on the ground; returns what was done."""

@@ -115,6 +115,12 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
             raise AutopilotTimeout(f"no HEARTBEAT from the autopilot within {within_s} s") from err
 
     @property
+    def heartbeat_at(self) -> float | None:
+        """When (time.monotonic()) the autopilot's last HEARTBEAT was handled, in the order the
+        link delivered it: one handled after a COMMAND_ACK was sent after it."""
+        return self._last_heartbeat
+
+    @property
     def link_up(self) -> bool:
         """True while the autopilot's HEARTBEAT keeps arriving."""
         return self.state.link_up

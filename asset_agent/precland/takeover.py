@@ -22,12 +22,18 @@ it is handed back or abandoned (`keep`; resume.py), for an agent restarted in th
 The hand-back (`hand_back`) is sent again until the autopilot takes it: a vehicle left in GUIDED
 hovers until its battery fails; so is the take (`take`) while the autopilot still lands by itself:
 its LAND would go on descending blind.
+
+A vehicle put in another mode by another is theirs (`_taken_from_us`): an operator's pause or
+return through this agent, and, while the agent holds it, a pilot's ground station or a failsafe's
+RTL or LAND (told by ArduPilot 4.x's HEARTBEAT at the mode change). The agent lets go: no more
+setpoints, no hand-back or take over their mode, nothing kept for a restart (`taken_into`).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import time
 from collections.abc import Awaitable, Callable
 from typing import Any
 
@@ -80,6 +86,10 @@ class Takeover:
         self.sequence = LandingSequence(config.control, config.retry, search, config.camera)
         self.loss_guard: LossGuard | None = None  # after the hand-over (guard.py)
         self.keep = keep or _forget
+        # since when (time.monotonic()) another's mode change means the vehicle is theirs: the
+        # start, and each of our own mode changes once the autopilot has taken it
+        self._since = time.monotonic()
+        self.taken_into: str | None = None  # the mode another put the vehicle in meanwhile
 
     async def run(self) -> None:
         """Search unless decided (a first measurement within `acquire_s`, else search and fall
@@ -87,7 +97,8 @@ class Takeover:
         if self.path is None and self.config.search.enabled:
             await self.search()
         if (
-            self.path != "aborted-climb"
+            self.taken_into is None
+            and self.path != "aborted-climb"
             and self.config.retry.blind_max_height_unfixed_m is not None
         ):
             await self.guard()  # it watches from the first sighting on
@@ -117,6 +128,8 @@ class Takeover:
         try:
             while True:
                 now, state, est = await self._tick()
+                if await self._taken_from_us():
+                    return
                 act = guard.step(now, self.pipeline.kalman.updates, est, state)
                 if act.kind == "landed":
                     return
@@ -127,6 +140,8 @@ class Takeover:
                         guard.losses[-1],
                     )
                     if not await self._take():  # its LAND goes on: watched to its end
+                        if self.taken_into is not None:
+                            return
                         guard.flying = False
                         continue
                 if act.setpoint is not None:
@@ -161,9 +176,12 @@ class Takeover:
     async def _take(self) -> bool:
         """Take the vehicle (GUIDED), kept first: a restart in the middle resumes the landing.
         False when the autopilot never took it and the landing is its own again (`take`)."""
+        if await self._taken_from_us():  # an operator's mode since the landing began
+            return False
         await self.keep(FLYING)
         self.active = True
         if await take(self.autopilot, self.sleep_fn, self._not_touching_down):
+            self._since = time.monotonic()
             return True
         await self.keep(None)
         self.active = False
@@ -178,6 +196,7 @@ class Takeover:
         """Hand the descent back (LAND), staying active until the autopilot reports it, so that
         the supervisor does not see a gap between our mode and the autopilot's landing."""
         await hand_back(self.autopilot, self.sleep_fn)
+        self._since = time.monotonic()
         await self.keep(None)
         for _ in range(round(MODE_WAIT_S / PERIOD_S)):
             if getattr(self.autopilot.state, "mode", None) == "LAND":
@@ -188,6 +207,8 @@ class Takeover:
         seen_before = self.pipeline.kalman.updates
         while True:
             now, state, est = await self._tick()
+            if await self._taken_from_us():
+                return
             seen = self.pipeline.kalman.updates > seen_before
             seen_before = self.pipeline.kalman.updates
             cmd = self.sequence.follow(now, seen, est, state)
@@ -216,6 +237,28 @@ class Takeover:
                     )
                     return
 
+    async def _taken_from_us(self) -> bool:
+        """Has another put the vehicle in another mode since the landing began, or since our own
+        last mode change (an operator's command through this agent; while the agent holds the
+        vehicle, also a pilot's ground station, a failsafe's RTL or LAND)? Then the vehicle is
+        theirs: no setpoint, hand-back or take overrides them, what is kept is forgotten.
+        A mode change sent through this adapter counts at once; one from elsewhere by the first
+        HEARTBEAT handled after our take's COMMAND_ACK (sent after it on a link that keeps
+        order, it carries the mode as it is since); while the autopilot lands by itself, the
+        supervisor ends the landing loop as soon as a HEARTBEAT says it no longer does."""
+        ap, state = self.autopilot, self.autopilot.state
+        changed_at, mode = getattr(ap, "mode_changed", (-math.inf, ""))
+        if changed_at <= self._since:
+            heard = getattr(ap, "heartbeat_at", None)
+            if not self.active or heard is None or heard <= self._since or state.mode == "GUIDED":
+                return False
+            mode = state.mode
+        log.warning("precland: the vehicle was put in %s by another: it is left to them", mode)
+        self.taken_into = mode
+        self.active = False
+        await self.keep(None)
+        return True
+
     async def _tick(self) -> tuple[float, VehicleState, Estimate]:
         """The next step, PERIOD_S of sensor time on, once the autopilot's state is known: the
         time, that state and the filter's estimate."""
@@ -238,17 +281,18 @@ async def insist(
     keep_trying: Callable[[Any], bool],
 ) -> int:
     """`mode`, sent again every RETRY_S while the autopilot has not taken it (no COMMAND_ACK, the
-    link down, a refusal). Done when acknowledged, or when the autopilot reports the mode (an
-    answer lost): returns the tries. Raises the last error once `keep_trying(state)` says no."""
-    tries = 0
+    link down, a refusal). Done when acknowledged, or when a HEARTBEAT heard since the first try
+    reports the mode (an answer lost; an older one may tell a mode left since, unheard while the
+    link is down): returns the tries. Raises the last error once `keep_trying(state)` says no."""
+    tries, first = 0, time.monotonic()
     while True:
         tries += 1
         try:
             await autopilot.set_mode(mode)
             return tries
         except AutopilotError as err:
-            state = autopilot.state
-            if state.mode == mode:
+            state, heard = autopilot.state, getattr(autopilot, "heartbeat_at", None)
+            if state.mode == mode and heard is not None and heard > first:
                 return tries
             if not keep_trying(state):
                 log.warning(

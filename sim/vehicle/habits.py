@@ -9,6 +9,7 @@ did when an agent flew them (issue 13: ArduCopter 3.7-dev and 4.7.0-dev SITL):
 | `message_interval_silent` | off | off | no release; a link that drops the command (tests the no-answer path) |
 | REQUEST_DATA_STREAM | honoured (groups below) | honoured | `ArduCopter/GCS_Mavlink.cpp` `STREAM_*_msgs` |
 | `stream_buckets` | a message given a rate is sent first one interval later, or with a bucket already at that interval; asked again at its own rate, unchanged | a stream turned on is sent at the next 50 Hz tick; one already on at its old count | 4.x `GCS_MAVLINK::set_ap_message_interval` (the bucket of that interval, else a new one with `last_sent_ms` now; REQUEST_DATA_STREAM goes through it too); 3.x `GCS_MAVLINK::stream_trigger` (a stream that was off has its tick count at 0) |
+| `mode_heartbeat` | a HEARTBEAT at once on every mode change | at the next 1 Hz beat only | 4.x `Copter::set_mode` (ArduCopter/mode.cpp: `gcs().send_message(MSG_HEARTBEAT)` once the mode is set); the 3.6-era `set_mode` read sends none |
 | `extended_sys_state` | sent when asked | never | 3.7 SITL sent none; in Copter's stream groups it is in none |
 | `mission_current_extensions` | MISSION_CURRENT.total / mission_state | seq only | MAVLink fields added in 2023 (4.4+) |
 | `ardupilot_storage` | params packed | packed | `AP_Mission::mavlink_int_to_mission_cmd` / `mission_cmd_to_mavlink_int` |
@@ -47,6 +48,7 @@ class Habits:
     message_interval: bool = True  # False: SET_MESSAGE_INTERVAL -> MAV_RESULT_UNSUPPORTED
     message_interval_silent: bool = False  # True: SET_MESSAGE_INTERVAL gets no answer at all
     stream_buckets: bool = True  # False: a data stream turned on is sent at once (3.x)
+    mode_heartbeat: bool = True  # False: a mode change is told by the next 1 Hz HEARTBEAT only
     extended_sys_state: bool = True  # False: EXTENDED_SYS_STATE is never sent
     mission_current_extensions: bool = True  # False: MISSION_CURRENT carries seq only
     ardupilot_storage: bool = True  # pack mission params as AP_Mission stores them
@@ -78,6 +80,7 @@ PROFILES: dict[str, Habits] = {
         name="ardupilot-3.7",
         message_interval=False,
         stream_buckets=False,
+        mode_heartbeat=False,
         extended_sys_state=False,
         mission_current_extensions=False,
         mission_fence=False,

@@ -31,7 +31,7 @@ from asynckit.tasks import cancel_and_wait
 from sim.clock import SimClock
 from sim.vehicle.copter import Base, Copter, CopterConfig
 from sim.vehicle.standalone import OpenPad
-from sim.vehicle.streams import EXTENDED_SYS_STATE, StreamScheduler, build
+from sim.vehicle.streams import EXTENDED_SYS_STATE, HEARTBEAT, StreamScheduler, build
 
 log = logging.getLogger(__name__)
 
@@ -124,6 +124,7 @@ class VehicleServer:
         self.received = 0
         self.behind_s = 0.0  # simulated seconds the own loop has given up (MAX_CATCH_UP_WALL_S)
         self._boots_seen = copter.boots
+        self._mode_told = copter.mode  # the mode the links were last sent (habit mode_heartbeat)
 
     def fresh_streams(self) -> StreamScheduler:
         """A link's stream rates at boot: every default, or HEARTBEAT only (habit `streams_at_boot`)."""
@@ -254,6 +255,10 @@ class VehicleServer:
         self._flush()
         if self.muted():
             return
+        if self.copter.mode != self._mode_told and self.copter.config.habits.mode_heartbeat:
+            for link in self._links:  # ArduPilot 4.x tells a mode change at once
+                link.streams.send_once(HEARTBEAT)
+        self._mode_told = self.copter.mode
         built: dict[int, Any] = {}
         silent = () if self.copter.config.habits.extended_sys_state else (EXTENDED_SYS_STATE,)
         for link in list(self._links):

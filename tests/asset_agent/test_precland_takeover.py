@@ -5,7 +5,9 @@ lost low is retried or abandoned on a plain fix; a blind descent blown off the p
 flown by the agent (the guard's blind wait) and handed back, or abandoned. An agent restarted in
 its own search, with the daemon's state file (the link's, offline), hands the descent back and
 lands again; restarted in the hold after an abandoned landing, it leaves the hold; a GUIDED
-vehicle it never took it leaves alone (resume.py)."""
+vehicle it never took it leaves alone (resume.py). A vehicle another puts in another mode while
+the agent flies it (an operator's pause, a failsafe's RTL) is left to them; a take the autopilot
+refuses is sent again until touching down, then the landing is the autopilot's."""
 
 from __future__ import annotations
 
@@ -24,10 +26,10 @@ from asset_agent.precland.config import FaultConfig, RetryConfig, SearchConfig
 from asset_agent.precland.control import allowed_pos_error
 from asset_agent.precland.resume import FLYING, HOLDING, KEY
 from asset_agent.precland.supervisor import PrecisionLander
-from asset_agent.precland.takeover import descending, hand_back, take
+from asset_agent.precland.takeover import Takeover, descending, hand_back, take
 from assetlink.link import Link
 from asynckit.tasks import cancel_and_wait
-from sim.vehicle.constants import GUIDED, LAND
+from sim.vehicle.constants import BRAKE, GUIDED, LAND, RTL
 from sim.vehicle.server import VehicleServer, WindFn, run_vehicle
 from tests.asset_agent.blind_landing import (
     blind_beacon_lander,
@@ -382,7 +384,9 @@ async def test_a_take_not_heard_while_touching_down_leaves_the_landing_to_the_au
     autopilot: Autopilot, vehicle: VehicleServer
 ) -> None:
     """Touching down (by the agent's estimate: `wanted` says no), a take the autopilot did not
-    hear is not sent again: a climb sent then lifts the vehicle off the pad (guard.py)."""
+    hear is not sent again: a climb sent then lifts the vehicle off the pad (guard.py). The last
+    HEARTBEAT heard, before the silence, said GUIDED (the take-off's, told at once): not an
+    answer to this take, which was never taken."""
     await autopilot.set_mode("GUIDED")
     await autopilot.arm()
     await autopilot.takeoff(5)
@@ -392,3 +396,95 @@ async def test_a_take_not_heard_while_touching_down_leaves_the_landing_to_the_au
     assert not await asyncio.wait_for(take(autopilot, asyncio.sleep, lambda: False), 30)
     vehicle.copter.faults.mute_until = 0.0
     assert vehicle.copter.mode == LAND
+
+
+async def test_a_take_the_autopilot_refuses_to_touchdown_leaves_it_the_landing(
+    autopilot: Autopilot, vehicle: VehicleServer, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The GNSS fix lost at 3.5 m, the pad at 3 m: the guard takes the vehicle from a blind LAND,
+    but ArduPilot refuses GUIDED without a position ("Flight mode change failed"). The take goes
+    again each second while LAND descends, is given up touching down (a climb sent then would
+    lift the vehicle off), and the guard watches the autopilot's own landing to its end: the
+    vehicle lands and disarms in LAND, never taken, the landing never reported abandoned."""
+    async with blind_beacon_lander(
+        autopilot, vehicle, BELOW_3M, search=SEARCH, retry=ONE_RETRY, pad_sigma_m=0.5
+    ) as lander:
+        await take_off_and_land(autopilot, vehicle)
+        await eventually(lambda: vehicle.copter.dyn.state.altitude < 3.5, 40, "down to 3.5 m")
+        vehicle.copter.gnss.has_fix = False
+        await eventually(lambda: lander.takeover and lander.takeover.losses, 30, "a loss")
+        took = lander.takeover
+        await eventually(lambda: not autopilot.state.armed, 60, "landed and disarmed")
+        assert vehicle.copter.mode == LAND
+        assert "GUIDED not taken" in caplog.text and "given up" in caplog.text
+        assert took is not None and took.path == "precision" and not took.active
+        assert [e.kind for e in lander.drain_events()] == []
+
+
+@contextlib.asynccontextmanager
+async def modes_of(vehicle: VehicleServer) -> AsyncIterator[list[int]]:
+    """The simulated autopilot's modes (each change, sampled every 20 ms) while inside."""
+    seen = [vehicle.copter.mode]
+
+    async def watch() -> None:
+        while True:
+            if vehicle.copter.mode != seen[-1]:
+                seen.append(vehicle.copter.mode)
+            await asyncio.sleep(0.02)
+
+    task = asyncio.create_task(watch())
+    try:
+        yield seen
+    finally:
+        await cancel_and_wait([task])
+
+
+@contextlib.asynccontextmanager
+async def flying_its_retry(
+    autopilot: Autopilot, vehicle: VehicleServer
+) -> AsyncIterator[tuple[PrecisionLander, Takeover]]:
+    """The pad lost at 3 m on a plain fix: the daemon's lander and its takeover, once the agent
+    flies its retry (GUIDED)."""
+    async with blind_beacon_lander(
+        autopilot, vehicle, BELOW_3M, search=SEARCH, retry=ONE_RETRY, pad_sigma_m=0.5
+    ) as lander:
+        await take_off_and_land(autopilot, vehicle)
+        await eventually(lambda: lander.takeover and lander.takeover.active, 40, "the retry")
+        assert lander.takeover is not None
+        yield lander, lander.takeover
+
+
+async def test_an_operators_pause_while_the_agent_flies_the_retry_is_left_standing(
+    autopilot: Autopilot, vehicle: VehicleServer, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The pad lost at 3 m on a plain fix, the agent flies its retry in GUIDED; the operator
+    pauses the UAV (BRAKE, a command through this agent). The vehicle is the operator's: the
+    agent lets go at once (no setpoint, no hand-back, nothing kept for a restart) and the
+    landing loop ends with the UAV still braking. Before, the agent went on holding a landing
+    it no longer flew, and would have handed LAND back over the operator's BRAKE."""
+    async with flying_its_retry(autopilot, vehicle) as (lander, took):
+        assert lander.record.current == FLYING
+        async with modes_of(vehicle) as modes:
+            await autopilot.pause()
+            await eventually(lambda: lander.loop is None, 10, "the landing loop ended")
+        assert took.taken_into == "BRAKE" and not took.active
+        assert modes == [GUIDED, BRAKE] and vehicle.copter.armed
+        assert lander.record.current is None
+        assert [e.kind for e in lander.drain_events()] == []
+        assert "put in BRAKE by another" in caplog.text
+
+
+async def test_a_failsafe_rtl_while_the_agent_flies_the_retry_is_not_overridden(
+    autopilot: Autopilot, vehicle: VehicleServer
+) -> None:
+    """The agent flies its retry in GUIDED when the autopilot itself switches to RTL (a
+    failsafe; a pilot's ground station alike): heard by its next HEARTBEAT, the vehicle is left
+    to it. Before, climbing back into the beacon's view, the agent handed LAND back 0.3 s into
+    the RTL, then took GUIDED again."""
+    async with flying_its_retry(autopilot, vehicle) as (lander, took):
+        async with modes_of(vehicle) as modes:
+            assert vehicle.copter.set_mode(RTL)  # the autopilot's own decision
+            await eventually(lambda: vehicle.copter.dyn.state.altitude > 10.0, 30, "RTL climbs")
+        assert modes == [GUIDED, RTL]  # neither LAND handed back nor GUIDED taken again
+        assert took.taken_into == "RTL" and not took.active
+        assert lander.record.current is None

@@ -4,11 +4,13 @@ and its storage model checked against AP_Mission's packing."""
 from __future__ import annotations
 
 import math
+import time
 
 import pytest
 
 from sim.vehicle import mission as ms
 from sim.vehicle.__main__ import habits_of, parse_args, setup
+from sim.vehicle.constants import LAND
 from sim.vehicle.copter import CopterConfig
 from sim.vehicle.habits import PROFILES, Habits, profile, stored
 from sim.vehicle.server import run_vehicle
@@ -110,6 +112,24 @@ def test_ardupilot_3x_sends_a_stream_asked_again_on_its_old_count():
     assert GLOBAL_POSITION_INT not in s.due(0.52)
     assert GLOBAL_POSITION_INT in s.due(1.0)  # the old count run out
     assert GLOBAL_POSITION_INT in s.due(1.25)  # then every 0.25 s
+
+
+@pytest.mark.parametrize("name", ["ardupilot-4", "ardupilot-3.7"])
+async def test_a_mode_change_is_told_at_once_by_4x_and_at_the_next_beat_by_3x(name: str):
+    """4.x's `Copter::set_mode` sends a HEARTBEAT as soon as the mode is set: a failsafe's RTL
+    is known to a companion at once, not up to a second later; the 3.6-era one does not."""
+    config = CopterConfig(seed=1, habits=profile(name, boot_s=0.0))
+    async with run_vehicle(config=config) as v:
+        peer = Peer(f"tcp:127.0.0.1:{v.tcp_port}")
+        try:
+            await peer.recv("HEARTBEAT")  # a 1 Hz beat just now: the next is ~1 s away
+            changed = time.monotonic()
+            assert v.copter.set_mode(LAND)  # the autopilot's own change (a failsafe's)
+            await peer.recv("HEARTBEAT", custom_mode=LAND, within=3.0)
+            told_at_once = time.monotonic() - changed < 0.5
+            assert told_at_once is PROFILES[name].mode_heartbeat
+        finally:
+            peer.conn.close()
 
 
 @pytest.mark.slow  # waits 2 s to show a message never comes
