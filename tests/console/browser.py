@@ -81,6 +81,9 @@ async def open_page(browser: Any, url: str) -> tuple[Any, Traffic]:
     return page, traffic
 
 
+SIGN_IN_MS = 20_000
+
+
 async def sign_in(page: Any, email: str, password: str) -> None:
     """Sign in through the form; when the account has a live session, end it as the page offers."""
     from playwright.async_api import expect
@@ -90,11 +93,14 @@ async def sign_in(page: Any, email: str, password: str) -> None:
     await page.get_by_label("Password").press("Enter")  # the keyboard submits the form
     fleet = page.get_by_role("heading", name="Fleet", exact=True)
     take_over = page.get_by_role("button", name="Sign in and end the other session")
-    await expect(fleet.or_(take_over)).to_be_visible()
+    # each a round trip to the server, through nginx and a replica's container in the stack
+    # test: 5 s (playwright's default) was once too short there, the machine building images
+    # (the fleet page was up when the snapshot of the failure was taken)
+    await expect(fleet.or_(take_over)).to_be_visible(timeout=SIGN_IN_MS)
     if await take_over.is_visible():
         await expect(page.get_by_role("alert")).to_contain_text("one live session per account")
         await take_over.click()
-    await expect(fleet).to_be_visible()
+    await expect(fleet).to_be_visible(timeout=SIGN_IN_MS)
 
 
 async def shot(page: Any, name: str) -> None:
