@@ -13,6 +13,7 @@ from asset_agent.autopilot import Autopilot, CommandRejected, items_from_dicts
 from asset_agent.autopilot.params import set_param
 from asset_agent.autopilot.state import Notification, UavState
 from asset_agent.events import EventTracker
+from asynckit.tasks import cancel_and_wait
 from protocol.rtcm import build_frame
 from sim.vehicle.geo import GeoOrigin
 from sim.vehicle.server import VehicleServer
@@ -113,7 +114,10 @@ async def test_fly_mission_rtl_and_land_on_the_pad(
     assert autopilot.state.mission_state == "COMPLETE"
     assert autopilot.state.battery_pct is not None and autopilot.state.battery_pct < 100
     await eventually(lambda: "mission_finished" in events, 5, "mission_finished event")
-    watcher.cancel()
+    await cancel_and_wait([watcher])
+    # the last state too: the waits above return at once on a condition already true, without
+    # letting the watcher's 10 ms poll run after the disarm (under load it missed "disarmed")
+    events.extend(e.kind for e in tracker.update(autopilot.state))
     for kind in ("armed", "took_off", "landing", "landed", "mission_finished", "disarmed"):
         assert events.count(kind) == 1, (kind, events)
     assert events.index("armed") < events.index("took_off") < events.index("landing")
