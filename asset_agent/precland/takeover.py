@@ -89,6 +89,7 @@ class Takeover:
         # since when (time.monotonic()) another's mode change means the vehicle is theirs: the
         # start, and each of our own mode changes once the autopilot has taken it
         self._since = time.monotonic()
+        self._held = False  # the autopilot took our GUIDED, not handed back since
         self.taken_into: str | None = None  # the mode another put the vehicle in meanwhile
 
     async def run(self) -> None:
@@ -163,6 +164,12 @@ class Takeover:
             self.active = False
 
     @property
+    def holding(self) -> bool:
+        """The agent flies the vehicle: the autopilot has taken its GUIDED (`active` is set from
+        the take's first try on)."""
+        return self.active and self._held
+
+    @property
     def abort_reason(self) -> str | None:
         """Why the landing was abandoned (sequence.ABORT_REASONS), if it was."""
         guarded = self.loss_guard.sequence.abort_reason if self.loss_guard is not None else None
@@ -181,7 +188,7 @@ class Takeover:
         await self.keep(FLYING)
         self.active = True
         if await take(self.autopilot, self.sleep_fn, self._not_touching_down):
-            self._since = time.monotonic()
+            self._since, self._held = time.monotonic(), True
             return True
         await self.keep(None)
         self.active = False
@@ -195,6 +202,7 @@ class Takeover:
     async def _land(self) -> None:
         """Hand the descent back (LAND), staying active until the autopilot reports it, so that
         the supervisor does not see a gap between our mode and the autopilot's landing."""
+        self._held = False
         await hand_back(self.autopilot, self.sleep_fn)
         self._since = time.monotonic()
         await self.keep(None)
@@ -250,12 +258,12 @@ class Takeover:
         changed_at, mode = getattr(ap, "mode_changed", (-math.inf, ""))
         if changed_at <= self._since:
             heard = getattr(ap, "heartbeat_at", None)
-            if not self.active or heard is None or heard <= self._since or state.mode == "GUIDED":
+            if not self.holding or heard is None or heard <= self._since or state.mode == "GUIDED":
                 return False
             mode = state.mode
         log.warning("precland: the vehicle was put in %s by another: it is left to them", mode)
         self.taken_into = mode
-        self.active = False
+        self.active = self._held = False
         await self.keep(None)
         return True
 

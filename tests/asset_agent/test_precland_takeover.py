@@ -398,6 +398,7 @@ async def test_a_take_not_heard_while_touching_down_leaves_the_landing_to_the_au
     assert vehicle.copter.mode == LAND
 
 
+@pytest.mark.slow  # ~7 s: the landing from 11 m at 4x
 async def test_a_take_the_autopilot_refuses_to_touchdown_leaves_it_the_landing(
     autopilot: Autopilot, vehicle: VehicleServer, caplog: pytest.LogCaptureFixture
 ) -> None:
@@ -415,6 +416,8 @@ async def test_a_take_the_autopilot_refuses_to_touchdown_leaves_it_the_landing(
         await eventually(lambda: lander.takeover and lander.takeover.losses, 30, "a loss")
         took = lander.takeover
         await eventually(lambda: not autopilot.state.armed, 60, "landed and disarmed")
+        # the take, sent again each second, is given up at its next try: the loop ends then
+        await eventually(lambda: lander.loop is None, 10, "the landing loop ended")
         assert vehicle.copter.mode == LAND
         assert "GUIDED not taken" in caplog.text and "given up" in caplog.text
         assert took is not None and took.path == "precision" and not took.active
@@ -449,11 +452,13 @@ async def flying_its_retry(
         autopilot, vehicle, BELOW_3M, search=SEARCH, retry=ONE_RETRY, pad_sigma_m=0.5
     ) as lander:
         await take_off_and_land(autopilot, vehicle)
-        await eventually(lambda: lander.takeover and lander.takeover.active, 40, "the retry")
+        # holding: its take done (a mode set before its ACK would be overridden by the take)
+        await eventually(lambda: lander.takeover and lander.takeover.holding, 40, "the retry")
         assert lander.takeover is not None
         yield lander, lander.takeover
 
 
+@pytest.mark.slow  # ~6 s: the landing from 11 m at 4x, to the loss at 3 m
 async def test_an_operators_pause_while_the_agent_flies_the_retry_is_left_standing(
     autopilot: Autopilot, vehicle: VehicleServer, caplog: pytest.LogCaptureFixture
 ) -> None:
@@ -474,6 +479,7 @@ async def test_an_operators_pause_while_the_agent_flies_the_retry_is_left_standi
         assert "put in BRAKE by another" in caplog.text
 
 
+@pytest.mark.slow  # ~6 s: the landing to the loss at 3 m, then the RTL's climb
 async def test_a_failsafe_rtl_while_the_agent_flies_the_retry_is_not_overridden(
     autopilot: Autopilot, vehicle: VehicleServer
 ) -> None:
