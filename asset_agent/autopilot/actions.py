@@ -32,9 +32,15 @@ class ActionsMixin:
     async def set_mode(self, mode: str | int) -> None:
         """Change the flight mode by Copter name ("GUIDED") or number."""
         number = MODE_NUMBERS[mode.upper()] if isinstance(mode, str) else int(mode)
+        name = COPTER_MODES.get(number, str(number))
+        await self._into_mode(name, CMD_DO_SET_MODE, 1, number)  # CUSTOM_MODE_ENABLED
+
+    async def _into_mode(self, mode: str, command: int, *params: float) -> None:
+        """A command that changes the mode: our own change to MissionWatch, and `mode_changed`
+        once the autopilot has taken it."""
         self.mission_watch.asked_mode(time.monotonic())
-        await self.command(CMD_DO_SET_MODE, 1, number)  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
-        self.mode_changed = (time.monotonic(), COPTER_MODES.get(number, str(number)))
+        await self.command(command, *params)
+        self.mode_changed = (time.monotonic(), mode)
 
     async def arm(self) -> None:
         """Arm (pre-arm checks apply: a failure raises CommandRejected with the PreArm text)."""
@@ -79,15 +85,11 @@ class ActionsMixin:
 
     async def return_to_base(self) -> None:
         """Return to launch (the base) and land there (RTL mode: our own mode change)."""
-        self.mission_watch.asked_mode(time.monotonic())
-        await self.command(CMD_NAV_RETURN_TO_LAUNCH)
-        self.mode_changed = (time.monotonic(), "RTL")
+        await self._into_mode("RTL", CMD_NAV_RETURN_TO_LAUNCH)
 
     async def land(self) -> None:
         """Land where the vehicle is (LAND mode: our own mode change)."""
-        self.mission_watch.asked_mode(time.monotonic())
-        await self.command(CMD_NAV_LAND)
-        self.mode_changed = (time.monotonic(), "LAND")
+        await self._into_mode("LAND", CMD_NAV_LAND)
 
     async def abort(self) -> str:
         """RTL when flying, disarm when on the ground; returns what was done."""

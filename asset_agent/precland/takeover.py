@@ -254,18 +254,24 @@ class Takeover:
         HEARTBEAT handled after our take's COMMAND_ACK (sent after it on a link that keeps
         order, it carries the mode as it is since); while the autopilot lands by itself, the
         supervisor ends the landing loop as soon as a HEARTBEAT says it no longer does."""
-        ap, state = self.autopilot, self.autopilot.state
-        changed_at, mode = getattr(ap, "mode_changed", (-math.inf, ""))
-        if changed_at <= self._since:
-            heard = getattr(ap, "heartbeat_at", None)
-            if not self.holding or heard is None or heard <= self._since or state.mode == "GUIDED":
-                return False
-            mode = state.mode
+        mode = self._changed_by_another()
+        if mode is None:
+            return False
         log.warning("precland: the vehicle was put in %s by another: it is left to them", mode)
         self.taken_into = mode
         self.active = self._held = False
         await self.keep(None)
         return True
+
+    def _changed_by_another(self) -> str | None:
+        """The mode another has put the vehicle in since `_since`, if any (`_taken_from_us`)."""
+        changed_at, mode = self.autopilot.mode_changed
+        if changed_at > self._since:  # through this adapter
+            return str(mode)
+        heard, state = self.autopilot.heartbeat_at, self.autopilot.state
+        if self.holding and heard is not None and heard > self._since and state.mode != "GUIDED":
+            return str(state.mode)
+        return None
 
     async def _tick(self) -> tuple[float, VehicleState, Estimate]:
         """The next step, PERIOD_S of sensor time on, once the autopilot's state is known: the
@@ -299,7 +305,7 @@ async def insist(
             await autopilot.set_mode(mode)
             return tries
         except AutopilotError as err:
-            state, heard = autopilot.state, getattr(autopilot, "heartbeat_at", None)
+            state, heard = autopilot.state, autopilot.heartbeat_at
             if state.mode == mode and heard is not None and heard > first:
                 return tries
             if not keep_trying(state):

@@ -232,9 +232,9 @@ class StreamScheduler:
         else:
             new = max(int(interval_us) // 1000, MIN_INTERVAL_MS) / 1000
         self.intervals[msg_id] = new
-        if new is None or (new == old and msg_id != HEARTBEAT):
+        if new is None or (new == old and msg_id != HEARTBEAT):  # HEARTBEAT: deferred, anew
             return True
-        mate = self._bucket_of(new, msg_id) if msg_id != HEARTBEAT else None
+        mate = None if msg_id == HEARTBEAT else self._bucket_of(new, msg_id)
         self._next[msg_id] = self._next[mate] if mate is not None else self._now + new
         return True
 
