@@ -127,6 +127,22 @@ def test_a_fast_clocks_reboot_is_told_at_its_rate():
     assert len(told) == 1 and "40.0 s short" in told[0]  # half a second on, still short
 
 
+def test_a_reboot_after_the_clock_starved_while_its_rate_was_taken_is_told():
+    """A SITL at 20x, heard at 5 Hz, starved 0.5 s (2 s of its clock where 10 s were due) in the
+    first 1.3 s of arrivals: its rate while it runs is still 20x (a mean over the window: 13.8x).
+    Rebooted, it speaks 5 s on with 80 s of uptime, more than the old 38 s: 58 s short of the
+    38 s plus 5 s at 20x. At 13.8x it would be 27 s short, less than the 38 s uptime: on time,
+    and the new boot taken for the old for good (the CI failure of the habits reboot test)."""
+    w = BootWatch()
+    heard = [(1000.0, 20_000), (1000.2, 24_000), (1000.4, 28_000)]
+    heard += [(1000.9, 30_000), (1001.1, 34_000), (1001.3, 38_000)]  # after the starving
+    assert [w.check(ms, t) for t, ms in heard] == [None] * 6
+    assert w.rate == pytest.approx(20.0)
+    verdicts = [w.check(80_000 + i * 4_000, 1006.3 + i * 0.2) for i in range(10)]
+    told = [v for v in verdicts if v]
+    assert len(told) == 1 and "58.0 s short" in told[0], verdicts
+
+
 def test_a_clock_that_lost_3_s_at_100_s_of_uptime_has_not_rebooted():
     w = BootWatch()
     assert w.check(100_000, 1000.0) is None
