@@ -27,6 +27,11 @@ A vehicle put in another mode by another is theirs (`_taken_from_us`): an operat
 return through this agent, and, while the agent holds it, a pilot's ground station or a failsafe's
 RTL or LAND (told by ArduPilot 4.x's HEARTBEAT at the mode change). The agent lets go: no more
 setpoints, no hand-back or take over their mode, nothing kept for a restart (`taken_into`).
+
+A failsafe the autopilot reports (`_left_to_the_failsafe`: HEARTBEAT system_status CRITICAL,
+whatever its action) leaves the landing to the autopilot too: a search's or a retry's climb, or
+a hold at the safe height, would spend a failing battery. Held in GUIDED (a failsafe whose action
+is none, ArduPilot's default for the battery, changes no mode), LAND is handed back first.
 """
 
 from __future__ import annotations
@@ -91,6 +96,7 @@ class Takeover:
         self._since = time.monotonic()
         self._held = False  # the autopilot took our GUIDED, not handed back since
         self.taken_into: str | None = None  # the mode another put the vehicle in meanwhile
+        self.failsafe = False  # the autopilot reported a failsafe: the landing is its own
 
     async def run(self) -> None:
         """Search unless decided (a first measurement within `acquire_s`, else search and fall
@@ -129,7 +135,7 @@ class Takeover:
         try:
             while True:
                 now, state, est = await self._tick()
-                if await self._taken_from_us():
+                if await self._taken_from_us() or await self._left_to_the_failsafe():
                     return
                 act = guard.step(now, self.pipeline.kalman.updates, est, state)
                 if act.kind == "landed":
@@ -141,7 +147,7 @@ class Takeover:
                         guard.losses[-1],
                     )
                     if not await self._take():  # its LAND goes on: watched to its end
-                        if self.taken_into is not None:
+                        if self.taken_into is not None or self.failsafe:
                             return
                         guard.flying = False
                         continue
@@ -185,6 +191,8 @@ class Takeover:
         False when the autopilot never took it and the landing is its own again (`take`)."""
         if await self._taken_from_us():  # an operator's mode since the landing began
             return False
+        if await self._left_to_the_failsafe():
+            return False
         await self.keep(FLYING)
         self.active = True
         if await take(self.autopilot, self.sleep_fn, self._not_touching_down):
@@ -215,7 +223,7 @@ class Takeover:
         seen_before = self.pipeline.kalman.updates
         while True:
             now, state, est = await self._tick()
-            if await self._taken_from_us():
+            if await self._taken_from_us() or await self._left_to_the_failsafe():
                 return
             seen = self.pipeline.kalman.updates > seen_before
             seen_before = self.pipeline.kalman.updates
@@ -259,6 +267,25 @@ class Takeover:
             return False
         log.warning("precland: the vehicle was put in %s by another: it is left to them", mode)
         self.taken_into = mode
+        self.active = self._held = False
+        await self.keep(None)
+        return True
+
+    async def _left_to_the_failsafe(self) -> bool:
+        """Does the autopilot report a failsafe (HEARTBEAT system_status CRITICAL or EMERGENCY:
+        ArduPilot's any_failsafe_triggered, a battery's, radio's, GCS's or EKF's)? Then the
+        landing is the autopilot's from here: no take for a search or a retry, no climb to the
+        safe height. A vehicle the agent holds in GUIDED is handed LAND back (a failsafe that
+        changed no mode); its own failsafe mode (LAND, RTL) is left as it is."""
+        if not self.autopilot.state.failsafe:
+            return False
+        self.failsafe = True
+        mode = self.autopilot.state.mode
+        if self.active and mode == "GUIDED":
+            log.warning("precland: the autopilot reports a failsafe: LAND handed back")
+            await self._land()
+        else:
+            log.warning("precland: the autopilot reports a failsafe in %s: left to it", mode)
         self.active = self._held = False
         await self.keep(None)
         return True

@@ -12,7 +12,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Literal, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
@@ -28,7 +28,6 @@ from sim.vehicle.constants import (
     FAILED,
     GUIDED,
     INFO,
-    LAND,
     LOITER,
     MODE_NAMES,
     NOT_ARMABLE,
@@ -38,6 +37,7 @@ from sim.vehicle.constants import (
     WARNING,
 )  # fmt: skip
 from sim.vehicle.dynamics import Dynamics, DynamicsParams
+from sim.vehicle.failsafe import check_battery
 from sim.vehicle.geo import GeoOrigin
 from sim.vehicle.gnss import FIX_3D, GnssModel, GnssParams, GnssReading
 from sim.vehicle.guidance import Guidance
@@ -81,7 +81,11 @@ class CopterConfig:
     land_speed_high: float = 1.5  # LAND_SPEED_HIGH
     land_alt_low: float = 10.0  # LAND_ALT_LOW
     arm_min_battery_pct: float = 30.0  # BATT_ARM_MAH as a percentage
-    failsafe_battery_pct: float = 15.0  # BATT_LOW as a percentage -> RTL
+    failsafe_battery_pct: float = 15.0  # BATT_LOW as a percentage
+    # BATT_FS_LOW_ACT: "rtl" (2), "land" (1), "none" (0, ArduPilot's default: a warning and the
+    # HEARTBEAT's system_status CRITICAL only); FS_OPTIONS bit 3, CONTINUE_IF_LANDING
+    failsafe_battery_action: Literal["none", "land", "rtl"] = "rtl"
+    failsafe_continue_landing: bool = True
     guided_timeout_s: float = 3.0  # GUID_TIMEOUT for velocity targets
     mission_resend_s: float = 1.0  # re-request a missing mission item (wall seconds)
     mission_timeout_s: float = 8.0  # cancel an upload after this much silence (wall seconds)
@@ -284,7 +288,7 @@ class Copter(MissionProtocolMixin, BootMixin):
         self.dyn.step(dt, (air[0], air[1]))
         self.fence_tick(self.flying)
         self._check_landing()
-        self._check_battery()
+        check_battery(self)
 
     def _check_landing(self) -> None:
         landed = self.dyn.state.landed
@@ -321,15 +325,6 @@ class Copter(MissionProtocolMixin, BootMixin):
             return
         if isinstance(soc, float | int) and abs(soc * 100.0 - self.dyn.state.battery_pct) > 0.01:
             self.dyn.set_battery(soc * 100.0)
-
-    def _check_battery(self) -> None:
-        if self.failsafe or not self.flying:
-            return
-        if self.dyn.state.battery_pct < self.config.failsafe_battery_pct:
-            self.failsafe = True
-            self.text(CRITICAL, "Battery Failsafe")
-            if self.mode not in (RTL, LAND):
-                self.set_mode(RTL)
 
     # --- input -----------------------------------------------------------------------------
     def handle(self, msg: Any, link: Any, wall: float) -> None:

@@ -7,7 +7,9 @@ its own search, with the daemon's state file (the link's, offline), hands the de
 lands again; restarted in the hold after an abandoned landing, it leaves the hold; a GUIDED
 vehicle it never took it leaves alone (resume.py). A vehicle another puts in another mode while
 the agent flies it (an operator's pause, a failsafe's RTL) is left to them; a take the autopilot
-refuses is sent again until touching down, then the landing is the autopilot's."""
+refuses is sent again until touching down, then the landing is the autopilot's. A failsafe the
+autopilot reports (a low battery) leaves it the landing: no retry taken while it lands, LAND
+handed back while the agent flies its retry."""
 
 from __future__ import annotations
 
@@ -30,6 +32,7 @@ from asset_agent.precland.takeover import Takeover, descending, hand_back, take
 from assetlink.link import Link
 from asynckit.tasks import cancel_and_wait
 from sim.vehicle.constants import BRAKE, GUIDED, LAND, RTL
+from sim.vehicle.copter import CopterConfig
 from sim.vehicle.server import VehicleServer, WindFn, run_vehicle
 from tests.asset_agent.blind_landing import (
     blind_beacon_lander,
@@ -99,6 +102,14 @@ BELOW_3M = FaultConfig(fail_below_m=3.0)  # the beacon sees the pad from above 3
 ONE_RETRY = RetryConfig(pause_s=1.0, max_attempts=1)
 
 
+def losing_the_pad_below_3_m(autopilot: Autopilot, vehicle: VehicleServer):
+    """The daemon's precision landing with a beacon that sees the pad from above 3 m only, one
+    retry after a loss."""
+    return blind_beacon_lander(
+        autopilot, vehicle, BELOW_3M, search=SEARCH, retry=ONE_RETRY, pad_sigma_m=0.5
+    )
+
+
 async def test_a_pad_lost_at_3_m_on_a_plain_fix_is_retried_then_abandoned_not_landed_blind(
     autopilot: Autopilot, vehicle: VehicleServer
 ) -> None:
@@ -106,9 +117,7 @@ async def test_a_pad_lost_at_3_m_on_a_plain_fix_is_retried_then_abandoned_not_la
     on its last estimate and land blind; the agent takes the vehicle, climbs back into view,
     hands LAND back, and at the second loss (no retry left) climbs to the safe height."""
     async with (
-        blind_beacon_lander(
-            autopilot, vehicle, BELOW_3M, search=SEARCH, retry=ONE_RETRY, pad_sigma_m=0.5
-        ) as lander,
+        losing_the_pad_below_3_m(autopilot, vehicle) as lander,
         lowest_altitude(vehicle) as lowest,
     ):
         await take_off_and_land(autopilot, vehicle)
@@ -407,9 +416,7 @@ async def test_a_take_the_autopilot_refuses_to_touchdown_leaves_it_the_landing(
     again each second while LAND descends, is given up touching down (a climb sent then would
     lift the vehicle off), and the guard watches the autopilot's own landing to its end: the
     vehicle lands and disarms in LAND, never taken, the landing never reported abandoned."""
-    async with blind_beacon_lander(
-        autopilot, vehicle, BELOW_3M, search=SEARCH, retry=ONE_RETRY, pad_sigma_m=0.5
-    ) as lander:
+    async with losing_the_pad_below_3_m(autopilot, vehicle) as lander:
         await take_off_and_land(autopilot, vehicle)
         await eventually(lambda: vehicle.copter.dyn.state.altitude < 3.5, 40, "down to 3.5 m")
         vehicle.copter.gnss.has_fix = False
@@ -448,9 +455,7 @@ async def flying_its_retry(
 ) -> AsyncIterator[tuple[PrecisionLander, Takeover]]:
     """The pad lost at 3 m on a plain fix: the daemon's lander and its takeover, once the agent
     flies its retry (GUIDED)."""
-    async with blind_beacon_lander(
-        autopilot, vehicle, BELOW_3M, search=SEARCH, retry=ONE_RETRY, pad_sigma_m=0.5
-    ) as lander:
+    async with losing_the_pad_below_3_m(autopilot, vehicle) as lander:
         await take_off_and_land(autopilot, vehicle)
         # holding: its take done (a mode set before its ACK would be overridden by the take)
         await eventually(lambda: lander.takeover and lander.takeover.holding, 40, "the retry")
@@ -494,3 +499,53 @@ async def test_a_failsafe_rtl_while_the_agent_flies_the_retry_is_not_overridden(
         assert modes == [GUIDED, RTL]  # neither LAND handed back nor GUIDED taken again
         assert took.taken_into == "RTL" and not took.active
         assert lander.record.current is None
+
+
+@pytest.mark.slow  # ~8 s: the landing from 11 m at 4x
+async def test_a_battery_failsafe_while_the_autopilot_lands_leaves_it_the_landing(
+    autopilot: Autopilot, vehicle: VehicleServer, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The battery fails while LAND descends on the pad (ArduPilot's battery failsafe, its action
+    LAND or RTL with CONTINUE_IF_LANDING: LAND goes on, the HEARTBEAT says CRITICAL). The pad
+    lost at 3 m on a plain fix was taken for the retry's climb and, the retry spent, the climb to
+    the safe height: on a failing battery. Now the landing is the autopilot's: it lands."""
+    async with (
+        losing_the_pad_below_3_m(autopilot, vehicle) as lander,
+        modes_of(vehicle) as modes,
+    ):
+        await take_off_and_land(autopilot, vehicle)
+        await eventually(
+            lambda: lander.takeover and lander.takeover.loss_guard, 20, "the guard watches"
+        )
+        took = lander.takeover
+        assert took is not None
+        vehicle.copter.dyn.set_battery(14.0)
+        await eventually(lambda: autopilot.state.failsafe, 10, "the failsafe reported")
+        assert vehicle.copter.dyn.state.altitude > 3.0  # the premise: before the pad is lost
+        await eventually(lambda: not autopilot.state.armed, 60, "landed and disarmed")
+    assert modes[modes.index(LAND) :] == [LAND]  # LAND to the touchdown: never taken
+    assert took.failsafe and took.losses == [] and took.path == "precision"
+    assert [e.kind for e in lander.drain_events()] == []  # no landing_aborted
+    assert "reports a failsafe in LAND: left to it" in caplog.text
+
+
+@pytest.mark.slow  # ~8 s: the landing to the loss at 3 m, then LAND from there
+async def test_a_battery_failsafe_changing_no_mode_while_the_agent_flies_hands_land_back() -> None:
+    """BATT_FS_LOW_ACT none (ArduPilot's default) while the agent flies its retry in GUIDED: the
+    autopilot changes no mode, only its HEARTBEAT says CRITICAL. The agent climbed back into the
+    beacon's view, lost the pad again and, the retry spent, climbed to the safe height and held
+    there on the failing battery. Now LAND is handed back at once and the vehicle lands."""
+    config = CopterConfig(seed=7, failsafe_battery_action="none")
+    async with (
+        run_vehicle(speed=4.0, config=config) as vehicle,
+        precland_adapter(vehicle) as autopilot,
+        flying_its_retry(autopilot, vehicle) as (lander, took),
+        modes_of(vehicle) as modes,
+    ):
+        vehicle.copter.dyn.set_battery(14.0)
+        await eventually(lambda: not autopilot.state.armed, 60, "landed and disarmed")
+        assert vehicle.copter.failsafe  # the premise: the failsafe, with no mode of its own
+    assert modes == [GUIDED, LAND]  # handed back, never taken again
+    assert took.failsafe and not took.active and took.path != "aborted-climb"
+    assert lander.record.current is None  # nothing kept for a restart
+    assert [e.kind for e in lander.drain_events()] == []
