@@ -192,7 +192,10 @@ class PrecisionLander:
             self._camera_task.cancel()
             self._camera_task = None
         active = landing_now(state, self.section.activation_height_m) or taken
-        if active and self._loop_task is None and self.ready and prior is not None:
+        # not before the predecessor's landing is handed back (`_resume`): its LAND, answered
+        # after this landing's takeover began, would be told to it as another's mode change
+        resumed = self.first_look is None or self.first_look.done()
+        if active and self._loop_task is None and self.ready and prior is not None and resumed:
             self._start_loop(state, prior)
         elif not active and self._loop_task is not None:
             self._loop_task.cancel()

@@ -38,6 +38,12 @@ class Toggle(BaseModel):
     enabled: bool = True
 
 
+class LostAcks(BaseModel):
+    """Lose the next `count` COMMAND_ACKs (the commands are carried out all the same)."""
+
+    count: int = Field(ge=0, le=100)
+
+
 class BatteryOverride(BaseModel):
     """Set the battery level in percent."""
 
@@ -84,6 +90,7 @@ def faults(server: VehicleServer) -> dict[str, Any]:
         "muted": server.muted(),
         "mute_remaining_s": None if math.isinf(remaining) else max(0.0, remaining),
         "drop_mission": f.drop_mission,
+        "drop_acks": f.drop_acks,
         "no_gnss_fix": not server.copter.gnss.has_fix,
         "gnss_bias_ne_m": list(server.copter.gnss.bias_ne_m),
     }
@@ -128,6 +135,12 @@ def vehicle_router(server: VehicleServer, prefix: str = "/vehicle") -> APIRouter
         c.faults.drop_mission = body.enabled
         return faults(server)
 
+    @router.post("/faults/drop_acks")
+    async def drop_acks(body: LostAcks) -> dict[str, Any]:
+        """Lose the next N COMMAND_ACKs, as a lossy radio does: the commands still act."""
+        c.faults.drop_acks = body.count
+        return faults(server)
+
     @router.post("/faults/no_gnss_fix")
     async def no_fix(body: Toggle) -> dict[str, Any]:
         """Lose (or regain) the GNSS fix."""
@@ -152,6 +165,7 @@ def vehicle_router(server: VehicleServer, prefix: str = "/vehicle") -> APIRouter
         c.faults.prearm_failure = None
         c.faults.mute_until = 0.0
         c.faults.drop_mission = False
+        c.faults.drop_acks = 0
         c.gnss.has_fix = True
         c.gnss.bias_ne_m = (0.0, 0.0)
         return faults(server)

@@ -105,6 +105,7 @@ class Faults:
     prearm_failure: str | None = None  # reported as "PreArm: <text>"
     mute_until: float = 0.0  # wall time; math.inf = until cleared
     drop_mission: bool = False  # ignore every mission-protocol message
+    drop_acks: int = 0  # the next this many COMMAND_ACKs are lost (the command is carried out)
 
     def muted(self, wall: float) -> bool:
         """True while the autopilot answers nothing."""
@@ -344,19 +345,23 @@ class Copter(MissionProtocolMixin, BootMixin):
 
     def _on_command_long(self, msg: Any, link: Any) -> None:
         p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
-        result = run_command(self, msg.command, p, link)
-        if result != NO_ANSWER:
-            self.send(_ack(msg, msg.command, result), link)
+        self._answer(msg, msg.command, run_command(self, msg.command, p, link), link)
 
     def _on_command_int(self, msg: Any, link: Any) -> None:
         p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x / 1e7, msg.y / 1e7, msg.z)
-        result = run_command(self, msg.command, p, link)
-        if result != NO_ANSWER:
-            self.send(_ack(msg, msg.command, result), link)
+        self._answer(msg, msg.command, run_command(self, msg.command, p, link), link)
 
     def _on_set_mode(self, msg: Any, link: Any) -> None:
-        ok = self.set_mode(msg.custom_mode)
-        self.send(_ack(msg, 11, ACCEPTED if ok else FAILED), link)
+        self._answer(msg, 11, ACCEPTED if self.set_mode(msg.custom_mode) else FAILED, link)
+
+    def _answer(self, request: Any, command: int, result: int, link: Any) -> None:
+        """The COMMAND_ACK for `request`, unless the command gives none or the fault loses it."""
+        if result == NO_ANSWER:
+            return
+        if self.faults.drop_acks > 0:
+            self.faults.drop_acks -= 1
+            return
+        self.send(_ack(request, command, result), link)
 
     def _on_set_position_target_local_ned(self, msg: Any, link: Any) -> None:
         if self.mode == GUIDED and self.armed:

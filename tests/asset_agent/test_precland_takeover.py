@@ -299,6 +299,17 @@ def searching_lander(autopilot: Autopilot, vehicle: VehicleServer, memory: Link)
     return blind_beacon_lander(autopilot, vehicle, search=SEARCH, pad_sigma_m=0.5, memory=memory)
 
 
+async def stopped_while_searching(
+    autopilot: Autopilot, vehicle: VehicleServer, memory: Link
+) -> None:
+    """A take-off and LAND, the daemon's lander searching (GUIDED) for the blind beacon's pad,
+    then stopped: the vehicle left hovering there, the search kept in `memory`."""
+    async with searching_lander(autopilot, vehicle, memory) as first:
+        await take_off_and_land(autopilot, vehicle)
+        await eventually(lambda: first.takeover and first.takeover.active, 20, "a search")
+        await eventually(lambda: autopilot.state.mode == "GUIDED", 10, "the agent flying")
+
+
 async def test_an_agent_restarted_in_its_search_lands_again_and_one_restarted_in_the_hold_holds(
     autopilot: Autopilot, vehicle: VehicleServer, tmp_path: Path
 ) -> None:
@@ -307,11 +318,8 @@ async def test_an_agent_restarted_in_its_search_lands_again_and_one_restarted_in
     pad on a plain fix, a climb and a hold. Stopped in that hold, the one after leaves it."""
     copter = vehicle.copter
     async with state_file(tmp_path / "agent.db") as memory:
-        async with searching_lander(autopilot, vehicle, memory) as first:
-            await take_off_and_land(autopilot, vehicle)
-            await eventually(lambda: first.takeover and first.takeover.active, 20, "a search")
-            await eventually(lambda: autopilot.state.mode == "GUIDED", 10, "the agent flying")
-            assert await memory.recall(KEY) == FLYING
+        await stopped_while_searching(autopilot, vehicle, memory)
+        assert await memory.recall(KEY) == FLYING
         assert autopilot.state.mode == "GUIDED" and copter.armed  # the search left hovering
 
         async with searching_lander(autopilot, vehicle, memory) as second:
@@ -329,6 +337,30 @@ async def test_an_agent_restarted_in_its_search_lands_again_and_one_restarted_in
             assert third.record.decision == "hold"
             assert copter.mode == GUIDED and copter.dyn.state.altitude > 10.5  # nothing sent
             assert await memory.recall(KEY) == HOLDING  # a further restart holds too
+
+
+async def test_a_restarted_agents_hand_back_answered_late_is_not_taken_for_anothers(
+    autopilot: Autopilot, vehicle: VehicleServer, tmp_path: Path
+) -> None:
+    """The restarted agent's LAND taken, its COMMAND_ACK lost on the radio: the HEARTBEAT tells
+    LAND and the descent begins while the agent sends LAND again, answered a moment later. The
+    landing loop waits for the hand-back: before, it began on the HEARTBEAT, and its takeover
+    took the late answer for another's mode change, left the vehicle to them and never searched
+    (the e2e restart test failed so in a loaded run: path None, not the RTK fallback)."""
+    copter = vehicle.copter
+    async with state_file(tmp_path / "agent.db") as memory:
+        await stopped_while_searching(autopilot, vehicle, memory)
+        copter.faults.drop_acks = 1
+        # the search waits 2 wall seconds for a first sighting, past the answer 1 s late
+        slow = SEARCH.model_copy(update={"acquire_s": 8.0})
+        async with blind_beacon_lander(
+            autopilot, vehicle, search=slow, pad_sigma_m=0.5, memory=memory
+        ) as second:
+            await acted(second)
+            assert copter.faults.drop_acks == 0 and second.record.decision == "resume"
+            await eventually(lambda: second.takeover and second.takeover.path, 40, "a new search")
+            assert second.takeover is not None and second.takeover.taken_into is None
+            assert second.takeover.path == "aborted-climb"
 
 
 async def test_a_guided_vehicle_the_agent_never_took_is_left_alone(

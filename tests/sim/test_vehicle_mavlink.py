@@ -201,6 +201,12 @@ async def test_control_routes_truth_and_faults(sim: VehicleServer, peer: Peer) -
         peer.conn.mav.command_long_send(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
         ack, text = await peer.ack_and_text(400)
         assert (ack.result, text) == (4, "PreArm: Injected failure")
+        lost = (await http.post("/vehicle/faults/drop_acks", json={"count": 1})).json()
+        assert lost["drop_acks"] == 1
+        for confirmation in (0, 1):  # the first answer lost, the second heard
+            peer.conn.mav.command_long_send(1, 1, 400, confirmation, 1, 0, 0, 0, 0, 0, 0)
+        assert (await peer.ack_and_text(400))[0].result == 4
+        assert (await http.get("/vehicle/faults")).json()["drop_acks"] == 0
         assert (await http.post("/vehicle/battery", json={"percent": 42})).json()[
             "battery_pct"
         ] == 42
@@ -213,7 +219,8 @@ async def test_control_routes_truth_and_faults(sim: VehicleServer, peer: Peer) -
         cleared = (await http.post("/vehicle/faults/clear")).json()
         assert cleared == {
             "prearm_failure": None, "muted": False, "mute_remaining_s": 0.0,
-            "drop_mission": False, "no_gnss_fix": False, "gnss_bias_ne_m": [0.0, 0.0],
+            "drop_mission": False, "drop_acks": 0, "no_gnss_fix": False,
+            "gnss_bias_ne_m": [0.0, 0.0],
         }  # fmt: skip
         await peer.recv("HEARTBEAT")
 
