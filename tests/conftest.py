@@ -16,6 +16,7 @@ import pytest
 
 from aerobase.ports import free_port
 from tests.polling import wait_for
+from tests.priority import pytest_runtest_call  # noqa: F401  (hook: cpu_bound tests at nice 19)
 from tests.schedule import (  # noqa: F401  (hooks: the longest files first, durations recorded)
     pytest_collection_modifyitems,
     pytest_configure,

@@ -21,6 +21,10 @@ from bench.precland_eval import (
 from bench.precland_report import Trace
 from bench.precland_wind import draw, trial_weather
 
+# flown in simulated time: only the CPU is needed, at the lowest priority beside the real-time
+# tests (tests/priority.py), and so longer than the default 180 s when the machine is busy
+pytestmark = [pytest.mark.cpu_bound, pytest.mark.timeout(600)]
+
 
 @pytest.mark.slow
 def test_a_fused_landing_from_6m_seats_on_the_contacts():

@@ -73,6 +73,7 @@ def _stored(api: httpx.Client, tenant: Tenant) -> dict[str, str]:
 
 
 @pytest.mark.slow
+@pytest.mark.cpu_bound  # generating cases: at the lowest priority beside real-time tests
 @pytest.mark.timeout(900)  # ~5,000 requests: 2-4 min on the loaded 2-core machine
 def test_every_answer_is_declared_and_none_is_a_server_error(api, live_server, superuser_email):
     tenant = Tenant(api, superuser_email, "fuzz")

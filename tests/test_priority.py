@@ -1,0 +1,77 @@
+"""The hook that runs `cpu_bound` tests at the lowest priority (tests/priority.py)."""
+
+from __future__ import annotations
+
+import os
+import threading
+
+import pytest
+
+from tests.conftest import IN_CI
+from tests.priority import CPU_BOUND_NICE, pytest_runtest_call
+
+
+class Item:
+    """As much of a pytest item as the hook reads."""
+
+    def __init__(self, *markers: str) -> None:
+        self.markers = markers
+
+    def get_closest_marker(self, name: str) -> object | None:
+        return name if name in self.markers else None
+
+
+def need_root() -> None:
+    """Fail in CI, skip elsewhere, when not root: only root may raise a priority again."""
+    if os.geteuid() == 0:
+        return
+    message = "not root: the hook leaves the priority alone (CI runs as root)"
+    if IN_CI:
+        pytest.fail(message)
+    pytest.skip(message)
+
+
+def nice_of(tid: int) -> int:
+    return os.getpriority(os.PRIO_PROCESS, tid)
+
+
+def test_a_cpu_bound_call_runs_every_thread_at_the_lowest_priority_and_then_at_its_own():
+    need_root()
+    own = nice_of(0)
+    ready, done = threading.Event(), threading.Event()
+    tids: list[int] = []
+
+    def other() -> None:  # another thread of the worker, a live server's say
+        tids.append(threading.get_native_id())
+        ready.set()
+        done.wait(10)
+
+    thread = threading.Thread(target=other)
+    thread.start()
+    ready.wait(10)
+    try:
+        call = pytest_runtest_call(Item("cpu_bound"))  # type: ignore[arg-type]
+        next(call)
+        assert nice_of(0) == nice_of(tids[0]) == CPU_BOUND_NICE
+        with pytest.raises(StopIteration):
+            next(call)
+        assert nice_of(0) == nice_of(tids[0]) == own
+    finally:
+        done.set()
+        thread.join(10)
+
+
+def test_any_other_call_keeps_its_priority():
+    own = nice_of(0)
+    call = pytest_runtest_call(Item("slow"))  # type: ignore[arg-type]
+    next(call)
+    assert nice_of(0) == own
+    with pytest.raises(StopIteration):
+        next(call)
+
+
+@pytest.mark.cpu_bound
+def test_the_hook_is_installed_in_this_session():
+    """Marked `cpu_bound`: this very call runs at the lowest priority."""
+    need_root()
+    assert nice_of(0) == CPU_BOUND_NICE
