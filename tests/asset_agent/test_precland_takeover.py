@@ -339,6 +339,7 @@ async def test_an_agent_restarted_in_its_search_lands_again_and_one_restarted_in
             assert await memory.recall(KEY) == HOLDING  # a further restart holds too
 
 
+@pytest.mark.slow  # ~11 s: two agents, a take-off and two searches at 4x
 async def test_a_restarted_agents_hand_back_answered_late_is_not_taken_for_anothers(
     autopilot: Autopilot, vehicle: VehicleServer, tmp_path: Path
 ) -> None:
