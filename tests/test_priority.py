@@ -8,7 +8,7 @@ import threading
 import pytest
 
 from tests.conftest import IN_CI
-from tests.priority import CPU_BOUND_NICE, pytest_runtest_call
+from tests.priority import CPU_BOUND_NICE, REALTIME_NICE, pytest_runtest_call
 
 
 class Item:
@@ -35,7 +35,10 @@ def nice_of(tid: int) -> int:
     return os.getpriority(os.PRIO_PROCESS, tid)
 
 
-def test_a_cpu_bound_call_runs_every_thread_at_the_lowest_priority_and_then_at_its_own():
+@pytest.mark.parametrize(
+    ("marker", "nice"), [("cpu_bound", CPU_BOUND_NICE), ("realtime", REALTIME_NICE)]
+)
+def test_a_marked_call_runs_every_thread_at_its_priority_and_then_at_its_own(marker, nice):
     need_root()
     own = nice_of(0)
     ready, done = threading.Event(), threading.Event()
@@ -50,9 +53,9 @@ def test_a_cpu_bound_call_runs_every_thread_at_the_lowest_priority_and_then_at_i
     thread.start()
     ready.wait(10)
     try:
-        call = pytest_runtest_call(Item("cpu_bound"))  # type: ignore[arg-type]
+        call = pytest_runtest_call(Item(marker))  # type: ignore[arg-type]
         next(call)
-        assert nice_of(0) == nice_of(tids[0]) == CPU_BOUND_NICE
+        assert nice_of(0) == nice_of(tids[0]) == nice
         with pytest.raises(StopIteration):
             next(call)
         assert nice_of(0) == nice_of(tids[0]) == own
@@ -75,3 +78,10 @@ def test_the_hook_is_installed_in_this_session():
     """Marked `cpu_bound`: this very call runs at the lowest priority."""
     need_root()
     assert nice_of(0) == CPU_BOUND_NICE
+
+
+@pytest.mark.realtime
+def test_a_realtime_call_runs_ahead_of_the_others_in_this_session():
+    """Marked `realtime`: this very call runs above the default priority."""
+    need_root()
+    assert nice_of(0) == REALTIME_NICE

@@ -100,6 +100,7 @@ BLIND_ABOVE_6M = {
 }
 
 
+@pytest.mark.realtime  # a landing loop through the camera (tests/priority.py)
 async def test_an_agent_restarted_in_its_own_search_hands_the_descent_back_and_the_run_lands(
     live_server, tenant: Tenant, tmp_path
 ):

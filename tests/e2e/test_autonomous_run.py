@@ -114,6 +114,7 @@ async def test_uav_landing_off_the_pad_fails_keeps_the_panels_open_and_alerts(
         assert p.world.base.can_vehicle_leave()  # ...so nothing closed: panels open, lift up
 
 
+@pytest.mark.realtime  # a landing loop through the camera (tests/priority.py)
 async def test_uav_link_lost_in_flight_the_run_waits_then_completes(
     live_server, tenant: Tenant, tmp_path
 ):
@@ -196,6 +197,7 @@ async def test_operator_abort_in_flight_returns_the_uav_lands_and_closes_over_it
         assert p.world.base.contacts_seated and not p.world.base.can_vehicle_leave()
 
 
+@pytest.mark.realtime  # a landing loop through the camera (tests/priority.py)
 async def test_server_killed_while_flying_the_agent_lands_with_precision_and_the_run_resumes(
     database_url, superuser_email, tmp_path
 ):
@@ -238,8 +240,8 @@ async def _lands_by_itself(p) -> None:  # type: ignore[no-untyped-def]
     # 1.1 and 0.36 m: off the scale). With precision landing it lands on the lift; the contacts
     # (5 cm) are seated on a quiet machine (1.5-4.3 cm measured at 4x) but not always under heavy
     # load without RTK (10-14 cm measured at load 8-10 on 2 cores), so the bound is the lift's.
-    print(f"landed during the outage: {_on_the_pad(p)}, {stats}")
-    assert p.copter.pad_distance() < 0.25, _on_the_pad(p)
+    print(f"landed during the outage: {_on_the_pad(p)}, {stats}, {_guarded(p)}")
+    assert p.copter.pad_distance() < 0.25, (_on_the_pad(p), stats, _guarded(p))
 
 
 async def _resumes_and_completes(p, run_id: str) -> None:  # type: ignore[no-untyped-def]
@@ -258,6 +260,20 @@ async def _resumes_and_completes(p, run_id: str) -> None:  # type: ignore[no-unt
     answer = next(c for c in rtb if c["name"] == "return_to_base")
     assert answer["status"] == "succeeded" and "already landed" in answer["reason"], answer
     assert p.agent.autopilot.state.mode != "RTL"  # the landed UAV was not sent back to RTL
+
+
+def _guarded(p) -> dict[str, object]:  # type: ignore[no-untyped-def]
+    """What the agent's takeover made of the landing (for failure messages)."""
+    takeover = p.agent.lander.takeover
+    if takeover is None:
+        return {"takeover": None}
+    guard = takeover.loss_guard
+    return {
+        "path": takeover.path,
+        "taken_into": takeover.taken_into,
+        "failsafe": takeover.failsafe,
+        "losses_at_m": guard.losses if guard is not None else None,
+    }
 
 
 def _on_the_pad(p) -> dict[str, object]:  # type: ignore[no-untyped-def]

@@ -22,6 +22,7 @@ from tests.polling import wait_for
 
 pytestmark = [
     pytest.mark.slow,  # whole processes end to end: not in the fast lane
+    pytest.mark.realtime,  # a landing loop through the camera: ahead of the others (tests/priority.py)
     # above the demo's own 420 s timeout, so that one fails first, with the demo's output
     # (pytest's default 180 s cut it off; 106 and 137 s seen in full runs)
     pytest.mark.timeout(480),

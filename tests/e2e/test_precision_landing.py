@@ -17,7 +17,10 @@ from tests.conftest import Tenant
 from tests.e2e.harness import FINAL, platform
 from tests.polling import eventually
 
-pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
+pytestmark = [
+    pytest.mark.slow,  # whole processes end to end: not in the fast lane
+    pytest.mark.realtime,  # landing loops through the camera: ahead of the others (tests/priority.py)
+]
 
 # slow enough for the detector to see the descent frame by frame, and for the agent's latency in
 # world seconds (its wall latency times SPEED) to stay small on a loaded machine: at 4x, with two
