@@ -9,7 +9,7 @@ vehicle it never took it leaves alone (resume.py). A vehicle another puts in ano
 the agent flies it (an operator's pause, a failsafe's RTL) is left to them; a take the autopilot
 refuses is sent again until touching down, then the landing is the autopilot's. A failsafe the
 autopilot reports (a low battery) leaves it the landing: no retry taken while it lands, LAND
-handed back while the agent flies its retry."""
+handed back while the agent flies its retry or holds the abandoned landing."""
 
 from __future__ import annotations
 
@@ -79,6 +79,31 @@ async def test_no_pad_found_on_a_plain_fix_climbs_to_a_safe_height_and_reports(
         events = lander.drain_events()
         assert [e.kind for e in events] == ["landing_aborted"]
         assert events[0].detail["landing_path"] == "aborted-climb"
+
+
+@pytest.mark.slow  # ~12 s: the search, the climb to the hold, LAND from there at 4x
+async def test_a_failsafe_while_the_abandoned_landing_holds_hands_land_back() -> None:
+    """No pad found on a plain fix: the vehicle holds at the safe height in GUIDED for the
+    operator. The battery fails there with BATT_FS_LOW_ACT none (ArduPilot's default): the
+    autopilot changes no mode, only its HEARTBEAT says CRITICAL, and the vehicle hovered until it
+    would fall. Now LAND is handed back and it lands."""
+    config = CopterConfig(seed=7, failsafe_battery_action="none")
+    async with (
+        run_vehicle(speed=4.0, config=config) as vehicle,
+        precland_adapter(vehicle) as autopilot,
+        lander_with_a_blind_beacon(autopilot, vehicle) as lander,
+        modes_of(vehicle) as modes,
+    ):
+        await take_off_and_land(autopilot, vehicle)
+        await eventually(lambda: lander.takeover and lander.takeover.path, 40, "the search's end")
+        assert lander.takeover is not None and lander.takeover.path == "aborted-climb"
+        assert lander.record.current == HOLDING and autopilot.state.mode == "GUIDED"
+        vehicle.copter.dyn.set_battery(14.0)
+        await eventually(lambda: not autopilot.state.armed, 60, "landed and disarmed")
+        assert vehicle.copter.failsafe  # the premise: the failsafe, with no mode of its own
+    assert modes[-2:] == [GUIDED, LAND]  # from the hold, LAND to the touchdown
+    assert lander.record.current is None  # nothing kept for a restart
+    assert [e.kind for e in lander.drain_events()] == ["landing_aborted"]  # the hold's, once
 
 
 @pytest.mark.slow  # ~10 s: the landing from 10 m at 4x
