@@ -8,7 +8,7 @@ PX4; the adapter asks for it). Until then, and for autopilots that never send it
 
 | from | to | when |
 |---|---|---|
-| any | ON_GROUND | disarmed, or system_status STANDBY (ArduPilot and PX4 report ACTIVE when armed) |
+| any | ON_GROUND | disarmed, or system_status STANDBY (ArduPilot: while its land detector says landed, armed or not; PX4 reports ACTIVE when armed) |
 | ON_GROUND / UNDEFINED | TAKEOFF | armed and climbing faster than `climb_mps` (0.5 m/s) or above `airborne_alt_m` (1 m) |
 | TAKEOFF | IN_AIR | above `airborne_alt_m` and the climb below `still_mps` (0.3 m/s): the take-off altitude is reached |
 | IN_AIR | LANDING | descending faster than `descent_mps` (0.3 m/s) while landing where it is (LAND mode, or AUTO on a NAV_LAND item), or while returning (RTL / SMART_RTL / AUTO_RTL mode, or AUTO on a NAV_RETURN_TO_LAUNCH item) within `home_radius_m` (5 m) of home: RTL's final descent, never its climb or a descent on the way |

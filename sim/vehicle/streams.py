@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sim.vehicle.constants import AUTO, BRAKE, GUIDED, LAND, LOITER, RTL
+from sim.vehicle.constants import AUTO, BRAKE, GUIDED, LAND, LOITER, ON_GROUND, RTL
 from sim.vehicle.mission_link import mission_total
 
 if TYPE_CHECKING:
@@ -31,7 +31,11 @@ def _heartbeat(c: Copter) -> Any:
         base_mode |= 8
     if c.armed:
         base_mode |= 128
-    status = 5 if c.failsafe else 4 if c.armed else 3  # CRITICAL, ACTIVE, STANDBY
+    # as GCS_MAVLINK_Copter::vehicle_system_status: CRITICAL on any failsafe, STANDBY while the
+    # land detector says landed (armed or not: an armed copter on the ground is STANDBY too),
+    # otherwise ACTIVE
+    on_ground = c.guidance.landed_state() == ON_GROUND
+    status = 5 if c.failsafe else 3 if on_ground else 4  # CRITICAL, STANDBY, ACTIVE
     return mavlink.MAVLink_heartbeat_message(2, 3, base_mode, c.mode, status, 3)
 
 
