@@ -19,8 +19,7 @@ acquire_s`, the agent takes the vehicle to search for it and applies the fallbac
 hands the descent back (takeover.py); an abandoned landing is reported as a `landing_aborted`
 event. Restarted while the agent flew the landing itself, it hands the descent back (resume.py).
 An abandoned landing holds in GUIDED at the safe height for the operator; a failsafe the
-autopilot reports meanwhile (a battery's whose action is none, ArduPilot's default, changes no
-mode) hands LAND back (`_failsafe_in_the_hold`): left there, it would hover until it fell.
+autopilot reports meanwhile hands LAND back (hold.py).
 The autopilot's states are stamped with the `SensorClock` (clock.py), so the loop runs in the
 sensors' seconds.
 """
@@ -42,11 +41,12 @@ from asset_agent.config import PreclandSection
 from asset_agent.events import Event
 from asset_agent.precland.clock import SensorClock
 from asset_agent.precland.config import SOURCES, AutopilotDescentConfig, FaultConfig
+from asset_agent.precland.hold import HoldWatch, act_on_first_sight
 from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import Tick, VehicleState
 from asset_agent.precland.report import LandingStats, PadFix, pad_offset_ned
-from asset_agent.precland.resume import HOLDING, Decision, Memory, TakeoverRecord
-from asset_agent.precland.takeover import Takeover, descending, hand_back
+from asset_agent.precland.resume import Memory, TakeoverRecord
+from asset_agent.precland.takeover import Takeover, descending
 from asset_agent.precland.transport import IrReceiver, frames_forever
 from assetlink.dispatch import CommandRequest, result
 from asynckit.tasks import cancel_and_wait
@@ -91,7 +91,7 @@ class PrecisionLander:
         self.record = TakeoverRecord(memory)
         # what a restarted agent does with the vehicle it first finds (resume.py), or a disarm
         self.first_look: asyncio.Task[None] | None = None
-        self._hold_landing: asyncio.Task[None] | None = None  # LAND after a failsafe in the hold
+        self.hold = HoldWatch(autopilot, self.record, self.clock.sleep)  # a failsafe in the hold
         self.events: list[Event] = []  # for the daemon's event stream (drained by the reporter)
         if self.config.mode != "landing_target":
             log.warning(
@@ -172,7 +172,8 @@ class PrecisionLander:
 
     async def _close(self, tasks: list[asyncio.Task[None]], ir: IrReceiver | None) -> None:
         await self._stop_loop()
-        await cancel_and_wait([self._camera_task, self.first_look, self._hold_landing, *tasks])
+        await cancel_and_wait([self._camera_task, self.first_look, *tasks])
+        await self.hold.close()
         if ir is not None:
             ir.close()
 
@@ -187,11 +188,12 @@ class PrecisionLander:
         decision = self.record.first_sight(state) if prior is not None else None
         disarmed = self._armed and not state.armed and self.record.current is not None
         if decision is not None or disarmed:
-            self.first_look = asyncio.create_task(self._resume(decision or "none"))
+            look = act_on_first_sight(
+                self.autopilot, self.record, self.clock.sleep, decision or "none"
+            )
+            self.first_look = asyncio.create_task(look)
         self._armed = bool(state.armed)
-        idle = self._hold_landing is None or self._hold_landing.done()
-        if idle and self._failsafe_in_the_hold(state):
-            self._hold_landing = asyncio.create_task(self._land_the_hold())
+        self.hold.check(state, taken)
         lands = descending(state) or taken
         if lands and self.section.camera_port is not None and self._camera_task is None:
             self._camera_task = asyncio.create_task(self._camera(), name="precland-camera")
@@ -199,7 +201,7 @@ class PrecisionLander:
             self._camera_task.cancel()
             self._camera_task = None
         active = landing_now(state, self.section.activation_height_m) or taken
-        # not before the predecessor's landing is handed back (`_resume`): its LAND, answered
+        # not before the predecessor's landing is handed back (`act_on_first_sight`): its LAND, answered
         # after this landing's takeover began, would be told to it as another's mode change
         resumed = self.first_look is None or self.first_look.done()
         if active and self._loop_task is None and self.ready and prior is not None and resumed:
@@ -247,42 +249,6 @@ class PrecisionLander:
             self._gate_task = asyncio.create_task(self._descent_gate(config.autopilot))
         self.stats.landings += 1
         log.info("precland: active at %.1f m (pad prior %s)", state.alt_rel or 0.0, prior)
-
-    async def _resume(self, decision: Decision) -> None:
-        """A restarted agent's first look at the vehicle (resume.py), or a disarm: hand the
-        landing it finds its predecessor flying back to the autopilot (kept as flying until this
-        landing's takeover says otherwise, or the disarm), leave an abandoned one holding;
-        otherwise forget what was kept."""
-        try:
-            if decision == "resume":
-                log.warning("precland: the previous agent was flying the landing (GUIDED): LAND")
-                await hand_back(self.autopilot, self.clock.sleep)
-            elif decision == "hold":
-                log.warning("precland: the previous agent abandoned the landing: left holding")
-            else:
-                await self.record.keep(None)
-        except Exception:  # a refused mode change, the state file: the autopilot holds it
-            log.exception("precland: the landing the previous agent flew was not handed back")
-
-    def _failsafe_in_the_hold(self, state: Any) -> bool:
-        """The autopilot reports a failsafe while the vehicle holds in GUIDED where this agent
-        (or its predecessor) abandoned the landing (kept HOLDING), no takeover flying it."""
-        if self.record.current != HOLDING or (self.takeover is not None and self.takeover.active):
-            return False
-        return bool(state.failsafe and state.armed and state.mode == "GUIDED")
-
-    async def _land_the_hold(self) -> None:
-        """LAND from the hold: where it is, over the agent's last estimate of the pad; the
-        landing loop sends LANDING_TARGETs on the way down, the takeover takes nothing."""
-        log.warning("precland: a failsafe while holding the abandoned landing: LAND handed back")
-        try:
-            await hand_back(self.autopilot, self.clock.sleep)
-        except Exception:  # another mode (a pilot's), or disarmed: no longer ours either way
-            log.exception("precland: LAND from the hold not taken")
-        try:
-            await self.record.keep(None)
-        except Exception:
-            log.exception("precland: the end of the hold not kept")
 
     async def _take_over(self, takeover: Takeover) -> None:
         try:
