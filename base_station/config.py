@@ -19,6 +19,7 @@ Example `base.toml` (every key optional; these are the defaults)::
     lift_travel_s = 8.0
     timeout_factor = 1.5   # the daemon gives up after travel * factor + margin
     timeout_margin_s = 2.0
+    link_wait_s = 5.0      # with the PLC link down, a motion command waits this long for it
 
     [weather]
     max_wind_mps = 8.0
@@ -86,6 +87,10 @@ class MotionConfig(_Section):
     lift_travel_s: float = Field(default=8.0, gt=0)
     timeout_factor: float = Field(default=1.5, ge=1.0)
     timeout_margin_s: float = Field(default=2.0, ge=0)
+    # a motion command that finds the PLC link down waits this long for it to come back before
+    # it is refused (a missed poll, a frozen heartbeat, a cable blip must not fail a run's
+    # close with the UAV on the lift); 0 refuses at once
+    link_wait_s: float = Field(default=5.0, ge=0, le=60)
 
 
 class WeatherLimits(_Section):

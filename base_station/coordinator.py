@@ -174,6 +174,15 @@ class Coordinator:
                 await asyncio.wait_for(self._tick.wait(), remaining)
         return self.snapshot
 
+    async def wait_link(self, within: float) -> Snapshot:
+        """The current snapshot, or with the link down the first one with it up within `within`
+        seconds (the current one, still down, after that)."""
+        deadline = time.monotonic() + within
+        snap = self.snapshot
+        while not snap.link_up and time.monotonic() < deadline:
+            snap = await self.wait_next(snap.seq, max(0.01, deadline - time.monotonic()))
+        return snap
+
     async def wait_fresh(self, after: float, within: float = 2.0) -> Snapshot:
         """The first snapshot whose read started after monotonic time `after`."""
         deadline = time.monotonic() + within
@@ -211,10 +220,11 @@ class Coordinator:
         self.emit(Event(EventKind.WATCHDOG_RECOVERED, message, {"faults": ["WATCHDOG"]}))
         return written
 
-    async def before_motion(self) -> Snapshot:
-        """The snapshot a motion command is checked against: the current one, or, when a
-        recoverable watchdog latch would refuse it, the first one read after clearing it."""
-        snap = self.snapshot
+    async def before_motion(self, link_wait_s: float = 0.0) -> Snapshot:
+        """The snapshot a motion command is checked against: the current one (with the link down,
+        the first one up within `link_wait_s`), or, when a recoverable watchdog latch would
+        refuse it, the first one read after clearing it."""
+        snap = await self.wait_link(link_wait_s)
         if snap.link_up and snap.plc is not None and recoverable_latch(snap.plc):
             return await self.recover_watchdog()
         return snap

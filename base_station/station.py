@@ -208,7 +208,11 @@ class Station:
     async def _move(
         self, command: str, spec: AxisSpec, direction: int, check: Callable[..., Decision]
     ) -> AsyncIterator[Item]:
-        snap = await self.coord.before_motion()  # a watchdog latch alone is cleared first
+        wait = self.config.motion.link_wait_s
+        if not self.coord.snapshot.link_up and wait > 0:
+            yield Progress(command, "plc_link", f"PLC link down: waiting up to {wait:g} s for it")
+        # the link waited for, a watchdog latch alone cleared first
+        snap = await self.coord.before_motion(wait)
         decision = check(snap.plc, snap.link_up)
         if not decision.allowed:
             yield self._reject(command, decision.reason)
@@ -230,16 +234,28 @@ class Station:
         )
         last_pct = -100.0
         seq = snap.seq
+        rode_out = False  # a link loss waited out already
         while True:
             snap = await self.coord.wait_next(seq, 1.0)
             seq = snap.seq
             if self._stop_gen != gen:
+                if rode_out and snap.link_up:  # a stop sent while the link was down wrote none
+                    await self.coord.write_coil(Coil.MOTION_STOP, True)
                 pos = spec.read(snap.plc).position_pct if snap.plc else 0.0
                 yield self._fail(command, f"stopped by operator: {spec.name} at {pos:.0f} %")
                 return
             outcome, reason = tracker.update(
                 snap.plc, snap.link_up, time.monotonic(), snap.read_started >= written
             )
+            if outcome is Outcome.FAILED and not snap.link_up and not rode_out:
+                # a blip: back within 2 s the PLC's watchdog was fed throughout and the motor
+                # went on; failed now, the motion would go on unwatched and refuse the next
+                rode_out = True
+                yield Progress(command, "plc_link", f"{reason}: waiting up to {wait:g} s for it")
+                back = await self.coord.wait_link(wait)
+                if back.link_up:  # judged again from the next reading on
+                    seq = back.seq - 1
+                    continue
             if outcome is Outcome.SUCCEEDED:
                 yield Result(command, Status.SUCCEEDED, reason)
                 return

@@ -8,6 +8,7 @@ import pytest
 from bs_helpers import Rig, rig_at, run, start_daemon, station_config, stop_daemon
 
 from base_station.events import EventKind
+from base_station.outcomes import Item, Progress, Result
 from base_station.plc import FaultBit
 from base_station.station import Status
 from tests.polling import eventually
@@ -56,9 +57,17 @@ async def test_estop_mid_motion_stops_and_fails_the_command(rig: Rig) -> None:
     assert reset.status is Status.FAILED and "E-stop still active" in reset.reason
 
 
+def waiting_for_the_link(rig: Rig, seconds: float) -> None:
+    """The daemon's motion commands wait `seconds` for a PLC link found down ([motion])."""
+    config = rig.app.station.config
+    motion = config.motion.model_copy(update={"link_wait_s": seconds})
+    rig.app.station.config = config.model_copy(update={"motion": motion})
+
+
 async def test_link_cut_is_reported_and_motion_refused_then_restored_without_motion(
     rig: Rig,
 ) -> None:
+    waiting_for_the_link(rig, 0.3)  # refused once that wait is over
     before = rig.commands()
     await rig.inject("/faults/link", {"mode": "cut"})
     await rig.link_up(False)
@@ -76,6 +85,7 @@ async def test_link_cut_is_reported_and_motion_refused_then_restored_without_mot
 
 
 async def test_link_freeze_is_detected_by_timeout_and_motion_refused(rig: Rig) -> None:
+    waiting_for_the_link(rig, 0.3)
     await rig.inject("/faults/link", {"mode": "freeze"})
     await rig.link_up(False)
     assert "failed" in rig.app.coordinator.snapshot.link_error
@@ -83,6 +93,48 @@ async def test_link_freeze_is_detected_by_timeout_and_motion_refused(rig: Rig) -
     assert result.status is Status.REJECTED and "PLC link down" in result.reason
     await rig.inject("/faults/link", {"mode": "normal"})
     await rig.link_up(True)
+
+
+async def test_a_motion_command_in_a_link_blip_waits_for_the_link_then_runs(rig: Rig) -> None:
+    """A close sent while the link is down for a moment (a missed poll, a frozen heartbeat) was
+    refused at once, and the run failed with the UAV on the lift. Now it waits for the link
+    (`[motion] link_wait_s`), saying so, and runs on the fresh reading's checks."""
+    waiting_for_the_link(rig, 20.0)
+    await rig.inject("/faults/link", {"mode": "cut"})
+    await rig.link_up(False)
+    items: list[Item] = []
+
+    async def command() -> None:
+        async for item in rig.station.execute("open_panels"):
+            items.append(item)
+
+    motion = asyncio.ensure_future(command())
+    told = "PLC link down: waiting up to 20 s for it"
+    await eventually(lambda: any(isinstance(i, Progress) and i.message == told for i in items))
+    assert not motion.done() and "PANELS_OPEN" not in rig.commands()  # nothing written meanwhile
+    await rig.inject("/faults/link", {"mode": "normal"})
+    await asyncio.wait_for(motion, 20)
+    result = items[-1]
+    assert isinstance(result, Result) and result.status is Status.SUCCEEDED, result
+    assert rig.station.telemetry().panels.state == "open"
+
+
+async def test_a_link_blip_mid_motion_is_waited_out_and_the_motion_completes() -> None:
+    """The link lost for a moment while the panels open (under its PLC watchdog's 2 s: the motor
+    goes on). The command failed at once, the motion went on unwatched, and the run's close of
+    the base was refused ("panels already moving"). Now the loss is waited out and the motion
+    followed to its end."""
+    async with rig_at(speed=3.0) as rig:  # panels take 4 s wall
+        waiting_for_the_link(rig, 20.0)
+        motion = asyncio.ensure_future(run(rig.station, "open_panels"))
+        await eventually(lambda: rig.world.base.panels.moving, what="panels moving")
+        await rig.inject("/faults/link", {"mode": "cut"})
+        await rig.link_up(False)
+        await rig.inject("/faults/link", {"mode": "normal"})
+        result = await asyncio.wait_for(motion, 20)
+        assert result.status is Status.SUCCEEDED, result
+        assert rig.station.telemetry().panels.state == "open"
+        assert not rig.world.base.fault_bits() & FaultBit.WATCHDOG  # the blip was a blip
 
 
 @pytest.mark.slow
