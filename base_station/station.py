@@ -9,8 +9,9 @@ Stop, ResetFaults. `subscribe()` streams `Event`s. These two are all a server li
 Safety rules enforced here: one motion at a time (a duplicate or replayed motion command
 while one runs is rejected; one whose target is already reached succeeds without writing
 anything); interlocks checked by the daemon before any write, with the reason; `stop` is
-accepted in every state; motion fails (and is reported) on E-stop, stall, link loss or
-travel timeout.
+accepted in every state; motion fails (and is reported) on E-stop, stall, a link loss not back
+within `[motion] link_wait_s`, or travel timeout. Charging and the availability check, which
+move nothing, are charging.py's.
 """
 
 from __future__ import annotations
@@ -23,21 +24,18 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from base_station.availability import availability
 from base_station.base_telemetry import build_telemetry
+from base_station.charging import ChargingCommands
 from base_station.config import StationConfig
 from base_station.coordinator import Coordinator
 from base_station.devices.axis import AxisSpec, Decision, MotionTracker, Outcome
-from base_station.devices.charger import charger_idle_reason, check_start_charging
 from base_station.devices.lift import LIFT, check_lift_down, check_lift_up
 from base_station.devices.panels import PANELS, check_close_panels, check_open_panels
 from base_station.events import Event, EventKind, Subscription
 from base_station.outcomes import Item, Progress, Result, Status
 from base_station.plc import (
     MOTION_BLOCKING_FAULTS,
-    ChargerState,
     Coil,
-    HoldingRegister,
     PlcLinkError,
     fault_names,
 )
@@ -72,6 +70,7 @@ class Station:
         self.config = config
         self._motion: str | None = None
         self._stop_gen = 0
+        self._charging = ChargingCommands(coordinator, config, self._reject, self._fail)
         self._handlers: dict[type[CommandParams], CommandHandler] = {
             Open: self._open,
             Close: self._close,
@@ -79,9 +78,9 @@ class Station:
             ClosePanels: self._axis_cmd(PANELS, -1, check_close_panels),
             LiftUp: self._axis_cmd(LIFT, +1, check_lift_up),
             LiftDown: self._axis_cmd(LIFT, -1, check_lift_down),
-            StartCharging: self._start_charging,
-            StopCharging: self._stop_charging,
-            CheckAvailability: self._check_availability,
+            StartCharging: self._charging.start,
+            StopCharging: self._charging.stop,
+            CheckAvailability: self._charging.check_availability,
             Stop: self._stop,
             ResetFaults: self._reset_faults,
         }
@@ -349,67 +348,3 @@ class Station:
             yield Result(
                 name, Status.SUCCEEDED, "faults cleared", {"faults": list(plc.fault_names)}
             )
-
-    # --- charging and availability -------------------------------------------------------
-
-    async def _start_charging(self, command: StartCharging) -> AsyncIterator[Item]:
-        name = command.name
-        limit = command.current_limit_ma
-        if limit is None:
-            limit = self.config.charge.current_limit_ma
-        snap = self.coord.snapshot
-        decision = check_start_charging(snap.plc, snap.link_up)
-        if not decision.allowed:
-            yield self._reject(name, decision.reason)
-            return
-        await self.coord.write_register(HoldingRegister.CHARGE_CURRENT_LIMIT, limit)
-        written = await self.coord.write_coil(Coil.CHARGER_ENABLE, True)
-        yield Progress(name, "charger_enabled", f"charger enabled, limit {limit} mA")
-        window = self.config.charge.start_timeout_s
-        deadline = written + window
-        snap = await self.coord.wait_fresh(written)
-        while True:
-            plc = snap.plc
-            if (
-                snap.link_up
-                and plc is not None
-                and plc.charger_state in (ChargerState.CHARGING, ChargerState.COMPLETE)
-            ):
-                yield Result(
-                    name,
-                    Status.SUCCEEDED,
-                    f"charger {plc.charger_state.name.lower()}",
-                    {
-                        "current_ma": plc.charge_current_ma,
-                        "uav_battery_pct": plc.uav_battery_soc_pct,
-                    },
-                )
-                return
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                break
-            # a strictly newer poll, awaited: re-reading the same snapshot would spin the loop
-            snap = await self.coord.wait_next(snap.seq, remaining)
-        yield self._fail(
-            name,
-            f"charger did not start within {window:g} s: "
-            + charger_idle_reason(snap.plc, snap.link_up),
-        )
-
-    async def _stop_charging(self, command: CommandParams) -> AsyncIterator[Item]:
-        name = command.name
-        if not self.coord.snapshot.link_up:
-            yield self._fail(name, "PLC link down")
-            return
-        await self.coord.write_coil(Coil.CHARGER_ENABLE, False)
-        yield Result(name, Status.SUCCEEDED, "charger disabled")
-
-    async def _check_availability(self, command: CheckAvailability) -> AsyncIterator[Item]:
-        # mass_g / mass_window_g are typed but unused: the UAV window comes from config.uav
-        name = command.name
-        report = availability(self.coord.snapshot, self.config)
-        data = report.model_dump(mode="json")
-        if not report.available:
-            yield Result(name, Status.REJECTED, "not available: " + report.summary, data)
-        else:
-            yield Result(name, Status.SUCCEEDED, "available", data)
