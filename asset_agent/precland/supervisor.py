@@ -41,7 +41,7 @@ from asset_agent.config import PreclandSection
 from asset_agent.events import Event
 from asset_agent.precland.clock import SensorClock
 from asset_agent.precland.config import SOURCES, AutopilotDescentConfig, FaultConfig
-from asset_agent.precland.hold import HoldWatch, act_on_first_sight
+from asset_agent.precland.hold import HoldWatch
 from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import Tick, VehicleState
 from asset_agent.precland.report import LandingStats, PadFix, pad_offset_ned
@@ -91,7 +91,8 @@ class PrecisionLander:
         self.record = TakeoverRecord(memory)
         # what a restarted agent does with the vehicle it first finds (resume.py), or a disarm
         self.first_look: asyncio.Task[None] | None = None
-        self.hold = HoldWatch(autopilot, self.record, self.clock.sleep)  # a failsafe in the hold
+        # the first look, and a failsafe in the hold of an abandoned landing (hold.py)
+        self.hold = HoldWatch(autopilot, self.record, self.clock.sleep)
         self.events: list[Event] = []  # for the daemon's event stream (drained by the reporter)
         if self.config.mode != "landing_target":
             log.warning(
@@ -188,9 +189,7 @@ class PrecisionLander:
         decision = self.record.first_sight(state) if prior is not None else None
         disarmed = self._armed and not state.armed and self.record.current is not None
         if decision is not None or disarmed:
-            look = act_on_first_sight(
-                self.autopilot, self.record, self.clock.sleep, decision or "none"
-            )
+            look = self.hold.act_on_first_sight(decision or "none")
             self.first_look = asyncio.create_task(look)
         self._armed = bool(state.armed)
         self.hold.check(state, taken)
@@ -201,8 +200,9 @@ class PrecisionLander:
             self._camera_task.cancel()
             self._camera_task = None
         active = landing_now(state, self.section.activation_height_m) or taken
-        # not before the predecessor's landing is handed back (`act_on_first_sight`): its LAND, answered
-        # after this landing's takeover began, would be told to it as another's mode change
+        # not before the predecessor's landing is handed back (`act_on_first_sight`): its LAND,
+        # answered after this landing's takeover began, would be told to it as another's mode
+        # change
         resumed = self.first_look is None or self.first_look.done()
         if active and self._loop_task is None and self.ready and prior is not None and resumed:
             self._start_loop(state, prior)
