@@ -339,9 +339,11 @@ RunState = Literal[
     "closing",
     "charging",
     "completed",
+    "incomplete",
     "aborted",
     "failed",
 ]
+RunOutcomeName = Literal["completed", "completed_with_issues", "incomplete", "aborted", "failed"]
 
 
 class RunProgressPayload(Frozen):
@@ -353,8 +355,9 @@ class RunProgressPayload(Frozen):
     total_steps: Annotated[int, Field(ge=0)]
     label: str
     final: bool
-    outcome: Literal["completed", "aborted", "failed"] | None = None
+    outcome: RunOutcomeName | None = None
     cause: str | None = None
+    issues: tuple[str, ...] = ()
     reason: str = ""
     alert: bool = False
     mission_id: uuid.UUID

@@ -13,7 +13,14 @@ from server.kit.openapi import errors
 from server.kit.paging import PAGED, Paging
 from server.kit.types import Timestamp
 from server.runs.machine import State
-from server.runs.schemas import AbortRequest, FleetReport, RunCreate, RunOut, RunReport
+from server.runs.schemas import (
+    AbortRequest,
+    FleetReport,
+    RunCreate,
+    RunOut,
+    RunOutcome,
+    RunReport,
+)
 from server.runs.service import RunService, run_out
 
 router = APIRouter(tags=["runs"])
@@ -44,10 +51,14 @@ async def create_run(body: RunCreate, runs: RunsOperator) -> RunOut:
 
 @router.get("/api/v1/runs", response_model=list[RunOut], responses=PAGED)
 async def list_runs(
-    runs: Runs, pages: Paging, state: State | None = None, uav_id: uuid.UUID | None = None
+    runs: Runs,
+    pages: Paging,
+    state: State | None = None,
+    uav_id: uuid.UUID | None = None,
+    outcome: RunOutcome | None = None,
 ) -> list[RunOut]:
-    """Runs of the caller's organisation, newest first."""
-    found = await runs.list_runs(pages.page, state, uav_id)
+    """Runs of the caller's organisation, newest first (by state, UAV or outcome)."""
+    found = await runs.list_runs(pages.page, state, uav_id, outcome)
     pages.respond(found.total)
     return [run_out(r) for r in found.items]
 

@@ -21,12 +21,10 @@ from protocol.vocabulary import (
     CheckAvailability,
     CommandParams,
     MissionItem,
-    RunProgressPayload,
     UploadMission,
 )
 from server.assets.models import Asset
 from server.commands import service as commands
-from server.kit import metrics
 from server.kit.periodic import Periodic
 from server.kit.principal import Principal, Role
 from server.kit.time import utcnow
@@ -36,7 +34,6 @@ from server.runs.energy import return_margin
 from server.runs.machine import (
     FINAL,
     STEPS,
-    TOTAL_STEPS,
     Action,
     CommandOutcome,
     Observations,
@@ -45,33 +42,13 @@ from server.runs.machine import (
     advance,
 )
 from server.runs.models import Run, RunStepCommand
+from server.runs.outcome import Flight, Verdict, judge
+from server.runs.progress import observe_transition, progress_payload
 from server.runs.settle import settle
 from server.services import Services
 
 log = logging.getLogger(__name__)
 LEASE_S = 8.0  # a dead holder's runs are taken over within 8 s (+ one tick)
-
-
-def progress_payload(run: Run, label_override: str | None = None) -> RunProgressPayload:
-    """What operators see of a run: readable step, number, status, reason."""
-    state = State(run.state)
-    step = STEPS[state]
-    return RunProgressPayload(
-        run_id=run.id,
-        state=state.value,
-        step=step.number,
-        total_steps=TOTAL_STEPS,
-        label=label_override or step.label,
-        final=state in FINAL,
-        outcome=run.outcome,  # type: ignore[arg-type]
-        cause=run.cause,
-        reason=run.reason,
-        alert=run.alert,
-        mission_id=run.mission_id,
-        uav_id=run.uav_id,
-        base_id=run.base_id,
-        at=utcnow(),
-    )
 
 
 class RunEngine:
@@ -145,12 +122,18 @@ class RunEngine:
                 await db.commit()
             else:
                 obs = await self._observe(db, run)
+                if self._abort_noted(db, run):
+                    await db.commit()
                 transition = advance(State(run.state), obs, aborting=run.aborting)
                 if transition is None:
                     return
                 previous, entered = run.state, run.step_started_at
+                verdict = None
+                if transition.to in FINAL:
+                    verdict = judge(transition, await self._flight(db, run), _charging(obs))
+                    transition = verdict.transition
                 # written first: a server that dies right after this resumes in the new step
-                await self._record(db, run, transition)
+                await self._record(db, run, transition, verdict)
                 await db.commit()
                 observe_transition(previous, entered, run)
                 log.info(
@@ -185,8 +168,37 @@ class RunEngine:
         )
         return True
 
-    async def _record(self, db: Any, run: Run, transition: Transition) -> None:
-        """The transition in the timeline, the run in its new step, the step's commands pending."""
+    def _abort_noted(self, db: Any, run: Run) -> bool:
+        """An abort asked for in a step that has no abort exit (the UAV is already landing or
+        back): noted in the timeline where it was asked (so the console shows it there, not at
+        the step the run ends in), and carried out as an aborting run. True if noted."""
+        state = State(run.state)
+        if not run.abort_requested or run.aborting or state in FINAL or STEPS[state].abort:
+            return False
+        why = f"aborted by an operator: {run.abort_reason}" if run.abort_reason else "aborted"
+        repo.note(
+            db, run, run.state, f"{why}; the run finishes {STEPS[state].label.lower()} first",
+            "operator_abort", utcnow(),
+        )  # fmt: skip
+        run.aborting = True
+        return True
+
+    async def _flight(self, db: Any, run: Run) -> Flight:
+        """What the UAV reported of its flight and how the run's flying step ended."""
+        if run.flight_started_at is None:
+            return Flight()
+        names = await repo.event_names_since(db, run.uav_id, run.flight_started_at)
+        return Flight(
+            mission_finished="mission_finished" in names,
+            returned=await repo.flying_exit_cause(db, run.id),
+            operator_return=await repo.operator_returned(db, run.uav_id, run.flight_started_at),
+        )
+
+    async def _record(
+        self, db: Any, run: Run, transition: Transition, verdict: Verdict | None = None
+    ) -> None:
+        """The transition in the timeline, the run in its new step, the step's commands pending;
+        a final one with its verdict (outcome.py) and the flight time the UAV reported."""
         now = utcnow()
         repo.note(db, run, transition.to.value, transition.reason, transition.cause, now)
         if transition.cause == "operator_abort":
@@ -202,11 +214,14 @@ class RunEngine:
         await repo.replace_step_commands(db, run.id, pending)
         run.actions_issued = not pending
         if transition.to in FINAL:
-            run.outcome, run.cause, run.finished_at = (
-                transition.to.value,
-                transition.cause or None,
-                now,
-            )
+            run.finished_at = now
+            run.outcome = verdict.outcome.value if verdict else transition.to.value
+            run.cause = verdict.cause if verdict else transition.cause or None
+            run.issues = [i.value for i in verdict.issues] if verdict else []
+            if run.flight_started_at is not None:
+                run.flight_time_s = await repo.reported_flight_s(
+                    db, run.uav_id, run.flight_started_at
+                )
 
     async def _publish(self, run: Run) -> None:
         message = RunProgress(payload=progress_payload(run)).model_dump(mode="json")
@@ -339,6 +354,10 @@ class RunEngine:
         )
 
 
+def _charging(obs: Observations) -> CommandOutcome | None:
+    return obs.commands.get(("base", "start_charging"))
+
+
 def _system(run: Run) -> Principal:
     """The run's own reader of its organisation's rows (zones)."""
     return Principal(
@@ -348,14 +367,6 @@ def _system(run: Run) -> Principal:
         role=Role.viewer,
         label=f"run {run.id}",
     )
-
-
-def observe_transition(left: str, entered: datetime | None, run: Run) -> None:
-    """The time spent in the step just left; a run that ended counted by outcome and cause."""
-    if entered is not None:
-        metrics.RUN_STEP.labels(left).observe((utcnow() - entered).total_seconds())
-    if run.outcome is not None and State(run.state) in FINAL:
-        metrics.RUNS.labels(run.outcome, run.cause or "").inc()
 
 
 def _after(ts: str | None, since: datetime) -> bool:

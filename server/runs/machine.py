@@ -47,7 +47,8 @@ from protocol.vocabulary import (
 
 class RunState(enum.StrEnum):
     """Where a run stands: `pending`, then the eight steps `checking` … `charging`, then one of
-    the final states `completed`, `aborted`, `failed`."""
+    the final states `completed`, `incomplete`, `aborted`, `failed` (outcome.py decides between
+    `completed` and `incomplete` once the sequence has run to its end)."""
 
     pending = "pending"
     checking = "checking"
@@ -59,13 +60,14 @@ class RunState(enum.StrEnum):
     closing = "closing"
     charging = "charging"
     completed = "completed"
+    incomplete = "incomplete"
     aborted = "aborted"
     failed = "failed"
 
 
 State = RunState  # the engine's short name
 
-FINAL = frozenset({State.completed, State.aborted, State.failed})
+FINAL = frozenset({State.completed, State.incomplete, State.aborted, State.failed})
 AIRBORNE = frozenset({State.flying, State.landing})
 TOTAL_STEPS = 8
 Target = Literal["base", "uav"]
@@ -207,8 +209,14 @@ def on_the_lift(seen: Seen) -> bool:
 
 
 def mission_finished(seen: Seen) -> bool:
-    """The UAV reports its mission over (or already landing)."""
-    return bool({"mission_finished", "landing", "landed"} & set(seen.obs.uav_events))
+    """The UAV reports its mission flown to its last item (its own `mission_finished`)."""
+    return "mission_finished" in seen.obs.uav_events
+
+
+def coming_down_early(seen: Seen) -> bool:
+    """The UAV is landing (or has landed) without having reported its mission finished: it was
+    sent home outside this run (an operator's return, its own failsafe)."""
+    return bool({"landing", "landed"} & set(seen.obs.uav_events))
 
 
 def uav_landed(seen: Seen) -> bool:
@@ -377,6 +385,9 @@ STEPS: dict[State, Step] = {
                      "it to the base; landing there", "fence_breach", alert=True,
                      when=fence_breached),
                 Exit(State.landing, "mission finished", when=mission_finished),
+                Exit(State.landing, "the UAV is landing before reporting its mission finished "
+                     "(sent home outside this run: an operator's return or its own failsafe)",
+                     "returned_early", when=coming_down_early),
                 Exit(State.landing, "the battery is at its return reserve (margin {margin} % "
                      "after flying home against the wind); returning to the base",
                      "battery_reserve", alert=True, when=reserve_reached),
@@ -467,6 +478,7 @@ STEPS: dict[State, Step] = {
             ),
         ),
         Step(State.completed, 9, "Completed"),
+        Step(State.incomplete, 9, "Incomplete"),
         Step(State.aborted, 9, "Aborted"),
         Step(State.failed, 9, "Failed"),
     )

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import uuid
 from datetime import datetime
+from typing import Any
 
-from sqlalchemy import Float, ForeignKey, Index, String
+from sqlalchemy import JSON, Float, ForeignKey, Index, String
 from sqlalchemy.orm import Mapped, mapped_column
 
 from server.kit.db import Base, IdMixin
@@ -38,15 +39,18 @@ class Run(IdMixin, Base):
     aborting: Mapped[bool] = mapped_column(default=False)
     abort_requested: Mapped[bool] = mapped_column(default=False)
     abort_reason: Mapped[str] = mapped_column(String(2000), default="")
-    outcome: Mapped[str | None] = mapped_column(
-        String(16), default=None
-    )  # completed | aborted | failed
+    # completed | completed_with_issues | incomplete | aborted | failed (runs/outcome.py)
+    outcome: Mapped[str | None] = mapped_column(String(32), default=None)
     cause: Mapped[str | None] = mapped_column(String(64), default=None)
+    # degradations that did not stop the job: charging_refused, landing_off_contacts
+    issues: Mapped[list[Any]] = mapped_column(JSON, default=list)
     reason: Mapped[str] = mapped_column(String(2000), default="")
     alert: Mapped[bool] = mapped_column(default=False)
     flight_started_at: Mapped[datetime | None] = mapped_column(default=None)
     flight_ended_at: Mapped[datetime | None] = mapped_column(default=None)
     landing_error_m: Mapped[float | None] = mapped_column(Float, default=None)
+    # take-off to touchdown by the UAV's own events, written when the run ends
+    flight_time_s: Mapped[float | None] = mapped_column(Float, default=None)
     lease_owner: Mapped[str | None] = mapped_column(String(64), default=None)
     lease_until: Mapped[datetime] = mapped_column(default=utcnow)
     created_by: Mapped[str | None] = mapped_column(String(64), default=None)

@@ -15,6 +15,7 @@ from server.kit import metrics
 from server.kit.errors import NotFound
 from server.kit.paging import Page, Paged, paginate
 from server.kit.scope import ScopedRepository, scoped
+from server.kit.time import utcnow
 from server.runs.machine import FINAL, Action
 from server.runs.models import Run, RunStepCommand, RunTransition
 from server.telemetry.models import AssetEvent
@@ -28,11 +29,15 @@ class RunRepository(ScopedRepository[Run]):
     model = Run
     noun = "run"
 
-    async def filtered(self, page: Page, state: str | None, uav_id: uuid.UUID | None) -> Paged[Run]:
-        """Newest first, optionally by state or UAV."""
+    async def filtered(
+        self, page: Page, state: str | None, uav_id: uuid.UUID | None, outcome: str | None = None
+    ) -> Paged[Run]:
+        """Newest first, optionally by state, UAV or outcome."""
         stmt = self.select().order_by(Run.created_at.desc(), Run.id)
         if state:
             stmt = stmt.where(Run.state == state)
+        if outcome:
+            stmt = stmt.where(Run.outcome == outcome)
         if uav_id:
             stmt = stmt.where(Run.uav_id == uav_id)
         return await paginate(self.db, stmt, page)
@@ -85,6 +90,16 @@ class RunRepository(ScopedRepository[Run]):
         if run.finished_at is not None:
             stmt = stmt.where(AssetEvent.created_at <= run.finished_at)
         return list((await self.db.execute(stmt.order_by(AssetEvent.created_at))).scalars())
+
+    async def flight_so_far(self, run: Run) -> float | None:
+        """A flying run's time in the air by the UAV's own clock: its `took_off` to now (its
+        `landed` once reported)."""
+        took_off = await self.flight_events(run, "took_off")
+        if not took_off:
+            return None
+        landed = [e.ts for e in await self.flight_events(run, "landed") if e.ts >= took_off[0].ts]
+        end = landed[0] if landed else utcnow()
+        return max(0.0, (end - took_off[0].ts).total_seconds())
 
     async def landing_events(self, run: Run) -> tuple[AssetEvent | None, AssetEvent | None]:
         """The UAV's last `landed` and the base's first `landing_confirmed` event of a run's flight."""
@@ -231,3 +246,50 @@ async def replace_step_commands(
     db.add_all(rows.values())
     await db.flush()
     return list(rows.values())
+
+
+async def flying_exit_cause(db: AsyncSession, run_id: uuid.UUID) -> str:
+    """The cause of the run's step out of `flying` ("" for a mission finished or none yet)."""
+    stmt = (
+        select(RunTransition.cause)  # unscoped: engine, a run it holds the lock of
+        .where(RunTransition.run_id == run_id, RunTransition.from_state == "flying")
+        .where(RunTransition.to_state != "flying")
+        .order_by(RunTransition.at)
+        .limit(1)
+    )
+    return (await db.execute(stmt)).scalar_one_or_none() or ""
+
+
+async def operator_returned(db: AsyncSession, uav_id: uuid.UUID, since: datetime) -> bool:
+    """A person (not a run) sent the UAV a `return_to_base` or `abort` since `since`."""
+    stmt = (
+        select(AssetCommand.id)  # unscoped: engine
+        .where(
+            AssetCommand.asset_id == uav_id,
+            AssetCommand.name.in_(("return_to_base", "abort")),
+            AssetCommand.created_at >= since,
+            or_(AssetCommand.created_by.is_(None), AssetCommand.created_by.not_like("run:%")),
+        )
+        .limit(1)
+    )
+    return (await db.execute(stmt)).first() is not None
+
+
+async def reported_flight_s(db: AsyncSession, uav_id: uuid.UUID, since: datetime) -> float | None:
+    """Take-off to touchdown as the UAV reported them (its `took_off` and the first `landed`
+    after it, by the UAV's own clock), for a flight that began at `since`; None without both."""
+    stmt = (
+        select(AssetEvent.name, AssetEvent.ts)  # unscoped: engine
+        .where(
+            AssetEvent.asset_id == uav_id,
+            AssetEvent.name.in_(("took_off", "landed")),
+            AssetEvent.created_at >= since,
+        )
+        .order_by(AssetEvent.ts)
+    )
+    rows = (await db.execute(stmt)).all()
+    took_off = next((ts for name, ts in rows if name == "took_off"), None)
+    if took_off is None:
+        return None
+    landed = next((ts for name, ts in rows if name == "landed" and ts >= took_off), None)
+    return None if landed is None else max(0.0, (landed - took_off).total_seconds())

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import enum
 import uuid
 from typing import Any
 
@@ -10,15 +9,10 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from server.kit.types import Text, Timestamp
 from server.runs.machine import RunState
+from server.runs.outcome import RunIssue, RunOutcome
 from server.video.schemas import RecordingOut
 
-
-class RunOutcome(enum.StrEnum):
-    """How a finished run ended (its final state)."""
-
-    completed = "completed"
-    aborted = "aborted"
-    failed = "failed"
+__all__ = ["RunIssue", "RunOutcome"]  # the API's enums, decided in runs/outcome.py
 
 
 class RunCreate(BaseModel):
@@ -64,6 +58,11 @@ class RunOut(BaseModel):
     label: str = ""
     outcome: RunOutcome | None
     cause: str | None
+    issues: list[RunIssue] = Field(
+        default_factory=list,
+        description="degradations that did not stop the job (a `completed_with_issues` run's, or "
+        "any run's whose charging was refused): `charging_refused`, `landing_off_contacts`",
+    )
     reason: str
     alert: bool
     abort_requested: bool
@@ -113,7 +112,10 @@ class RunReport(BaseModel):
     """The flight history of one run."""
 
     run: RunOut
-    flight_time_s: float | None
+    flight_time_s: float | None = Field(
+        description="take-off to touchdown by the UAV's own `took_off` and `landed` events (to "
+        "now while it flies); null before take-off"
+    )
     battery_used_pct: float | None
     landing_error_m: float | None = Field(
         description="the agent's measured touchdown offset (landing.agent_offset_m)"
@@ -142,21 +144,38 @@ class AssetSummary(BaseModel):
 
     asset_id: uuid.UUID
     runs: int
-    completed: int
+    completed: int = Field(description="runs of the asset that ended `completed` (clean)")
     flight_time_s: float
 
 
 class FleetReport(BaseModel):
-    """Runs in a window: counts, success rate, failures by cause, mean flight time, per asset."""
+    """Runs in a window: counts by outcome, success rate, the rest by outcome and cause, mean
+    flight time, per asset."""
 
     start: Timestamp
     end: Timestamp
     runs: int
-    completed: int
+    completed: int = Field(description="runs that ended `completed`: the job done, no issue")
+    completed_with_issues: int = Field(
+        description="runs that did the job with a degradation (charging refused, off the contacts)"
+    )
+    incomplete: int = Field(description="runs that came back before their mission's last item")
     aborted: int
     failed: int
     in_progress: int
-    success_rate: float | None
-    failures_by_cause: dict[str, int]
-    mean_flight_time_s: float | None
+    success_rate: float | None = Field(
+        description="`completed` runs over finished runs (null with none finished): only a clean "
+        "completion counts; `completed_with_issues` and `incomplete` do not"
+    )
+    by_outcome: dict[RunOutcome, dict[str, int]] = Field(
+        description="finished runs other than `completed`, by outcome then cause (an issue for "
+        '`completed_with_issues`), e.g. `{"incomplete": {"battery_reserve": 1}}`'
+    )
+    failures_by_cause: dict[str, int] = Field(
+        description="every finished run that is not `completed`, by cause (summed over outcomes)"
+    )
+    mean_flight_time_s: float | None = Field(
+        description="mean take-off to touchdown of the finished runs that flew, by the UAV's own "
+        "`took_off` and `landed` events"
+    )
     per_asset: list[AssetSummary]

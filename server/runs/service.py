@@ -19,9 +19,9 @@ from server.kit.principal import Principal
 from server.kit.service import Service
 from server.kit.time import utcnow
 from server.kit.uow import UnitOfWork
-from server.runs.engine import progress_payload
 from server.runs.machine import FINAL, State
 from server.runs.models import Run
+from server.runs.progress import progress_payload
 from server.runs.repository import RunRepository
 from server.runs.reserve import return_model
 from server.runs.schemas import (
@@ -30,6 +30,7 @@ from server.runs.schemas import (
     FleetReport,
     LandingReport,
     RunOut,
+    RunOutcome,
     RunReport,
     TransitionOut,
 )
@@ -106,11 +107,8 @@ def run_out(run: Run, timeline: list[Any] | None = None) -> RunOut:
 
 
 def _flight_time(run: Run) -> float | None:
-    start = run.flight_started_at
-    if start is None:
-        return None
-    end = run.flight_ended_at or run.finished_at or utcnow()
-    return max(0.0, (end - start).total_seconds())
+    """Take-off to touchdown as the UAV reported them, written when the run ended."""
+    return run.flight_time_s
 
 
 async def report(
@@ -138,9 +136,12 @@ async def report(
     used = round(batteries[0] - batteries[-1], 2) if len(batteries) >= 2 else None
     landing = landing_report(*await runs.landing_events(run))
     measured = landing.agent_offset_m if landing else None
+    flown = run.flight_time_s
+    if flown is None and run.finished_at is None and run.flight_started_at is not None:
+        flown = await runs.flight_so_far(run)
     return RunReport(
         run=run_out(run, timeline),
-        flight_time_s=_flight_time(run),
+        flight_time_s=flown,
         battery_used_pct=used,
         landing_error_m=run.landing_error_m if run.landing_error_m is not None else measured,
         landing=landing,
@@ -241,12 +242,21 @@ def landing_report(landed: AssetEvent | None, confirmed: AssetEvent | None) -> L
 
 
 def fleet(runs_in_window: list[Run], start: datetime, end: datetime) -> FleetReport:
-    """The fleet summary of a window (pure)."""
-    outcome = Counter(r.outcome for r in runs_in_window if r.state in {s.value for s in FINAL})
-    causes = Counter(
-        r.cause or "unknown" for r in runs_in_window if r.outcome in ("failed", "aborted")
-    )
-    finished = sum(outcome.values())
+    """The fleet summary of a window (pure): only `completed` is a success; every other finished
+    run is counted by its outcome and cause."""
+    ended = [
+        (r, RunOutcome(r.outcome))
+        for r in runs_in_window
+        if r.state in {s.value for s in FINAL} and r.outcome
+    ]
+    outcome = Counter(o.value for _, o in ended)
+    rest = [(r, o) for r, o in ended if o != RunOutcome.completed]
+    causes = Counter(r.cause or "unknown" for r, _ in rest)
+    by_outcome: dict[RunOutcome, dict[str, int]] = {}
+    for r, o in rest:
+        counts = by_outcome.setdefault(o, {})
+        counts[r.cause or "unknown"] = counts.get(r.cause or "unknown", 0) + 1
+    finished = len(ended)
     per: dict[uuid.UUID, dict[str, Any]] = defaultdict(
         lambda: {"runs": 0, "completed": 0, "flight": 0.0}
     )
@@ -257,17 +267,20 @@ def fleet(runs_in_window: list[Run], start: datetime, end: datetime) -> FleetRep
             per[asset_id]["runs"] += 1
             per[asset_id]["completed"] += r.outcome == "completed"
             per[asset_id]["flight"] += ft
-        if r.flight_started_at is not None and r.state in {s.value for s in FINAL}:
+        if r.flight_time_s is not None and r.state in {s.value for s in FINAL}:
             times.append(ft)
     return FleetReport(
         start=start,
         end=end,
         runs=len(runs_in_window),
         completed=outcome.get("completed", 0),
+        completed_with_issues=outcome.get("completed_with_issues", 0),
+        incomplete=outcome.get("incomplete", 0),
         aborted=outcome.get("aborted", 0),
         failed=outcome.get("failed", 0),
         in_progress=len(runs_in_window) - finished,
         success_rate=round(outcome.get("completed", 0) / finished, 4) if finished else None,
+        by_outcome=by_outcome,
         failures_by_cause=dict(causes),
         mean_flight_time_s=sum(times) / len(times) if times else None,
         per_asset=[
@@ -298,10 +311,16 @@ class RunService(Service):
         )
 
     async def list_runs(
-        self, page: Page, state: State | None, uav_id: uuid.UUID | None
+        self,
+        page: Page,
+        state: State | None,
+        uav_id: uuid.UUID | None,
+        outcome: RunOutcome | None = None,
     ) -> Paged[Run]:
         """Runs of the caller's organisation, newest first."""
-        return await self.repo.filtered(page, state.value if state else None, uav_id)
+        return await self.repo.filtered(
+            page, state.value if state else None, uav_id, outcome.value if outcome else None
+        )
 
     async def with_timeline(self, run_id: uuid.UUID) -> RunOut:
         """A run with its timeline."""

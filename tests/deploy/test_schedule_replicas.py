@@ -34,7 +34,7 @@ from tests.replicas import replicas
 
 pytestmark = pytest.mark.slow
 
-FINAL = ("completed", "aborted", "failed")
+FINAL = ("completed", "incomplete", "aborted", "failed")
 DUE_TIMES = 20
 INTERVAL_S = 4
 

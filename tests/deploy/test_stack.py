@@ -338,7 +338,11 @@ def test_the_stack_starts_as_the_readme_says_and_flies_the_demo_through_the_prox
 
             def final() -> Any:
                 body = api.get(f"/api/v1/runs/{run_id}", headers=ops).json()
-                return body if body["state"] in ("completed", "aborted", "failed") else None
+                return (
+                    body
+                    if body["state"] in ("completed", "incomplete", "aborted", "failed")
+                    else None
+                )
 
             done = wait_for(final, within=420, what="the run to end", interval=1)
             assert done["state"] == "completed", done

@@ -32,7 +32,7 @@ from tests.conftest import Tenant
 from tests.e2e.base_process import BaseDaemon
 
 SPEED = 10.0
-FINAL = ("completed", "aborted", "failed")
+FINAL = ("completed", "incomplete", "aborted", "failed")
 
 
 def mission_items(lat: float, lon: float) -> list[dict[str, Any]]:

@@ -24,7 +24,10 @@ async def test_a_run_walks_the_whole_sequence_and_completes(live_server, tenant:
         run_id = await p.start_run()
         body = await p.wait_state(run_id, FINAL, 150)
         assert body["state"] == "completed", (body["reason"], body["timeline"])
+        assert body["outcome"] == "completed" and body["cause"] is None and body["issues"] == []
         assert [t["to_state"] for t in body["timeline"]] == [*WHOLE_SEQUENCE, "completed"]
+        fleet = (await p.api.get("/api/v1/reports/fleet", headers=p.tenant.h("viewer"))).json()
+        assert (fleet["completed"], fleet["success_rate"], fleet["by_outcome"]) == (1, 1.0, {})
         # the run moved the run counters operators alert on
         after = (await p.api.get("/metrics")).text
         done = {"outcome": "completed", "cause": ""}
@@ -189,8 +192,12 @@ async def test_operator_abort_in_flight_returns_the_uav_lands_and_closes_over_it
             body["reason"],
             body["timeline"],
         )
+        assert body["outcome"] == "aborted" and not body["alert"] and body["issues"] == []
         states = [t["to_state"] for t in body["timeline"]]
         assert states == [*WHOLE_SEQUENCE, "aborted"], states
+        fleet = (await p.api.get("/api/v1/reports/fleet", headers=p.tenant.h("viewer"))).json()
+        assert (fleet["runs"], fleet["aborted"], fleet["success_rate"]) == (1, 1, 0.0), fleet
+        assert fleet["by_outcome"] == {"aborted": {"operator_abort": 1}}, fleet
         landing = next(t for t in body["timeline"] if t["to_state"] == "landing")
         assert "airspace closed" in landing["reason"] and "return" in landing["reason"]
         # the panels closed only over a UAV the scale had confirmed: it is seated and the base is shut

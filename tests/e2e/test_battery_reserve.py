@@ -1,5 +1,7 @@
 """Issue 20 item 5 end to end: in a headwind the run turns the UAV home while the return still
-fits above the battery reserve, and it lands with the reserve left (the report's margin)."""
+fits above the battery reserve, and it lands with the reserve left (the report's margin). Issue 46:
+the run is `incomplete` (cause `battery_reserve`, an alert), not `completed`, and the fleet
+report counts it so."""
 
 from __future__ import annotations
 
@@ -73,9 +75,20 @@ async def test_a_headwind_home_turns_the_uav_back_before_the_reserve(
         assert 60.0 < north < 400.0, north
         assert body["alert"] is True
         body = await p.wait_state(run_id, FINAL, 240)
-        assert body["state"] == "completed", (body["reason"], body["timeline"])
+        assert body["state"] == "incomplete", (body["reason"], body["timeline"])
+        assert body["outcome"] == "incomplete" and body["cause"] == "battery_reserve", body
+        assert body["alert"] and body["issues"] == [], body
+        assert "not flown to its last item" in body["reason"], body["reason"]
+        assert "battery reserve" in body["reason"], body["reason"]
+        fleet = (await p.api.get("/api/v1/reports/fleet", headers=tenant.h("viewer"))).json()
+        assert (fleet["runs"], fleet["completed"], fleet["incomplete"]) == (1, 0, 1), fleet
+        assert fleet["success_rate"] == 0.0, fleet
+        assert fleet["by_outcome"] == {"incomplete": {"battery_reserve": 1}}, fleet
         report = (
             await p.api.get(f"/api/v1/runs/{run_id}/report", headers=tenant.h("viewer"))
         ).json()
         margin = report["battery_margin_at_touchdown_pct"]
         assert margin is not None and margin > 0, report["battery_margin_at_touchdown_pct"]
+        # take-off to touchdown by the UAV's own events, not the run's step times
+        events = {e["name"]: e["ts"] for e in await p.uav_events() if e["name"] in ("took_off",)}
+        assert events and report["flight_time_s"] > 0, (events, report["flight_time_s"])

@@ -90,8 +90,18 @@ def test_states_statuses_and_roles_are_named_enumerations(api):
     spec = api.get("/api/openapi.json").json()
     schemas = spec["components"]["schemas"]
     enums = {
-        "RunState": {"pending", "checking", "flying", "charging", "completed", "aborted", "failed"},
-        "RunOutcome": {"completed", "aborted", "failed"},
+        "RunState": {
+            "pending",
+            "checking",
+            "flying",
+            "charging",
+            "completed",
+            "incomplete",
+            "aborted",
+            "failed",
+        },
+        "RunOutcome": {"completed", "completed_with_issues", "incomplete", "aborted", "failed"},
+        "RunIssue": {"charging_refused", "landing_off_contacts"},
         "CommandStatus": {"queued", "succeeded", "timed_out"},
         "Role": {"viewer", "operator", "admin"},
         "AssetKind": {"uav", "landing_base"},
@@ -109,6 +119,8 @@ def test_states_statuses_and_roles_are_named_enumerations(api):
 
     assert "RunState" in ref("RunOut", "state") and "RunState" in ref("TransitionOut", "to_state")
     assert "RunOutcome" in ref("RunOut", "outcome")
+    assert "RunIssue" in ref("RunOut", "issues")
+    assert "RunOutcome" in str(schemas["FleetReport"]["properties"]["by_outcome"])
     assert "CommandStatus" in ref("CommandOut", "status")
     assert "Role" in ref("MembershipOut", "role") and "Role" in ref("MeResponse", "role")
     assert "ScheduleKind" in ref("ScheduleOut", "kind")

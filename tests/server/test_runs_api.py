@@ -60,6 +60,7 @@ def test_abort_before_take_off_ends_aborted_with_a_readable_timeline(api, tenant
 
     body = wait_for(finished, 20, what="the aborted run")
     assert body["state"] == "aborted" and body["cause"] == "operator_abort"
+    assert body["outcome"] == "aborted" and not body["alert"] and body["issues"] == []
     assert "fog rolling in" in body["reason"] and "nothing had moved" in body["reason"]
     assert body["timeline"][0]["from_state"] == "pending"
     assert body["timeline"][-1]["to_state"] == "aborted"
@@ -78,6 +79,12 @@ def test_abort_before_take_off_ends_aborted_with_a_readable_timeline(api, tenant
         and fleet["failures_by_cause"] == {"operator_abort": 1}
     )
     assert fleet["success_rate"] == 0.0
+    assert fleet["by_outcome"] == {"aborted": {"operator_abort": 1}}
+    assert fleet["completed"] == fleet["completed_with_issues"] == fleet["incomplete"] == 0
+    listed = api.get("/api/v1/runs?outcome=aborted", headers=tenant.h("viewer")).json()
+    assert [r["id"] for r in listed] == [run["id"]]
+    assert api.get("/api/v1/runs?outcome=completed", headers=tenant.h("viewer")).json() == []
+    assert api.get("/api/v1/runs?outcome=done", headers=tenant.h("viewer")).status_code == 422
 
 
 @pytest.mark.slow

@@ -5,6 +5,7 @@ import { commandButton } from "./commands.js";
 import { freshness, noteAvailability, on, state } from "./live.js";
 import { airspace, missionPoints, originOf } from "./geo.js";
 import { trackMap } from "./plot.js";
+import { FINAL } from "./runs.js";
 import { livePanel } from "./video.js";
 import { ago, badge, clear, clock, h, metres, num } from "./ui.js";
 
@@ -33,7 +34,9 @@ function uavValues(asset, v) {
     ["GNSS fix", fix ? badge(`${fix} · ${v["gnss.satellites"] ?? "?"} sats`, fix === "none" ? "bad" : fix.startsWith("rtk") ? "ok" : "") : "–"],
     ["Position", v["position.lat"] !== undefined ? `${num(v["position.lat"], 6)}, ${num(v["position.lon"], 6)}` : "–"],
     ["Altitude", num(v["position.alt_rel_m"], 1, "m above home")],
-    ["Mission item", v["mission.total"] ? `${v["mission.current"] + 1} of ${v["mission.total"]}` : "–"],
+    // the autopilot keeps its last mission's item after landing: shown only while it flies
+    ["Mission item", v["mission.total"] && v.armed && v.landed_state !== "on_ground"
+      ? `${v["mission.current"] + 1} of ${v["mission.total"]}` : v["mission.total"] ? "– (on the ground)" : "–"],
   ]);
 }
 
@@ -199,7 +202,7 @@ export function render(main, ctx) {
     for (const u of uavs) {
       const [run] = await get(`/runs?uav_id=${u.id}&limit=1`).catch(() => []);
       const origin = originOf(ctx, u);
-      if (run && !["completed", "aborted", "failed"].includes(run.state) && origin) {
+      if (run && !FINAL.has(run.state) && origin) {
         const m = await get(`/missions/${run.mission_id}`).catch(() => null);
         if (m) { flying.set(u.id, missionPoints(m, origin)); plans.set(u.id, m); }
       } else { flying.delete(u.id); plans.delete(u.id); }

@@ -4,7 +4,7 @@
 import { loadFlight, entered } from "./flight.js";
 import { missionPoints } from "./geo.js";
 import { lineChart, trackMap } from "./plot.js";
-import { stateBadge, stepList, timelineTable } from "./runs.js";
+import { outcomeWords, stateBadge, stepList, timelineTable } from "./runs.js";
 import { clear, h, num, when } from "./ui.js";
 
 function figure(caption, svg) {
@@ -20,14 +20,18 @@ export function render(main, ctx, args) {
     const name = (id) => (ctx.byId.get(id) || { name: "?" }).name;
     const marks = ["flying", "landing", "confirming"].map((s) => ({ t: entered(run, s), label: s })).filter((m) => m.t);
     const series = (key) => track.map((p) => ({ t: p.t, v: p[key] }));
-    const landFrom = entered(run, "landing") ?? t0;
-    const landTo = entered(run, "confirming") ?? t1;
-    const nearPad = track.filter((p) => p.t >= landFrom && p.t <= landTo && Number.isFinite(p.north))
-      .map((p) => ({ t: p.t, v: Math.hypot(p.north, p.east) }));
     const landing = report.landing;
+    // the GNSS track from the landing step to the touchdown the agent reported, ending on the
+    // touchdown offset it measured (the headline's figure): one line, the same last value
+    const landFrom = entered(run, "landing") ?? t0;
+    const touchdown = landing && landing.landed_at ? Date.parse(landing.landed_at) : null;
+    const landTo = touchdown ?? entered(run, "confirming") ?? t1;
+    const nearPad = track.filter((p) => p.t >= landFrom && p.t < landTo && Number.isFinite(p.north))
+      .map((p) => ({ t: p.t, v: Math.hypot(p.north, p.east) }));
+    if (touchdown !== null && report.landing_error_m !== null) nearPad.push({ t: touchdown, v: report.landing_error_m });
     clear(box,
       h("p", {}, `${name(run.uav_id)} from ${name(run.base_id)}, started ${when(run.created_at)}. `, stateBadge(run),
-        run.cause ? ` ${run.cause}: ` : " ", run.reason),
+        " ", h("b", {}, outcomeWords(run) ? `${outcomeWords(run)}. ` : ""), run.reason),
       h("div", { class: "figures" },
         h("div", {}, h("b", {}, report.flight_time_s === null ? "–" : num(report.flight_time_s, 0, "s")), "Flight time"),
         h("div", {}, h("b", {}, num(report.battery_used_pct, 1, "%")), "Battery used"),
@@ -40,7 +44,7 @@ export function render(main, ctx, args) {
         figure("Altitude above home (m)", lineChart({ title: "Altitude", unit: "m", points: series("position.alt_rel_m"), t0, t1, marks })),
         figure("Battery (%)", lineChart({ title: "Battery", unit: "%", points: series("battery.percent"), t0, t1, marks })),
         figure("Ground speed (m/s)", lineChart({ title: "Ground speed", unit: "m/s", points: f.speed, t0, t1, marks })),
-        figure(`Horizontal distance from the pad while landing (m)${report.landing_error_m !== null ? `; measured at touchdown ${num(report.landing_error_m, 3, "m")}` : ""}`,
+        figure(`Horizontal distance from the pad while landing (m): GNSS${report.landing_error_m !== null ? `, then the touchdown the agent measured, ${num(report.landing_error_m * 100, 1, "cm")}` : ""}`,
           lineChart({ title: "Landing error", unit: "m", points: nearPad })),
         f.origin ? figure("Flight track, metres around the base (mission dashed)",
           trackMap({ title: "Flight track", track, mission: f.mission ? missionPoints(f.mission, f.origin) : [], geo: f.origin })) : null),

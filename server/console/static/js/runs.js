@@ -14,32 +14,80 @@ export const STEPS = [
   ["closing", "Closing the base"],
   ["charging", "Starting to charge"],
 ];
-export const FINAL = new Set(["completed", "aborted", "failed"]);
+export const FINAL = new Set(["completed", "incomplete", "aborted", "failed"]);
+
+// a finished run's outcome in words, the same in the runs page, the history and the report
+// (server/runs/outcome.py, frontend_api.md "Outcomes"): only "completed" is the job done cleanly
+export const OUTCOMES = {
+  completed: ["completed", "ok"],
+  completed_with_issues: ["completed with issues", "warn"],
+  incomplete: ["incomplete", "warn"],
+  aborted: ["aborted", "bad"],
+  failed: ["failed", "bad"],
+};
+export const CAUSES = {
+  battery_reserve: "returned early: battery reserve",
+  fence_breach: "returned early: geofence breach",
+  mission_overrun: "returned early: mission overran its time",
+  operator_return: "returned early: an operator sent it home",
+  returned_early: "returned early on its own",
+  charging_refused: "charging refused",
+  landing_off_contacts: "landed off the charging contacts",
+  operator_abort: "aborted by an operator",
+};
+
+export function causeWords(cause) {
+  return cause ? CAUSES[cause] || cause.replaceAll("_", " ") : "";
+}
 
 export function stateBadge(run) {
-  const tone = run.state === "completed" ? "ok" : run.state === "failed" || run.state === "aborted" ? "bad" : "warn";
-  return badge(run.state, tone);
+  if (FINAL.has(run.state) && OUTCOMES[run.outcome]) {
+    const [words, tone] = OUTCOMES[run.outcome];
+    return badge(words, tone);
+  }
+  return badge(run.state, FINAL.has(run.state) ? "bad" : "warn");
+}
+
+// "incomplete: returned early: battery reserve", "completed with issues: charging refused"
+export function outcomeWords(run) {
+  if (!FINAL.has(run.state)) return "";
+  const [words] = OUTCOMES[run.outcome] || [run.state];
+  const issues = (run.issues || []).map(causeWords);
+  const why = run.outcome === "completed_with_issues" ? issues : [causeWords(run.cause), ...issues];
+  const said = [...new Set(why.filter(Boolean))];
+  return said.length ? `${words}: ${said.join("; ")}` : words;
+}
+
+// the step where a run that did not complete stopped (or turned home), from its timeline
+function stoppedAt(run) {
+  const tl = run.timeline || [];
+  if (run.state === "incomplete") {
+    const turned = tl.find((t) => t.from_state === "flying" && t.to_state !== "flying");
+    return turned ? "flying" : null;
+  }
+  if (run.state !== "failed" && run.state !== "aborted") return null;
+  // the first entry of its cause: an abort asked while landing is noted in the landing step
+  const first = run.cause ? tl.find((t) => t.cause === run.cause) : null;
+  const last = [...tl].reverse().find((t) => t.to_state === run.state);
+  return (first || last || {}).from_state || null;
 }
 
 // the eight steps with the current one marked (aria-current="step")
 export function stepList(run) {
   const reached = new Set((run.timeline || []).map((t) => t.to_state));
   const names = STEPS.map(([n]) => n);
-  let stopped = null; // the step a failed or aborted run was in when its cause arose
-  if (run.state === "failed" || run.state === "aborted") {
-    const tl = run.timeline || [];
-    const first = run.cause ? tl.find((t) => t.cause === run.cause) : null;
-    const last = [...tl].reverse().find((t) => t.to_state === run.state);
-    stopped = (first || last || {}).from_state || null;
-  }
+  const stopped = stoppedAt(run); // the step a run that did not complete stopped in
+  const issues = (run.issues || []).map(causeWords).join("; ");
   return h("ol", { class: "steps", "aria-label": "Steps of the run" }, STEPS.map(([name, label], i) => {
     const current = !FINAL.has(run.state) && run.state === name;
     const failed = stopped === name;
     const done = !current && !failed && (reached.has(name) && (run.state === "completed" || names.indexOf(run.state) > i || FINAL.has(run.state)));
+    const issue = done && name === "charging" && issues ? ` ⚠ ${issues}` : "";
+    const here = run.state === "incomplete" ? " (turned home here)" : ` (${run.state} here)`;
     return h("li", {
-      class: failed ? "failed" : done ? "done" : "",
+      class: failed ? "failed" : issue ? "failed" : done ? "done" : "",
       "aria-current": current ? "step" : null,
-    }, `${i + 1}. ${label}`, current ? " (now)" : failed ? ` (${run.state} here)` : done ? " ✓" : "");
+    }, `${i + 1}. ${label}`, current ? " (now)" : failed ? here : issue || (done ? " ✓" : ""));
   }));
 }
 
@@ -76,7 +124,7 @@ function runDetail(ctx, run, refresh) {
     : null;
   return h("section", { class: "card", "aria-labelledby": "run-title" },
     h("h2", { id: "run-title" }, `Run of ${name(run.uav_id)} from ${name(run.base_id)}`),
-    h("p", {}, stateBadge(run), " ", run.label || "", run.alert ? badge("ALERT: a person should look", "bad") : null),
+    h("p", {}, stateBadge(run), " ", FINAL.has(run.state) ? outcomeWords(run) : run.label || "", run.alert ? badge("ALERT: a person should look", "bad") : null),
     run.reason ? h("p", { class: "reason" }, FINAL.has(run.state) ? "" : "Last step: ", run.reason) : null,
     stepList(run),
     abort ? h("div", { class: "actions" }, abort) : null,
@@ -184,12 +232,12 @@ export function runsTable(ctx, runs, selected, caption) {
   const name = (id) => (ctx.byId.get(id) || { name: "?" }).name;
   return h("table", {},
     h("caption", {}, caption),
-    h("thead", {}, h("tr", {}, ["Started", "UAV", "State", "Step", ""].map((c) => h("th", { scope: "col" }, c)))),
+    h("thead", {}, h("tr", {}, ["Started", "UAV", "State or outcome", "Step or cause", ""].map((c) => h("th", { scope: "col" }, c)))),
     h("tbody", {}, runs.map((r) => h("tr", { class: r.id === selected ? "selected" : "" },
       h("td", {}, when(r.created_at)),
       h("td", {}, name(r.uav_id)),
       h("td", {}, stateBadge(r), r.schedule_id ? h("span", { class: "muted" }, " scheduled") : null),
-      h("td", {}, FINAL.has(r.state) ? (r.cause || "") : `${r.step}/${r.total_steps} ${r.label}`),
+      h("td", {}, FINAL.has(r.state) ? outcomeWords(r) : `${r.step}/${r.total_steps} ${r.label}`),
       h("td", {}, h("a", { href: `#/runs/${r.id}`, "aria-label": `Open run of ${name(r.uav_id)} started ${when(r.created_at)}` }, "Open"))))));
 }
 
