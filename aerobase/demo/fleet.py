@@ -258,7 +258,7 @@ async def watch(server_url: str, fleet: Fleet, procs: Processes) -> str:
             p = msg["payload"]
             if p.get("final"):
                 say(f"{'!!' if p.get('alert') else '=='} {p['label']}: {p['reason']}")
-                return str(p["state"])
+                return str(p.get("outcome") or p["state"])  # whether the job was done
             say(
                 f"{'!!' if p.get('alert') else '->'} [{p['step']}/{p['total_steps']}] {p['label']}: {p['reason']}"
             )

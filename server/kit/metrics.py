@@ -45,7 +45,8 @@ COMMAND_LATENCY = Histogram(
 )
 RUNS = Counter(
     "aerobase_runs_total",
-    "Runs that ended, by outcome (completed, failed, aborted) and cause",
+    "Runs that ended, by outcome (completed, completed_with_issues, incomplete, aborted, "
+    "failed) and cause",
     ["outcome", "cause"],
     registry=REGISTRY,
 )
