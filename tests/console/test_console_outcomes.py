@@ -62,3 +62,40 @@ async def test_a_run_whose_charging_was_refused_reads_completed_with_issues_ever
         await shot(page, "report-outcomes")
         assert traffic.errors == []
         await page.context.close()
+
+
+@pytest.mark.realtime  # a landing loop through the camera (tests/priority.py)
+async def test_the_reports_landing_plot_ends_on_the_touchdown_its_headline_gives(
+    live_server, tenant: Tenant, tmp_path, browser
+):
+    """A precision landing (camera + IR) measures its touchdown offset: the report's headline
+    gives it, and the distance-from-the-pad plot ends on that same figure (it used to end on the
+    last GNSS sample, metres away when the base's survey or the fix was off)."""
+    from playwright.async_api import expect
+
+    async with platform(live_server.url, tenant, tmp_path, speed=2.0, precland={}) as p:
+        run_id = await p.start_run()
+        body = await p.wait_state(run_id, FINAL, 240)
+        assert body["outcome"] == "completed", (body["reason"], body["timeline"])
+        report = (
+            await p.api.get(f"/api/v1/runs/{run_id}/report", headers=p.tenant.h("viewer"))
+        ).json()
+        error_m = report["landing_error_m"]
+        assert error_m is not None, report["landing"]
+
+        page, traffic = await open_page(browser, live_server.url + "/")
+        await sign_in(page, tenant.emails["viewer"], Tenant.PASSWORD)
+        await page.goto(f"{live_server.url}/#/report/{run_id}")
+        await expect(page.get_by_role("heading", name="Run report")).to_be_visible()
+        headline = f"{error_m * 100:.1f} cm"
+        await expect(page.locator(".figures")).to_contain_text(f"{headline}Landing error")
+        plot = page.get_by_role("img", name=re.compile("^Landing error: "))
+        await expect(plot).to_have_attribute(
+            "aria-label",
+            re.compile(rf"ending at {error_m:.2f} m$" if error_m else r"ending at 0 m$"),
+        )
+        caption = page.get_by_text(re.compile("^Horizontal distance from the pad"))
+        await expect(caption).to_contain_text(f"the touchdown the agent measured, {headline}")
+        await shot(page, "report-landing-plot")
+        assert traffic.errors == []
+        await page.context.close()

@@ -9,6 +9,7 @@ tests/server/test_runs_api.py and tests/e2e/test_autonomous_run.py.
 
 from __future__ import annotations
 
+from datetime import datetime
 from typing import Any
 
 import pytest
@@ -142,4 +143,12 @@ async def test_an_abort_while_landing_ends_aborted_noted_where_it_was_asked(
         report = (
             await p.api.get(f"/api/v1/runs/{run_id}/report", headers=p.tenant.h("viewer"))
         ).json()
-        assert report["flight_time_s"] > 0, report["flight_time_s"]
+        # take-off to touchdown by the UAV's own events (its clock), not the run's step times
+        events = await p.uav_events()
+        took_off = next(_at(e) for e in events if e["name"] == "took_off")
+        landed = next(_at(e) for e in events if e["name"] == "landed" and _at(e) > took_off)
+        assert report["flight_time_s"] == pytest.approx((landed - took_off).total_seconds())
+
+
+def _at(event: dict[str, Any]) -> datetime:
+    return datetime.fromisoformat(event["ts"].replace("Z", "+00:00"))

@@ -59,7 +59,7 @@ export function lineChart({ title, unit, points, t0, t1, cursor = null, marks = 
   const vals = pts.map((p) => p.v);
   svg.setAttribute("aria-label",
     `${title}: ${pts.length} samples over ${Math.round((end - start) / 1000)} s, ` +
-    `from ${fmt(Math.min(...vals))} to ${fmt(Math.max(...vals))} ${unit}`);
+    `from ${fmt(Math.min(...vals))} to ${fmt(Math.max(...vals))} ${unit}, ending at ${fmt(vals[vals.length - 1])} ${unit}`);
   return svg;
 }
 

@@ -28,7 +28,14 @@ export function render(main, ctx, args) {
     const landTo = touchdown ?? entered(run, "confirming") ?? t1;
     const nearPad = track.filter((p) => p.t >= landFrom && p.t < landTo && Number.isFinite(p.north))
       .map((p) => ({ t: p.t, v: Math.hypot(p.north, p.east) }));
-    if (touchdown !== null && report.landing_error_m !== null) nearPad.push({ t: touchdown, v: report.landing_error_m });
+    // the GNSS distance is to the base's surveyed position, itself a GNSS fix: when the two
+    // disagree at touchdown the page says so rather than leave two figures unexplained
+    const lastGnss = nearPad.length ? nearPad[nearPad.length - 1].v : null;
+    const measured = touchdown !== null && report.landing_error_m !== null;
+    if (measured) nearPad.push({ t: touchdown, v: report.landing_error_m });
+    const disagree = measured && lastGnss !== null && Math.abs(lastGnss - report.landing_error_m) > 0.5
+      ? ` The GNSS track's last point was ${num(lastGnss, 1, "m")} from the base's surveyed position: that survey or the UAV's fix is off by about as much.`
+      : "";
     clear(box,
       h("p", {}, `${name(run.uav_id)} from ${name(run.base_id)}, started ${when(run.created_at)}. `, stateBadge(run),
         " ", h("b", {}, outcomeWords(run) ? `${outcomeWords(run)}. ` : ""), run.reason),
@@ -44,7 +51,7 @@ export function render(main, ctx, args) {
         figure("Altitude above home (m)", lineChart({ title: "Altitude", unit: "m", points: series("position.alt_rel_m"), t0, t1, marks })),
         figure("Battery (%)", lineChart({ title: "Battery", unit: "%", points: series("battery.percent"), t0, t1, marks })),
         figure("Ground speed (m/s)", lineChart({ title: "Ground speed", unit: "m/s", points: f.speed, t0, t1, marks })),
-        figure(`Horizontal distance from the pad while landing (m): GNSS${report.landing_error_m !== null ? `, then the touchdown the agent measured, ${num(report.landing_error_m * 100, 1, "cm")}` : ""}`,
+        figure(`Horizontal distance from the pad while landing (m): GNSS from the base's surveyed position${measured ? `, ending on the touchdown the agent measured, ${num(report.landing_error_m * 100, 1, "cm")}.${disagree}` : ""}`,
           lineChart({ title: "Landing error", unit: "m", points: nearPad })),
         f.origin ? figure("Flight track, metres around the base (mission dashed)",
           trackMap({ title: "Flight track", track, mission: f.mission ? missionPoints(f.mission, f.origin) : [], geo: f.origin })) : null),
