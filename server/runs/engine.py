@@ -122,10 +122,13 @@ class RunEngine:
                 await db.commit()
             else:
                 obs = await self._observe(db, run)
-                if self._abort_noted(db, run):
+                noted = self._abort_noted(db, run)
+                if noted:
                     await db.commit()
                 transition = advance(State(run.state), obs, aborting=run.aborting)
                 if transition is None:
+                    if noted:  # operators see the abort taken at once, not at the next step
+                        await self._publish(run)
                     return
                 previous, entered = run.state, run.step_started_at
                 verdict = None

@@ -71,8 +71,10 @@ async def test_a_gust_across_the_fence_sends_the_uav_home_and_the_run_records_th
         assert breach["from_state"] == "flying" and breach["to_state"] == "landing", states
         assert "geofence" in breach["reason"]
         assert body["alert"] is True  # operators are told
-        assert body["state"] == "completed", (body["reason"], states)
-        assert states[-4:] == ["confirming", "closing", "charging", "completed"]
+        # back and charging, but the mission was not flown to its end (issue 46): incomplete
+        assert body["state"] == "incomplete", (body["reason"], states)
+        assert (body["outcome"], body["cause"]) == ("incomplete", "fence_breach"), body["reason"]
+        assert states[-4:] == ["confirming", "closing", "charging", "incomplete"]
         assert copter.dyn.state.landed and copter.pad_distance() < 0.1  # on the base's pad
         assert p.world.base.pad_mass_g > 0
         report = (
