@@ -29,7 +29,7 @@ export function render(main, ctx) {
     const past = runs.filter((r) => FINAL.has(r.state));
     clear(table, past.length ? h("table", {},
       h("caption", {}, "Past runs (newest first)"),
-      h("thead", {}, h("tr", {}, ["Started", "UAV", "Outcome", "Outcome, cause and reason", "Report", "Replay"].map((c) => h("th", { scope: "col" }, c)))),
+      h("thead", {}, h("tr", {}, ["Started", "UAV", "Outcome", "In words, and the reason", "Report", "Replay"].map((c) => h("th", { scope: "col" }, c)))),
       h("tbody", {}, past.map((r) => h("tr", {},
         h("td", {}, when(r.created_at)), h("td", {}, name(r.uav_id)), h("td", {}, stateBadge(r)),
         h("td", {}, h("b", {}, `${outcomeWords(r)}. `), r.reason),
