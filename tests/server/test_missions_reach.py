@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from datetime import UTC, datetime, timedelta
 
+import pytest
+
 from server.missions.geometry import haversine_m
 from tests.conftest import Tenant
 from tests.polling import wait_for
@@ -158,3 +160,53 @@ def test_the_legs_from_the_base_count_in_the_estimate_and_the_airspace(api, tena
         headers=tenant.h("operator"),
     )
     assert run.status_code == 422 and run.json()["error"]["code"] == "airspace", run.text
+
+
+async def test_the_battery_reserve_measures_the_way_home_to_the_base(
+    api, tenant: Tenant, database_url: str
+):
+    """A mission planned with its home 2 km north of the base: a UAV hovering over the base
+    has only its descent and landing to pay, not a flight back to the mission's home."""
+    import asyncio
+    import uuid
+
+    from sqlalchemy.ext.asyncio import AsyncSession, create_async_engine
+
+    from server.runs.energy import return_margin
+    from server.runs.models import Run
+
+    base = tenant.create_asset(
+        "landing_base", attributes={"latitude": PORTO[0], "longitude": PORTO[1]}
+    )
+    uav = tenant.create_asset("uav", base_id=base["id"])
+    home = (PORTO[0] + 2000 / 111_195, PORTO[1])
+    items = [
+        {"command": 22, "lat": 0, "lon": 0, "alt": 15},
+        {"command": 16, "lat": home[0] + 0.0005, "lon": home[1], "alt": 15},
+        {"command": 20},
+    ]
+    m = api.post(
+        "/api/v1/missions",
+        json={"name": "north", "items": items, "home": {"lat": home[0], "lon": home[1]}},
+        headers=tenant.h("operator"),
+    )
+    assert m.status_code == 201, m.text
+    body = {"mission_id": m.json()["id"], "uav_id": uav["id"], "base_id": base["id"]}
+    r = await asyncio.to_thread(api.post, "/api/v1/runs", json=body, headers=tenant.h("operator"))
+    assert r.status_code == 201, r.text  # 2.1 km out: within the default UAV's 3.7 km reach
+    engine = create_async_engine(database_url)
+    try:
+        async with AsyncSession(engine) as db:
+            run = await db.get(Run, uuid.UUID(r.json()["id"]))
+            assert run is not None
+            over_base = {
+                "position.lat": PORTO[0],
+                "position.lon": PORTO[1],
+                "position.alt_rel_m": 15.0,
+                "battery.percent": 90.0,
+            }
+            margin = await return_margin(db, run, over_base, {})
+    finally:
+        await engine.dispose()
+    # 90 % less the descent (15 m at 1.5 m/s) and the landing (30 s) at 0.1 %/s, less 20 %
+    assert margin == pytest.approx(90.0 - (10 + 30) * 0.1 - 20.0)
