@@ -210,3 +210,27 @@ async def test_the_battery_reserve_measures_the_way_home_to_the_base(
         await engine.dispose()
     # 90 % less the descent (15 m at 1.5 m/s) and the landing (30 s) at 0.1 %/s, less 20 %
     assert margin == pytest.approx(90.0 - (10 + 30) * 0.1 - 20.0)
+
+
+def test_a_run_that_outlasts_the_uavs_endurance_from_the_base_is_refused(api, tenant: Tenant):
+    """Every item within reach (224 m for 120 s at 8 m/s), but a 100 s loiter on top: the
+    flight from the base and back outlasts the 96 s the UAV may fly."""
+    base = tenant.create_asset(
+        "landing_base", attributes={"latitude": PORTO[0], "longitude": PORTO[1]}
+    )
+    uav = tenant.create_asset("uav", base_id=base["id"], attributes={"endurance_s": 120})
+    there = (PORTO[0] + 100 / 111_195, PORTO[1])
+    items = [
+        {"command": 22, "lat": 0, "lon": 0, "alt": 15},
+        {"command": 19, "lat": there[0], "lon": there[1], "alt": 15, "params": [100, 0, 0, 0]},
+        {"command": 20},
+    ]
+    m = api.post("/api/v1/missions", json={"name": "loiter", "items": items}, headers=tenant.h())
+    assert m.status_code == 201, m.text
+    body = {"mission_id": m.json()["id"], "uav_id": uav["id"], "base_id": base["id"]}
+    r = api.post("/api/v1/runs", json=body, headers=tenant.h("operator"))
+    assert r.status_code == 422, r.text
+    error = r.json()["error"]
+    assert error["code"] == "beyond_endurance"
+    assert "exceeds the UAV's endurance" in error["message"] and "> 96.0" in error["message"]
+    assert [d["code"] for d in error["details"]] == ["endurance"]
