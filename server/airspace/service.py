@@ -30,7 +30,7 @@ from server.kit.principal import Principal
 from server.kit.service import Service
 from server.kit.time import utcnow
 from server.kit.uow import UnitOfWork
-from server.missions.validate import Problem
+from server.missions.validate import Home, Problem
 
 
 def rejected(problems: list[Problem], code: str = "invalid_zone") -> Unprocessable:
@@ -183,15 +183,26 @@ async def flight_problems(
     """The airspace problems of flying `mission` from `base_id` at `at` (now): the zones of
     the organisation and of the base that are active then, and the plan's own geoFence.
 
-    For code that holds a session but no unit of work (run creation, the run engine).
+    The path starts and ends at the base (its position; unknown: the mission's home), so the
+    legs to the mission and back are checked too. For code that holds a session but no unit of
+    work (run creation, the run engine).
     """
-    from server.missions.build import home_of
     from server.missions.items import items_of
 
     rows = await ZoneRepository(db, principal).applicable(base_id)
     when = at or utcnow()
     zones = [shape_of(z) for z in rows if is_active(z, when)]
-    return check_flight(items_of(mission.items), home_of(mission.home), zones, mission.extras)
+    home = await launch(db, principal, mission, base_id)
+    return check_flight(items_of(mission.items), home, zones, mission.extras)
+
+
+async def launch(db: Any, principal: Principal, mission: Any, base_id: uuid.UUID) -> Home | None:
+    """Where a flight of `mission` from `base_id` starts and ends (missions/reach.py)."""
+    from server.missions.build import home_of
+    from server.missions.reach import launch_home
+
+    base = await AssetRepository(db, principal).get(base_id)
+    return launch_home(base.attributes, home_of(mission.home))
 
 
 def refused(problems: list[AirspaceProblem], code: str = "airspace") -> Unprocessable:
@@ -208,12 +219,11 @@ def refused(problems: list[AirspaceProblem], code: str = "airspace") -> Unproces
 async def flight_fence(
     db: Any, principal: Principal, mission: Any, base_id: uuid.UUID, at: datetime | None = None
 ) -> Fence | None:
-    """The fence and rally points to upload for flying `mission` from `base_id` (None when the
-    mission has no home to anchor a fence and a return point to)."""
-    from server.missions.build import home_of
+    """The fence and rally points to upload for flying `mission` from `base_id` (None when
+    neither the base's position nor the mission's home anchors a fence and a return point)."""
     from server.missions.items import items_of
 
-    home = home_of(mission.home)
+    home = await launch(db, principal, mission, base_id)
     if home is None:
         return None
     rows = await ZoneRepository(db, principal).applicable(base_id)

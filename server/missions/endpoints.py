@@ -233,9 +233,11 @@ async def validate_mission(
     mission_id: uuid.UUID, body: ValidateRequest, missions: MissionsOperator
 ) -> ValidationReport:
     """Check a mission against the limits, the airspace (its path: every segment, the return leg)
-    and, with `uav_id`, the UAV's endurance (operators)."""
+    and, with `uav_id`, the UAV's endurance and reach; with `base_id`, flown from that base
+    (operators)."""
     mission = await missions.get(mission_id)
     uav = await missions.uav(body.uav_id)
+    base = await missions.base(body.base_id)
     zones = await missions.zones(body.base_id, body.at)
-    report = await asyncio.to_thread(missions.check, mission, uav, zones)
+    report = await asyncio.to_thread(missions.check, mission, uav, zones, base)
     return ValidationReport.model_validate(report)

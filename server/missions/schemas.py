@@ -155,8 +155,9 @@ class ValidateRequest(BaseModel):
     uav_id: uuid.UUID | None = None
     base_id: uuid.UUID | None = Field(
         default=None,
-        description="the base it would fly from: its own zones (operating area) apply too; "
-        "the organisation's zones and the plan's geoFence apply always",
+        description="the base it would fly from: the flight starts and ends at its position "
+        "(attributes latitude/longitude; unknown: the mission's home) and its own zones "
+        "(operating area) apply too; the organisation's zones and the plan's geoFence apply always",
     )
     at: Timestamp | None = Field(
         default=None, description="when it would fly (zones' time windows); null: now"
@@ -171,6 +172,25 @@ class UavLimitsOut(BaseModel):
     endurance_s: float
     usable_endurance_s: float
     cruise_speed_mps: float
+    reach_m: float = Field(
+        description="how far from the base an item may be: out and back within the usable "
+        "endurance at the mission's speed (and within half the usable range), metres"
+    )
+
+
+class BaseCheckOut(BaseModel):
+    """The base a check flew the mission from."""
+
+    id: uuid.UUID
+    name: str
+    lat: float | None = Field(
+        description="the base's latitude; null: unknown (mission's home used)"
+    )
+    lon: float | None = Field(description="the base's longitude; null: unknown")
+    farthest_m: float | None = Field(
+        description="the distance from the base of the item flown to farthest from it, metres; "
+        "null when the base's position is unknown"
+    )
 
 
 class ValidationReport(BaseModel):
@@ -178,5 +198,8 @@ class ValidationReport(BaseModel):
 
     valid: bool
     problems: list[dict[str, Any]]
-    estimate: EstimateOut
+    estimate: EstimateOut = Field(
+        description="the flight as checked: from the base and back when `base_id` locates one"
+    )
     uav: UavLimitsOut | None
+    base: BaseCheckOut | None = Field(description="the base checked from; null without `base_id`")

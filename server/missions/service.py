@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import math
 import re
 import uuid
 from collections.abc import Sequence
@@ -25,20 +24,17 @@ from server.missions.build import Built, build, home_of
 from server.missions.flight import estimate_flight
 from server.missions.items import MissionItem, item_dicts, items_of
 from server.missions.models import Mission, MissionKind
+from server.missions.reach import (
+    DEFAULT_CRUISE_MPS,
+    UavFigures,
+    base_position,
+    check_from_base,
+    launch_home,
+    uav_figures,
+)
 from server.missions.repository import MissionRepository
 from server.missions.schemas import HomeIn, SurveyIn
-from server.missions.validate import (
-    FlightEstimate,
-    Home,
-    MissionLimits,
-    Problem,
-    check_endurance,
-)
-
-DEFAULT_ENDURANCE_S = 1200.0
-
-DEFAULT_CRUISE_MPS = 8.0
-RESERVE = 0.2
+from server.missions.validate import FlightEstimate, Home, MissionLimits, Problem
 
 
 def limits_from(settings: Any) -> MissionLimits:
@@ -65,19 +61,6 @@ def estimate(mission: Mission, cruise_speed_mps: float = DEFAULT_CRUISE_MPS) -> 
     """Path length and flight time of a stored mission."""
     speed = mission.speed_mps or cruise_speed_mps
     return estimate_flight(items_of(mission.items), speed, home_of(mission.home))
-
-
-def _attr(asset: Asset, key: str, default: float, problems: list[Problem]) -> float:
-    value = (asset.attributes or {}).get(key, default)
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, int | float)
-        or not math.isfinite(value)
-        or value <= 0
-    ):
-        problems.append(Problem(f"uav.attributes.{key}", "must be a positive number", value))
-        return default
-    return float(value)
 
 
 def safe_filename(name: str, suffix: str) -> str:
@@ -241,63 +224,83 @@ class MissionService(Service):
         """A mission of the caller's organisation (NotFound otherwise)."""
         return await self.repo.get(mission_id)
 
+    async def base(self, base_id: uuid.UUID | None) -> Asset | None:
+        """The base a check flies from (NotFound for another organisation's, 422 for a UAV)."""
+        if base_id is None:
+            return None
+        base = await AssetRepository(self.db, self.principal).get(base_id)
+        if base.kind != AssetKind.landing_base:
+            raise Unprocessable(f"asset {base.id} is not a landing base", code="not_a_base")
+        return base
+
     async def zones(self, base_id: uuid.UUID | None, at: Any = None) -> list[ZoneShape]:
         """The airspace zones a flight from `base_id` at `at` must respect."""
         from server.airspace.service import AirspaceService
 
-        if base_id is not None:
-            base = await AssetRepository(self.db, self.principal).get(base_id)
-            if base.kind != AssetKind.landing_base:
-                raise Unprocessable(f"asset {base.id} is not a landing base", code="not_a_base")
+        await self.base(base_id)
         return await AirspaceService(self.uow, self.principal).applicable(base_id, at)
 
     def check(
-        self, mission: Mission, uav: Asset | None, zones: Sequence[ZoneShape] = ()
+        self,
+        mission: Mission,
+        uav: Asset | None,
+        zones: Sequence[ZoneShape] = (),
+        base: Asset | None = None,
     ) -> dict[str, Any]:
         """Every problem of a stored mission, its path against the airspace `zones` and the
-        plan's geoFence, and its flight against the UAV's endurance.
+        plan's geoFence, and its flight against the UAV's endurance and reach.
 
-        Pure computation on loaded rows: callers on the event loop run it with asyncio.to_thread.
+        With `base` (and its position known) the flight starts and ends there: the legs
+        base -> first item and last item -> base count in the estimate, the endurance and the
+        airspace. Pure computation on loaded rows: callers on the event loop run it with
+        asyncio.to_thread.
         """
         problems: list[Problem] = []
         survey = SurveyIn.model_validate(mission.survey) if mission.survey else None
         items = items_of(mission.items) if mission.kind == MissionKind.waypoints else None
         _, found = build(mission.kind, items, survey, home_of(mission.home), self.limits)
         problems += found
-        airspace = check_flight(
-            items_of(mission.items), home_of(mission.home), list(zones), mission.extras
-        )
-        uav_out: dict[str, Any] | None = None
-        cruise, endurance = DEFAULT_CRUISE_MPS, DEFAULT_ENDURANCE_S
+        launch = launch_home(base.attributes if base else None, home_of(mission.home))
+        airspace = check_flight(items_of(mission.items), launch, list(zones), mission.extras)
+        figures = UavFigures()
         if uav is not None:
             if uav.kind != AssetKind.uav:
                 raise Unprocessable(f"asset {uav.id} is not a UAV", code="not_a_uav")
-            endurance = _attr(uav, "endurance_s", DEFAULT_ENDURANCE_S, problems)
-            cruise = _attr(uav, "cruise_speed_mps", DEFAULT_CRUISE_MPS, problems)
+            figures = uav_figures(uav.attributes, problems)
+        located = base is not None and base_position(base.attributes) is not None
+        judged = check_from_base(
+            items_of(mission.items),
+            mission.speed_mps or figures.cruise_mps,
+            launch,
+            base.name if base is not None and located else None,
+            figures,
+        )
+        uav_out: dict[str, Any] | None = None
+        if uav is not None:
+            problems += judged.problems
             uav_out = {
                 "id": uav.id,
                 "name": uav.name,
-                "endurance_s": endurance,
-                "usable_endurance_s": round(endurance * (1 - RESERVE), 1),
-                "cruise_speed_mps": cruise,
+                "endurance_s": figures.endurance_s,
+                "usable_endurance_s": round(figures.usable_endurance_s, 1),
+                "cruise_speed_mps": figures.cruise_mps,
+                "reach_m": round(judged.reach_m, 1),
             }
-        flight = estimate(mission, cruise)
-        if uav is not None:
-            problems += check_endurance(flight, endurance, RESERVE)
-            if "max_range_m" in (uav.attributes or {}):
-                max_range = _attr(uav, "max_range_m", math.inf, problems)
-                if flight.distance_m > max_range * (1 - RESERVE):
-                    problems.append(
-                        Problem(
-                            "mission",
-                            f"path length (m) exceeds the UAV's range less a {RESERVE:.0%} reserve",
-                            round(flight.distance_m, 1),
-                            round(max_range * (1 - RESERVE), 1),
-                        )
-                    )
+        base_out = None
+        if base is not None:
+            base_out = {
+                "id": base.id,
+                "name": base.name,
+                "lat": launch.lat if located and launch else None,
+                "lon": launch.lon if located and launch else None,
+                "farthest_m": round(judged.farthest_m, 1)
+                if located and judged.farthest_m is not None
+                else None,
+            }
         return {
             "valid": not problems and not airspace,
             "problems": [p.as_dict() for p in problems] + [a.as_dict() for a in airspace],
-            "estimate": flight.as_dict(),
+            "estimate": judged.estimate.as_dict(),
             "uav": uav_out,
+            "base": base_out,
         }

@@ -42,11 +42,12 @@ class Problem:
     limit: Any = None
     index: int | None = None
     command: int | None = None
+    code: str | None = None  # for the checks a run's creation refuses on (out_of_reach, ...)
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON shape: where, what, value, limit, plus index and command when they apply."""
+        """JSON shape: where, what, value, limit, plus index, command and code when they apply."""
         d = asdict(self)
-        for key in ("index", "command"):
+        for key in ("index", "command", "code"):
             if d[key] is None:
                 del d[key]
         return d
@@ -305,6 +306,7 @@ def check_endurance(
                 f"{reserve:.0%} reserve",
                 round(estimate.flight_time_s, 1),
                 round(usable, 1),
+                code="endurance",
             )
         ]
     return []

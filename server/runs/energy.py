@@ -12,21 +12,27 @@ from server.runs.reserve import finite, return_margin_pct, return_model
 async def return_margin(
     db: Any, run: Run, uav: dict[str, Any], base: dict[str, Any]
 ) -> float | None:
-    """Battery left above the reserve if the UAV flew home now (reserve.py); None unknown."""
+    """Battery left above the reserve if the UAV flew home now (reserve.py); None unknown.
+    Home is the run's base (its position; unknown: the mission's home)."""
     from server.missions.models import Mission
+    from server.missions.reach import base_position
 
     mission = await db.get(Mission, run.mission_id)
     asset = await db.get(Asset, run.uav_id)
-    home = (mission.home or {}) if mission else {}
+    station = await db.get(Asset, run.base_id)
+    planned = (mission.home or {}) if mission else {}
+    home = base_position(station.attributes if station else None) or (
+        (float(planned["lat"]), float(planned["lon"])) if "lat" in planned else None
+    )
     fields = ("position.lat", "position.lon", "position.alt_rel_m", "battery.percent")
     values = [finite(uav.get(k)) for k in fields]
-    if "lat" not in home or any(v is None for v in values):
+    if home is None or any(v is None for v in values):
         return None
     lat, lon, alt, battery = (float(v) for v in values if v is not None)
     return return_margin_pct(
         battery,
         (lat, lon, alt),
-        (float(home["lat"]), float(home["lon"])),
+        home,
         finite(base.get("weather.wind_m_s")),
         finite(base.get("weather.direction_deg")),
         return_model((asset.attributes if asset else None) or {}, mission),

@@ -66,6 +66,9 @@ async def create_run(
         )
     if not mission.items:
         raise Unprocessable(f"mission {mission.name} has no items", code="invalid_run")
+    refusal = out_of_reach(mission, uav, base)
+    if refusal is not None:
+        raise refusal
     airspace = await flight_problems(runs.db, runs.principal, mission, base.id, scheduled_for)
     if airspace:
         raise refused(airspace)
@@ -95,6 +98,35 @@ async def create_run(
     runs.db.add(run)
     await runs.db.flush()
     return run
+
+
+def out_of_reach(mission: Any, uav: Any, base: Any) -> Unprocessable | None:
+    """The 422 for a mission the UAV cannot fly from the base and back (missions/reach.py):
+    `out_of_reach` naming the item's distance and the reach, else `beyond_endurance` when the
+    whole flight, legs to and from the base included, outlasts the usable endurance or range."""
+    from server.missions.build import home_of
+    from server.missions.items import items_of
+    from server.missions.reach import base_position, check_from_base, launch_home, uav_figures
+
+    figures = uav_figures(uav.attributes)  # a malformed attribute counts as its default here
+    judged = check_from_base(
+        items_of(mission.items),
+        mission.speed_mps or figures.cruise_mps,
+        launch_home(base.attributes, home_of(mission.home)),
+        base.name if base_position(base.attributes) is not None else None,
+        figures,
+    )
+    found = [p for p in judged.problems if p.code in ("out_of_reach", "endurance", "range")]
+    if not found:
+        return None
+    first = found[0]
+    return Unprocessable(
+        first.what
+        if first.code == "out_of_reach"
+        else f"{first.what}: {first.value} > {first.limit}",
+        code="out_of_reach" if first.code == "out_of_reach" else "beyond_endurance",
+        details=[p.as_dict() for p in found],
+    )
 
 
 def run_out(run: Run, timeline: list[Any] | None = None) -> RunOut:

@@ -4,12 +4,34 @@ import { metres } from "./ui.js";
 
 export function originOf(ctx, uav) {
   const base = uav && uav.base_id ? ctx.byId.get(uav.base_id) : ctx.assets.find((a) => a.kind === "landing_base");
+  return positionOf(base);
+}
+
+export function positionOf(base) {
   const a = base ? base.attributes || {} : {};
-  if (Number.isFinite(a.latitude) && Number.isFinite(a.longitude)) return { lat: a.latitude, lon: a.longitude };
-  return null;
+  return Number.isFinite(a.latitude) && Number.isFinite(a.longitude) ? { lat: a.latitude, lon: a.longitude } : null;
+}
+
+// great-circle metres between two {lat, lon} (the server's haversine, missions/geometry.py)
+export function distanceM(a, b) {
+  const r = 6371008.8, rad = Math.PI / 180;
+  const dp = (b.lat - a.lat) * rad, dl = (b.lon - a.lon) * rad;
+  const h = Math.sin(dp / 2) ** 2 + Math.cos(a.lat * rad) * Math.cos(b.lat * rad) * Math.sin(dl / 2) ** 2;
+  return 2 * r * Math.asin(Math.min(1, Math.sqrt(h)));
+}
+
+// "1,712.4 km" from a kilometre up, else "850.0 m" (the server's wording, missions/reach.py)
+export function distanceText(m) {
+  const f = (v) => v.toLocaleString("en-GB", { minimumFractionDigits: 1, maximumFractionDigits: 1 });
+  return m >= 1000 ? `${f(m / 1000)} km` : `${f(m)} m`;
 }
 
 const POSITIONAL = new Set([16, 17, 18, 19, 21, 22, 82]);
+
+// the items a UAV flies to (a copter's take-off, 22, climbs where it stands)
+export function flownTo(mission) {
+  return mission.items.filter((it) => it.command !== 22 && POSITIONAL.has(it.command) && (it.lat || it.lon));
+}
 
 export function missionPoints(mission, origin) {
   return mission.items

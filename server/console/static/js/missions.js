@@ -2,9 +2,9 @@
 // named, a mission's items on the local map, and export.
 
 import { api, ApiError, get, post } from "./api.js";
-import { airspace, missionPoints, originOf } from "./geo.js";
+import { airspace, distanceM, distanceText, flownTo, missionPoints, positionOf } from "./geo.js";
 import { trackMap } from "./plot.js";
-import { clear, h, notify, num, when } from "./ui.js";
+import { clear, h, metres, notify, num, when } from "./ui.js";
 
 const NAMES = {
   16: "WAYPOINT", 17: "LOITER_UNLIM", 18: "LOITER_TURNS", 19: "LOITER_TIME", 20: "RETURN_TO_LAUNCH",
@@ -72,35 +72,63 @@ function importForm(done) {
     out);
 }
 
-// the mission checked against limits and the airspace, from the organisation's (first) base:
-// each problem with the segment, the zone and the distance the server names
-function validation(m, base) {
+// the mission checked against limits, the airspace and the reach, flown from the organisation's (first)
+// base by a UAV that lives there: each problem with the segment, the zone and the distance the server names
+function validation(m, base, uav) {
   const out = h("div", { "aria-live": "polite" }, h("p", { class: "muted" }, "Checking against the limits and the airspace…"));
-  post(`/missions/${m.id}/validate`, base ? { base_id: base.id } : {}).then((r) => {
+  const from = `${base ? ` from ${base.name}` : ""}${uav ? ` with ${uav.name}` : ""}`;
+  const body = { ...(base ? { base_id: base.id } : {}), ...(uav ? { uav_id: uav.id } : {}) };
+  const metresOf = (d) => d.code === "airspace" || d.code === "out_of_reach";
+  post(`/missions/${m.id}/validate`, body).then((r) => {
     const rows = r.problems || [];
     clear(out, rows.length ? h("table", {},
-      h("caption", {}, `Not valid${base ? ` from ${base.name}` : ""} now: ${rows.length} problem${rows.length > 1 ? "s" : ""}`),
+      h("caption", {}, `Not valid${from} now: ${rows.length} problem${rows.length > 1 ? "s" : ""}`),
       h("thead", {}, h("tr", {}, ["Kind", "Segment", "Zone", "Problem", "Distance / value", "Limit"].map((c) => h("th", { scope: "col" }, c)))),
       h("tbody", {}, rows.map((d) => h("tr", {},
         h("td", {}, d.code || d.where),
         h("td", {}, d.segment ? d.segment.join(" → ") : d.index ?? "–"),
         h("td", {}, d.zone ? `${d.zone.kind} ${d.zone.source === "plan" ? "fence" : "zone"} '${d.zone.name}'` : "–"),
         h("td", {}, d.what),
-        h("td", {}, d.value === undefined || d.value === null ? "" : d.code === "airspace" ? `${num(d.value, 1, "m")}` : JSON.stringify(d.value)),
-        h("td", {}, d.limit === undefined || d.limit === null ? "" : JSON.stringify(d.limit))))))
-      : h("p", {}, `Valid${base ? ` from ${base.name}` : ""} now: within the limits and clear of the airspace zones.`));
+        h("td", {}, d.value === undefined || d.value === null ? "" : metresOf(d) ? `${num(d.value, 1, "m")}` : JSON.stringify(d.value)),
+        h("td", {}, d.limit === undefined || d.limit === null ? "" : d.code === "out_of_reach" ? num(d.limit, 1, "m") : JSON.stringify(d.limit))))))
+      : h("p", {}, `Valid${from} now: within the limits, the reach and clear of the airspace zones.`));
   }).catch((err) => clear(out, h("p", { role: "alert", class: "error" }, `Could not be checked: ${err.message}`)));
   return out;
 }
 
+const FAR_M = 5000; // beyond this an item is far from the base: the map says so, with the distance
+
+// the map: the base at the centre with the mission around it and the legs to it and back; a base of
+// unknown position leaves the mission's home (or its first item) at the centre, and the map says which
+function missionMap(m, base, zones) {
+  const at = positionOf(base);
+  const first = m.items.find((it) => it.lat || it.lon);
+  const origin = at || (m.home ? { lat: m.home.lat, lon: m.home.lon } : first ? { lat: first.lat, lon: first.lon } : null);
+  if (!origin) return null;
+  const flown = flownTo(m);
+  const far = at && flown.length ? Math.max(...flown.map((it) => distanceM(at, it))) : 0;
+  const near = at && flown.length ? distanceM(at, flown[0]) : 0;
+  const notice = far > FAR_M
+    ? h("p", { role: "status", class: "far-notice", "data-distance-m": Math.round(near) },
+      `Far from the base: the mission's first item is ${distanceText(near)} from base ${base.name}` +
+      `${far - near > 1 ? ` (its farthest ${distanceText(far)})` : ""}; both are drawn on one map at that scale.`)
+    : null;
+  // from the base the take-off climbs there: the map draws the items flown to, and the legs
+  const points = at ? flown.map((it) => metres(origin, it.lat, it.lon)) : missionPoints(m, origin);
+  const caption = at
+    ? `The mission in metres around base ${base.name}, with the flights there and back, the zones and the plan's fence`
+    : `The mission in metres around ${m.home ? "its home" : "its first item"} (${base ? `base ${base.name}'s position is unknown` : "no base"}), with the zones and the plan's fence`;
+  return h("figure", {},
+    h("figcaption", {}, caption), notice,
+    trackMap({ title: `Mission ${m.name}`, mission: points, geo: origin, airspace: airspace(origin, zones, m),
+      centre: at ? "base" : "home", legs: Boolean(at) }));
+}
+
 function detail(ctx, m) {
-  const origin = m.home ? { lat: m.home.lat, lon: m.home.lon } : originOf(ctx, null)
-    || (m.items.find((it) => it.lat) ? { lat: m.items.find((it) => it.lat).lat, lon: m.items.find((it) => it.lat).lon } : null);
   const base = ctx.assets.find((a) => a.kind === "landing_base");
+  const uav = base ? ctx.assets.find((a) => a.kind === "uav" && a.base_id === base.id) : null;
   const map = h("div");
-  const draw = (zones) => origin && clear(map, h("figure", {},
-    h("figcaption", {}, `${m.home ? "The mission in metres around its home" : "The mission in metres around the base"}, with the zones and the plan's fence`),
-    trackMap({ title: `Mission ${m.name}`, mission: missionPoints(m, origin), geo: origin, airspace: airspace(origin, zones, m) })));
+  const draw = (zones) => clear(map, missionMap(m, base, zones));
   draw([]);
   get(`/airspace/zones?limit=1000${base ? `&base_id=${base.id}` : ""}`).then(draw).catch(() => {});
   return h("section", { class: "card", "aria-labelledby": "mission-title" },
@@ -111,7 +139,7 @@ function detail(ctx, m) {
       h("button", { type: "button", "aria-label": `Export ${m.name} as a QGroundControl plan`, onclick: () => download(m, "qgc") }, "Export .plan"),
       h("button", { type: "button", "aria-label": `Export ${m.name} as a waypoint file`, onclick: () => download(m, "wpl") }, "Export waypoints")),
     map,
-    ctx.canOperate ? validation(m, base) : null,
+    ctx.canOperate ? validation(m, base, uav) : null,
     h("table", {},
       h("caption", {}, "Items"),
       h("thead", {}, h("tr", {}, ["#", "Command", "Frame", "Latitude", "Longitude", "Altitude"].map((c) => h("th", { scope: "col" }, c)))),

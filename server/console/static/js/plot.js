@@ -158,7 +158,9 @@ function legend(svg, entries, M, hatch) {
 // track, mission: [{north, east}] in metres from the base at (0, 0); uav: {north, east} or null;
 // geo: the base's {lat, lon}, for the site's map tiles when the server names a tile URL;
 // airspace: {shapes, rally} from geo.js's airspace(), drawn under the track
-export function trackMap({ title, track = [], mission = [], uav = null, minSpan = 60, geo = null, airspace = null }) {
+// `centre`: what stands at the map's origin, "base" (drawn as the base) or "home" (a mission's planned home,
+// drawn hollow: the base's position is unknown); `legs`: draw the flights base -> first item and last item -> base.
+export function trackMap({ title, track = [], mission = [], uav = null, minSpan = 60, geo = null, airspace = null, centre = "base", legs = false }) {
   const W = 420, M = 28;
   const shapes = airspace ? airspace.shapes : [], rally = airspace ? airspace.rally : [];
   const zonePoints = shapes.flatMap((z) => z.ring || [
@@ -183,7 +185,8 @@ export function trackMap({ title, track = [], mission = [], uav = null, minSpan 
     svg.append(s("line", { x1: M, x2: W - M, y1: cy - m * scale, y2: cy - m * scale, class: "gridl" }));
     svg.append(s("line", { y1: M, y2: W - M, x1: cx + m * scale, x2: cx + m * scale, class: "gridl" }));
   }
-  svg.append(s("text", { x: M, y: W - 8 }, `grid ${fmt(step)} m · north up · base at the centre`));
+  const atCentre = centre === "base" ? "base at the centre" : "the mission's home at the centre (base position unknown)";
+  svg.append(s("text", { x: M, y: W - 8 }, `grid ${fmt(step)} m · north up · ${atCentre}`));
   svg.append(s("text", { x: cx - 4, y: M - 10 }, "N"));
   let hatch = null;
   if (shapes.length || rally.length) {
@@ -192,6 +195,10 @@ export function trackMap({ title, track = [], mission = [], uav = null, minSpan 
     svg.lastChild.append(s("rect", { x: M, y: M, width: W - 2 * M, height: W - 2 * M }));
     hatch = airspaceLayer(svg, { shapes, rally }, X, Y, scale, clip);
   }
+  if (mission.length && legs) {
+    const first = mission[0], last = mission[mission.length - 1];
+    svg.append(s("path", { d: `M${cx},${cy}L${X(first)},${Y(first)}M${X(last)},${Y(last)}L${cx},${cy}`, class: "leg" }));
+  }
   if (mission.length) {
     svg.append(s("path", { d: mission.map((p, i) => `${i ? "L" : "M"}${X(p)},${Y(p)}`).join(""), class: "mission" }));
     for (const p of mission) svg.append(s("circle", { cx: X(p), cy: Y(p), r: 3, class: "wp" }));
@@ -199,7 +206,7 @@ export function trackMap({ title, track = [], mission = [], uav = null, minSpan 
   if (track.length) {
     svg.append(s("path", { d: track.map((p, i) => `${i ? "L" : "M"}${X(p).toFixed(1)},${Y(p).toFixed(1)}`).join(""), class: "line" }));
   }
-  svg.append(s("rect", { x: cx - 5, y: cy - 5, width: 10, height: 10, class: "base" }));
+  svg.append(s("rect", { x: cx - 5, y: cy - 5, width: 10, height: 10, class: centre === "base" ? "base" : "home" }));
   if (uav) svg.append(s("circle", { cx: X(uav), cy: Y(uav), r: 5, class: "uav" }));
   const kinds = [
     [shapes.some((z) => z.kind === "inclusion" && z.source === "zone" && z.active), "zone inclusion", "inclusion zone (stay inside)"],
@@ -213,7 +220,7 @@ export function trackMap({ title, track = [], mission = [], uav = null, minSpan 
   const zones = shapes.length ? `; airspace: ${shapes.map(zoneLabel).join("; ")}` : "";
   svg.setAttribute("aria-label",
     `${title}: ${track.length} track points, ${mission.length} mission points, ` +
-    `farthest ${fmt(far)} m from the base` + (uav ? `; UAV ${fmt(uav.north)} m north, ${fmt(uav.east)} m east` : "") +
+    `farthest ${fmt(far)} m from the ${centre === "base" ? "base" : "mission's home"}` + (uav ? `; UAV ${fmt(uav.north)} m north, ${fmt(uav.east)} m east` : "") +
     zones + (rally.length ? `; ${rally.length} rally point${rally.length > 1 ? "s" : ""}` : ""));
   return svg;
 }
