@@ -27,10 +27,15 @@ from server.realtime.broker import Broker
 from server.realtime.channels import command_channel
 
 
-def parse_command(name: str, params: Mapping[str, Any]) -> CommandParams:
-    """The typed command of a request's name and params; 422 naming the field when they do not fit."""
+def parse_command(name: str, params: Mapping[str, Any], kind: str) -> CommandParams:
+    """The typed command of a request's name and params for an asset of `kind`; 422 naming the
+    field when they do not fit, or the kinds it is for when an asset of `kind` does not answer it."""
     try:
-        return vocabulary.parse(name, params)
+        command = vocabulary.parse(name, params)
+        vocabulary.check_kind(command, kind)
+        return command
+    except vocabulary.WrongKind as err:
+        raise Unprocessable(str(err), code="invalid_command") from err
     except vocabulary.UnknownCommand as err:
         known = ", ".join(sorted(vocabulary.COMMANDS))
         raise Unprocessable(f"{err}; known: {known}", code="invalid_command") from err
@@ -200,7 +205,7 @@ class CommandService(Service):
             self.db,
             organization_id=asset.organization_id,
             asset_id=asset.id,
-            command=parse_command(name, params),
+            command=parse_command(name, params, asset.kind.value),
             timeout_s=timeout_s,
             created_by=self.principal.actor_id,
         )
