@@ -295,19 +295,11 @@ def parse(name: str, params: Mapping[str, Any] | None = None) -> CommandParams:
     return model.model_validate(dict(params or {}))
 
 
-class WrongKind(ValueError):
-    """A command sent to an asset of a kind that does not answer it."""
-
-    def __init__(self, name: str, kind: str) -> None:
-        kinds = " or ".join(sorted(COMMANDS[name].kinds))
-        super().__init__(f"{name} is a command for a {kinds}, not a {kind}")
-        self.command, self.kind = name, kind
-
-
-def check_kind(command: CommandParams, kind: str) -> None:
-    """WrongKind unless an asset of `kind` answers `command`."""
-    if kind not in command.kinds:
-        raise WrongKind(command.name, kind)
+def wrong_kind(command: CommandParams, kind: str) -> str | None:
+    """Why an asset of `kind` does not take `command`; None when it does."""
+    if kind in command.kinds:
+        return None
+    return f"{command.name} is a command for a {' or '.join(sorted(command.kinds))}, not a {kind}"
 
 
 def params_of(command: CommandParams) -> dict[str, Any]:

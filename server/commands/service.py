@@ -32,10 +32,6 @@ def parse_command(name: str, params: Mapping[str, Any], kind: str) -> CommandPar
     field when they do not fit, or the kinds it is for when an asset of `kind` does not answer it."""
     try:
         command = vocabulary.parse(name, params)
-        vocabulary.check_kind(command, kind)
-        return command
-    except vocabulary.WrongKind as err:
-        raise Unprocessable(str(err), code="invalid_command") from err
     except vocabulary.UnknownCommand as err:
         known = ", ".join(sorted(vocabulary.COMMANDS))
         raise Unprocessable(f"{err}; known: {known}", code="invalid_command") from err
@@ -43,6 +39,10 @@ def parse_command(name: str, params: Mapping[str, Any], kind: str) -> CommandPar
         raise Unprocessable(
             f"invalid params for {name}: {vocabulary.describe(err)}", code="invalid_command"
         ) from err
+    wrong = vocabulary.wrong_kind(command, kind)
+    if wrong:
+        raise Unprocessable(wrong, code="invalid_command")
+    return command
 
 
 async def create(
