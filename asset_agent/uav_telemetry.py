@@ -2,12 +2,20 @@
 
 Autopilots report NaN for values they do not have (ArduPilot's ATTITUDE before the EKF is up, a
 battery monitor without a current sensor): a non-finite number is dropped here, field by field, so
-the rest of the sample is still sent (the protocol refuses NaN and infinities).
+the rest of the sample is still sent (the protocol refuses NaN and infinities). A value outside the
+protocol's range (a latitude of 200°, which GLOBAL_POSITION_INT's int32 can carry) leaves out its
+part of the sample alone, with one warning when the part goes bad (no traceback) and a note when
+it is good again, instead of failing the whole sample.
 """
 
 from __future__ import annotations
 
+import logging
 import math
+from collections.abc import Callable
+from typing import TypeVar
+
+from pydantic import ValidationError
 
 from asset_agent.autopilot.state import UavState
 from asset_agent.events import Event
@@ -65,6 +73,30 @@ MESSAGES = {
 }
 
 
+log = logging.getLogger(__name__)
+T = TypeVar("T")
+_BAD: set[str] = set()  # the parts left out of the last sample for their values (logged once)
+
+
+def _part(name: str, build: Callable[[], T | None]) -> T | None:
+    """One part of a sample, or None when the autopilot's values for it are out of range."""
+    try:
+        part = build()
+    except ValidationError as err:
+        if name not in _BAD:
+            _BAD.add(name)
+            fields = "; ".join(
+                f"{'.'.join(str(p) for p in e['loc'])}={e.get('input')!r}: {e['msg']}"
+                for e in err.errors()
+            )
+            log.warning("autopilot value out of range, %s left out of telemetry: %s", name, fields)
+        return None
+    if name in _BAD:
+        _BAD.discard(name)
+        log.info("autopilot values for %s in range again", name)
+    return part
+
+
 def _f(v: float | None) -> float | None:
     """The value when it is a finite number, else None (dropped)."""
     return v if v is not None and math.isfinite(v) else None
@@ -76,36 +108,63 @@ def _clamp(v: float | None, lo: float, hi: float) -> float | None:
 
 
 def to_telemetry(s: UavState) -> UavTelemetry:
-    """One telemetry sample from the autopilot's state; non-finite values are left out."""
-    position = None
+    """One telemetry sample from the autopilot's state; non-finite values are left out, and each
+    part (position, velocity, attitude, battery, GNSS, mission) whose values are out of range."""
     lat, lon, alt_msl = _f(s.lat), _f(s.lon), _f(s.alt_msl)
-    if lat is not None and lon is not None and alt_msl is not None:
-        position = Position(lat=lat, lon=lon, alt_msl_m=alt_msl, alt_rel_m=_f(s.alt_rel) or 0.0)
-    velocity = None
+    position = _part(
+        "position",
+        lambda: (
+            Position(lat=lat, lon=lon, alt_msl_m=alt_msl, alt_rel_m=_f(s.alt_rel) or 0.0)
+            if lat is not None and lon is not None and alt_msl is not None
+            else None
+        ),
+    )
     vn, ve, vd = _f(s.vn), _f(s.ve), _f(s.vd)
-    if vn is not None and ve is not None and vd is not None:
-        velocity = Velocity(north_m_s=vn, east_m_s=ve, down_m_s=vd)
-    attitude = None
+    velocity = _part(
+        "velocity",
+        lambda: (
+            Velocity(north_m_s=vn, east_m_s=ve, down_m_s=vd)
+            if vn is not None and ve is not None and vd is not None
+            else None
+        ),
+    )
     roll, pitch, yaw = _f(s.roll_deg), _f(s.pitch_deg), _f(s.yaw_deg)
-    if roll is not None and pitch is not None and yaw is not None:
-        attitude = Attitude(roll_deg=roll, pitch_deg=pitch, yaw_deg=yaw)
+    attitude = _part(
+        "attitude",
+        lambda: (
+            Attitude(roll_deg=roll, pitch_deg=pitch, yaw_deg=yaw)
+            if roll is not None and pitch is not None and yaw is not None
+            else None
+        ),
+    )
     heading = _f(s.heading_deg)
-    mission = None
-    if s.mission_total is not None:
-        mission = MissionProgress(
-            current=max(0, s.mission_current or 0), total=max(0, s.mission_total)
-        )
+    mission = _part(
+        "mission",
+        lambda: (
+            MissionProgress(current=max(0, s.mission_current or 0), total=max(0, s.mission_total))
+            if s.mission_total is not None
+            else None
+        ),
+    )
+    battery = _part(
+        "battery",
+        lambda: Battery(
+            percent=_clamp(s.battery_pct, 0, 100),
+            voltage_v=_f(s.voltage_v),
+            current_a=_f(s.current_a),
+        ),
+    )
+    gnss = _part(
+        "gnss",
+        lambda: Gnss(fix=FIX.get(s.fix_type, "none"), satellites=s.satellites, hdop=_f(s.hdop)),  # type: ignore[arg-type]
+    )
     return UavTelemetry(
         position=position,
         velocity=velocity,
         attitude=attitude,
         heading_deg=None if heading is None else heading % 360,
-        battery=Battery(
-            percent=_clamp(s.battery_pct, 0, 100),
-            voltage_v=_f(s.voltage_v),
-            current_a=_f(s.current_a),
-        ),
-        gnss=Gnss(fix=FIX.get(s.fix_type, "none"), satellites=s.satellites, hdop=_f(s.hdop)),  # type: ignore[arg-type]
+        battery=battery,
+        gnss=gnss,
         flight_mode=s.mode,
         armed=s.armed,
         landed_state=LANDED.get(s.landed_state, "unknown"),  # type: ignore[arg-type]

@@ -33,10 +33,16 @@ ITEM_FRAMES = (0, 2, 3, 5, 6, 10, 11)
 Param = Annotated[float, Field(allow_inf_nan=False)] | None
 
 
+UAV, LANDING_BASE = "uav", "landing_base"  # the asset kinds, as assets' `kind` names them
+BOTH = frozenset({UAV, LANDING_BASE})
+
+
 class CommandParams(Frozen):
-    """Base of every command model: `name` is the command's name on the wire."""
+    """Base of every command model: `name` is the command's name on the wire, `kinds` the asset
+    kinds that answer it (the server refuses it for any other)."""
 
     name: ClassVar[str]
+    kinds: ClassVar[frozenset[str]]
 
 
 # --- both assets ----------------------------------------------------------------------
@@ -49,6 +55,7 @@ class CheckAvailability(CommandParams):
     """
 
     name: ClassVar[str] = "check_availability"
+    kinds: ClassVar[frozenset[str]] = BOTH
     mass_g: Annotated[float, Field(ge=0, allow_inf_nan=False)] | None = None
     mass_window_g: Annotated[float, Field(ge=0, allow_inf_nan=False)] | None = None
 
@@ -76,6 +83,7 @@ class UploadMission(CommandParams):
     """Upload these items to the autopilot, read them back and compare."""
 
     name: ClassVar[str] = "upload_mission"
+    kinds: ClassVar[frozenset[str]] = frozenset({UAV})
     mission_id: uuid.UUID | None = None
     items: Annotated[tuple[MissionItem, ...], Field(min_length=1, max_length=1000)]
     # the geofence (MAV_CMD_NAV_FENCE_* items, uploaded as MAV_MISSION_TYPE_FENCE) and the rally
@@ -91,36 +99,42 @@ class StartMission(CommandParams):
     """Arm and start the uploaded mission (AUTO)."""
 
     name: ClassVar[str] = "start_mission"
+    kinds: ClassVar[frozenset[str]] = frozenset({UAV})
 
 
 class ReturnToBase(CommandParams):
     """RTL: back to the base, precision landing on the pad."""
 
     name: ClassVar[str] = "return_to_base"
+    kinds: ClassVar[frozenset[str]] = frozenset({UAV})
 
 
 class Pause(CommandParams):
     """Hold where it is (BRAKE)."""
 
     name: ClassVar[str] = "pause"
+    kinds: ClassVar[frozenset[str]] = frozenset({UAV})
 
 
 class Resume(CommandParams):
     """Resume the mission (AUTO)."""
 
     name: ClassVar[str] = "resume"
+    kinds: ClassVar[frozenset[str]] = frozenset({UAV})
 
 
 class Land(CommandParams):
     """Land where it is."""
 
     name: ClassVar[str] = "land"
+    kinds: ClassVar[frozenset[str]] = frozenset({UAV})
 
 
 class Abort(CommandParams):
     """Return to the base when flying, disarm on the ground."""
 
     name: ClassVar[str] = "abort"
+    kinds: ClassVar[frozenset[str]] = frozenset({UAV})
 
 
 class PreclandFault(CommandParams):
@@ -131,6 +145,7 @@ class PreclandFault(CommandParams):
     """
 
     name: ClassVar[str] = "precland_fault"
+    kinds: ClassVar[frozenset[str]] = frozenset({UAV})
     source: Annotated[str, Field(min_length=1, max_length=50)]
     r_drop: float | None = None
     p_keep: float | None = None
@@ -146,54 +161,63 @@ class Open(CommandParams):
     """Open the base: side panels, then lift up."""
 
     name: ClassVar[str] = "open"
+    kinds: ClassVar[frozenset[str]] = frozenset({LANDING_BASE})
 
 
 class Close(CommandParams):
     """Close the base: lift down, then side panels."""
 
     name: ClassVar[str] = "close"
+    kinds: ClassVar[frozenset[str]] = frozenset({LANDING_BASE})
 
 
 class OpenPanels(CommandParams):
     """Open the side panels only."""
 
     name: ClassVar[str] = "open_panels"
+    kinds: ClassVar[frozenset[str]] = frozenset({LANDING_BASE})
 
 
 class ClosePanels(CommandParams):
     """Close the side panels only."""
 
     name: ClassVar[str] = "close_panels"
+    kinds: ClassVar[frozenset[str]] = frozenset({LANDING_BASE})
 
 
 class LiftUp(CommandParams):
     """Raise the lift only."""
 
     name: ClassVar[str] = "lift_up"
+    kinds: ClassVar[frozenset[str]] = frozenset({LANDING_BASE})
 
 
 class LiftDown(CommandParams):
     """Lower the lift only."""
 
     name: ClassVar[str] = "lift_down"
+    kinds: ClassVar[frozenset[str]] = frozenset({LANDING_BASE})
 
 
 class Stop(CommandParams):
     """Stop every motor, in any state."""
 
     name: ClassVar[str] = "stop"
+    kinds: ClassVar[frozenset[str]] = frozenset({LANDING_BASE})
 
 
 class ResetFaults(CommandParams):
     """Clear latched faults (not an active E-stop)."""
 
     name: ClassVar[str] = "reset_faults"
+    kinds: ClassVar[frozenset[str]] = frozenset({LANDING_BASE})
 
 
 class StartCharging(CommandParams):
     """Start charging the UAV; `current_limit_ma` defaults to the base's configuration."""
 
     name: ClassVar[str] = "start_charging"
+    kinds: ClassVar[frozenset[str]] = frozenset({LANDING_BASE})
     current_limit_ma: Annotated[int, Field(ge=0, le=65535, strict=True)] | None = None
 
 
@@ -201,6 +225,7 @@ class StopCharging(CommandParams):
     """Stop charging."""
 
     name: ClassVar[str] = "stop_charging"
+    kinds: ClassVar[frozenset[str]] = frozenset({LANDING_BASE})
 
 
 AssetCommand = (
@@ -268,6 +293,13 @@ def parse(name: str, params: Mapping[str, Any] | None = None) -> CommandParams:
     if model is None:
         raise UnknownCommand(name)
     return model.model_validate(dict(params or {}))
+
+
+def wrong_kind(command: CommandParams, kind: str) -> str | None:
+    """Why an asset of `kind` does not take `command`; None when it does."""
+    if kind in command.kinds:
+        return None
+    return f"{command.name} is a command for a {' or '.join(sorted(command.kinds))}, not a {kind}"
 
 
 def params_of(command: CommandParams) -> dict[str, Any]:

@@ -22,6 +22,7 @@ from server.commands.endpoints import router as commands_router
 from server.config import Settings
 from server.console.endpoints import console_router
 from server.deps import services_of, set_services
+from server.docs import OPENAPI_URL, docs_router
 from server.health import router as health_router
 from server.kit import gctune, metrics, openapi
 from server.kit.bodylimit import LimitBody
@@ -184,8 +185,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         title="Aerobase",
         version=VERSION,
         lifespan=lifespan,
-        openapi_url="/api/openapi.json",
-        docs_url="/api/docs",
+        openapi_url=OPENAPI_URL,
+        docs_url=None,  # server/docs.py: the same page, its files from this server
         redoc_url=None,
         description="REST API of the Aerobase drone-in-a-box platform. See frontend_api.md.",
         # `/path/` answers 404 rather than a 307 to an absolute http:// URL (wrong behind TLS)
@@ -238,6 +239,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     ):
         app.include_router(router)
     app.include_router(console_router(tile_url=settings.map_tile_url))
+    app.include_router(docs_router(app.title))
 
     openapi.install(app, api_fields.FIELDS, api_fields.OVERRIDES)
 

@@ -17,13 +17,16 @@ from aerobase.demo.daemons import DEMO_CAMERA
 from aerobase.demo.processes import Processes, say
 
 ROOT_EMAIL, OPS_EMAIL = "root@demo.aerobase", "ops@demo.aerobase"
+# the demo's own account: it holds a session for the whole demo (its watch, the video link it
+# prints), so the operator login it prints signs in on first use without taking anything over
+DEMO_EMAIL = "demo@demo.aerobase"
 
 
 @dataclass(frozen=True)
 class Fleet:
-    """What registration made: the operator's token and the two assets as the API returned them."""
+    """What registration made: the demo's own token and the two assets as the API returned them."""
 
-    ops_token: str
+    token: str
     base: dict[str, Any]
     uav: dict[str, Any]
 
@@ -49,31 +52,33 @@ async def _login(c: httpx.AsyncClient, email: str, password: str, **extra: Any) 
 
 
 async def register(c: httpx.AsyncClient, passwords: dict[str, str]) -> Fleet:
-    """As the superuser: the organisation and its operator; as the operator: the base and the UAV."""
+    """As the superuser: the organisation, its operator (for the one watching) and the demo's own
+    user; as the demo's user: the base and the UAV."""
     token = await _login(c, ROOT_EMAIL, passwords["root"])
     org = await api(c, "POST", "/api/v1/organizations", token, json={"name": "Demo Fleet"})
     token = await _login(c, ROOT_EMAIL, passwords["root"], force=True, organization_id=org["id"])
-    await api(
-        c,
-        "POST",
-        "/api/v1/users",
-        token,
-        json={"email": OPS_EMAIL, "password": passwords["ops"], "role": "admin"},
-    )
+    for email, password in ((OPS_EMAIL, passwords["ops"]), (DEMO_EMAIL, passwords["demo"])):
+        await api(
+            c,
+            "POST",
+            "/api/v1/users",
+            token,
+            json={"email": email, "password": password, "role": "admin"},
+        )
     await api(c, "POST", "/api/v1/auth/logout", token)
-    ops = await _login(c, OPS_EMAIL, passwords["ops"])
+    own = await _login(c, DEMO_EMAIL, passwords["demo"])
     base = await api(
         c,
         "POST",
         "/api/v1/assets",
-        ops,
+        own,
         json={"name": "base-porto-1", "kind": "landing_base", "password": passwords["asset"]},
     )
     uav = await api(
         c,
         "POST",
         "/api/v1/assets",
-        ops,
+        own,
         json={
             "name": "uav-porto-1",
             "kind": "uav",
@@ -88,9 +93,10 @@ async def register(c: httpx.AsyncClient, passwords: dict[str, str]) -> Fleet:
         },
     )
     say(
-        "registered organisation 'Demo Fleet', user ops@demo.aerobase, base-porto-1 and uav-porto-1"
+        f"registered organisation 'Demo Fleet', users {OPS_EMAIL} and {DEMO_EMAIL} (the demo's "
+        "own), base-porto-1 and uav-porto-1"
     )
-    return Fleet(ops, base, uav)
+    return Fleet(own, base, uav)
 
 
 async def announce_video(c: httpx.AsyncClient, fleet: Fleet, server_url: str) -> bool:
@@ -98,12 +104,12 @@ async def announce_video(c: httpx.AsyncClient, fleet: Fleet, server_url: str) ->
     path = f"/api/v1/assets/{fleet.uav['id']}/video"
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:
-        video = await api(c, "GET", path, fleet.ops_token)
+        video = await api(c, "GET", path, fleet.token)
         if video["state"] == "live":
             say(
                 f"live video of uav-porto-1 ({video['width']}x{video['height']} VP8, "
                 f"{video['measured_fps'] or video['fps']} fps): {server_url}/video/viewer"
-                f"#asset={fleet.uav['id']}&token={fleet.ops_token}"
+                f"#asset={fleet.uav['id']}&token={fleet.token}"
             )
             return True
         await asyncio.sleep(0.5)
@@ -116,7 +122,7 @@ async def wait_ready(c: httpx.AsyncClient, fleet: Fleet, procs: Processes) -> tu
 
     Returns the UAV's position: it stands on the pad."""
     deadline = time.monotonic() + 90
-    h = {"Authorization": f"Bearer {fleet.ops_token}"}
+    h = {"Authorization": f"Bearer {fleet.token}"}
     while time.monotonic() < deadline:
         procs.check()
         b = await c.get(f"/api/v1/assets/{fleet.base['id']}/telemetry/latest", headers=h)
@@ -147,7 +153,7 @@ async def wait_uav_available(c: httpx.AsyncClient, fleet: Fleet, procs: Processe
     An external autopilot that has just booted fails its pre-arm checks for 30-45 s (ArduPilot:
     EKF, GPS, home); a survey scheduled before it is armable would abort at step 1."""
     deadline = time.monotonic() + 180
-    h = {"Authorization": f"Bearer {fleet.ops_token}"}
+    h = {"Authorization": f"Bearer {fleet.token}"}
     told = ""
     while time.monotonic() < deadline:
         procs.check()
@@ -188,7 +194,7 @@ def survey_polygon(lat: float, lon: float) -> dict[str, Any]:
 
 async def schedule_survey(c: httpx.AsyncClient, fleet: Fleet, lat: float, lon: float) -> None:
     """Survey the base where the UAV stands, plan the north field and schedule it 5 s ahead."""
-    ops, base_id = fleet.ops_token, fleet.base["id"]
+    ops, base_id = fleet.token, fleet.base["id"]
     await api(
         c,
         "PATCH",
@@ -232,7 +238,7 @@ async def schedule_survey(c: httpx.AsyncClient, fleet: Fleet, lat: float, lon: f
 
 async def watch(server_url: str, fleet: Fleet, procs: Processes) -> str:
     """Print run progress from the operator WebSocket until the run ends; returns its outcome."""
-    url = server_url.replace("http", "ws", 1) + f"/ws/operator?token={fleet.ops_token}"
+    url = server_url.replace("http", "ws", 1) + f"/ws/operator?token={fleet.token}"
     async with websockets.connect(url) as ws:
         await ws.send(
             json.dumps(
@@ -268,10 +274,10 @@ async def watch(server_url: str, fleet: Fleet, procs: Processes) -> str:
 async def report_run(c: httpx.AsyncClient, fleet: Fleet, outcome: str) -> None:
     """Print the outcome of the latest run with its flight time, its timeline and what the UAV
     reported meanwhile (armed, took_off, mission_finished, landed, ...)."""
-    runs = await api(c, "GET", "/api/v1/runs", fleet.ops_token)
+    runs = await api(c, "GET", "/api/v1/runs", fleet.token)
     if not runs:
         return
-    report = await api(c, "GET", f"/api/v1/runs/{runs[0]['id']}/report", fleet.ops_token)
+    report = await api(c, "GET", f"/api/v1/runs/{runs[0]['id']}/report", fleet.token)
     ft = report.get("flight_time_s")
     say(f"run {runs[0]['id']}: {outcome}" + (f"; {ft:.0f} s in the air (wall clock)" if ft else ""))
     landing = report.get("landing") or {}
@@ -291,7 +297,7 @@ async def report_run(c: httpx.AsyncClient, fleet: Fleet, outcome: str) -> None:
             c,
             "GET",
             f"/api/v1/assets/{fleet.uav['id']}/events",
-            fleet.ops_token,
+            fleet.token,
             params={"start": timeline[0]["at"]},
         )
         say("UAV events: " + ", ".join(e["name"] for e in events))

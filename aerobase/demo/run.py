@@ -52,7 +52,9 @@ def prepare(args: argparse.Namespace) -> tuple[Path, dict[str, str], dict[str, s
     folder = Path(args.dir).resolve()
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
-    secrets_ = {name: secrets.token_urlsafe(PASSWORD_LEN) for name in ("root", "ops", "asset")}
+    secrets_ = {
+        name: secrets.token_urlsafe(PASSWORD_LEN) for name in ("root", "ops", "demo", "asset")
+    }
     env = {
         "DATABASE_URL": f"sqlite+aiosqlite:///{folder / 'aerobase.db'}",
         "AEROBASE_PUBLIC_URL": f"http://127.0.0.1:{args.port}",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import uuid
 from collections.abc import Collection
 
-from sqlalchemy import exists, or_, select
+from sqlalchemy import exists, or_, select, update
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.assets.models import Asset
@@ -61,8 +61,24 @@ class AssetRepository(ScopedRepository[Asset]):
 
     @staticmethod
     async def by_name_for_login(db: AsyncSession, name: str) -> Asset | None:
-        """The asset with this name, locked for the login's transaction (before any caller)."""
-        stmt = (
-            select(Asset).where(Asset.name == name).with_for_update()
-        )  # unscoped: identity lookup
+        """The asset with this name (before any caller; a login then holds it with
+        `claim_for_login`)."""
+        stmt = select(Asset).where(Asset.name == name)  # unscoped: identity lookup
         return (await db.execute(stmt)).scalar_one_or_none()
+
+    @staticmethod
+    async def claim_for_login(db: AsyncSession, asset_id: uuid.UUID, secret_hash: str) -> bool:
+        """Hold the asset for a login's transaction on condition that its secret is still the
+        one checked (False: rotated or deleted since). A write that changes nothing, not a
+        SELECT … FOR UPDATE: on PostgreSQL it locks the row alike, and on SQLite (where FOR
+        UPDATE is a plain read, outside any transaction) it takes the database's one writer, so
+        a rotation or another login of the asset either waits for this transaction or is seen
+        by what it reads next."""
+        stmt = (
+            update(Asset)  # unscoped: identity lookup, before any caller
+            .where(Asset.id == asset_id, Asset.secret_hash == secret_hash)
+            # the same values: no new version, no new `updated_at` (nothing was edited)
+            .values(secret_hash=Asset.secret_hash, updated_at=Asset.updated_at)
+            .execution_options(synchronize_session=False)
+        )
+        return bool((await db.execute(stmt)).rowcount == 1)  # type: ignore[attr-defined]

@@ -75,6 +75,8 @@ class LoginService:
         user = await users.by_email(email, lock=True)
         # argon2 is deliberately slow: keep it off the event loop
         ok = await asyncio.to_thread(self.passwords.verify, _hash(user), password)
+        # held for this transaction, the password still the one checked (see `asset`)
+        ok = ok and user is not None and await users.claim_for_login(user.id, user.password_hash)
         if not ok or user is None:
             self.limiter.wrong("user", email, addr, password, _hash(user))
             raise Unauthorized(WRONG_PASSWORD, code="invalid_credentials")
@@ -95,18 +97,22 @@ class LoginService:
         # wrong secrets would otherwise hold the pool, each request waiting for a second one
         async with self.limiter.sessionmaker() as db:
             found = await AssetRepository.by_name_for_login(db, name)
-        asset = None
-        if found is not None and same_hash(found.secret_hash, token_hash(secret)):
-            # the right secret: the asset locked for this login's transaction, checked again (its
-            # credentials may have been rotated between the two reads)
-            asset = await AssetRepository.by_name_for_login(self.uow.db, name)
-        if asset is None or not same_hash(asset.secret_hash, token_hash(secret)):
+        if found is None or not same_hash(found.secret_hash, token_hash(secret)):
             await self.limiter.admit(f"asset:{name}", self.uow.client_addr, utcnow(), door="asset")
+            self.limiter.outcome("asset", "wrong")
+            raise Unauthorized("wrong asset name or secret", code="invalid_credentials")
+        # the right secret: the asset held for this login's transaction, on condition that its
+        # secret is still that one. Nothing of the login is read in the transaction before this
+        # write: concurrent logins and a rotation of the asset take turns from here on every
+        # database, so the session rule (`SessionService.open`) reads the asset's current
+        # sessions, and a login that a rotation overtook is refused instead of opening a session
+        # on the old secret (not counted: that secret was right a moment ago, it is no guess)
+        if not await AssetRepository.claim_for_login(self.uow.db, found.id, found.secret_hash):
             self.limiter.outcome("asset", "wrong")
             raise Unauthorized("wrong asset name or secret", code="invalid_credentials")
         self.limiter.outcome("asset", "ok")
         return await SessionService(self.uow, self.settings).open(
-            Account("asset", asset.id, asset.organization_id, asset.name),
+            Account("asset", found.id, found.organization_id, found.name),
             force=force,
             via="asset.login",
         )

@@ -5,20 +5,38 @@ from __future__ import annotations
 import uuid
 from datetime import datetime
 
-from sqlalchemy import ForeignKey, Index, PrimaryKeyConstraint, String
+from sqlalchemy import ForeignKey, Index, PrimaryKeyConstraint, String, text
 from sqlalchemy.orm import Mapped, mapped_column
 
 from server.kit.db import Base, IdMixin
 from server.kit.time import utcnow
 
+# a session is open until it is ended (`ended_at`), expired or not
+OPEN = text("ended_at IS NULL")
+
+
+def one_open_session(column: str) -> Index:
+    """At most one open session per account: the database's own rule (PostgreSQL and SQLite
+    alike), whatever path opens one and however many do so at once."""
+    return Index(
+        f"ux_auth_sessions_{column}_open",
+        column,
+        unique=True,
+        postgresql_where=OPEN,
+        sqlite_where=OPEN,
+    )
+
 
 class AuthSession(IdMixin, Base):
-    """One login of a user or an asset; the token is stored only as its hash."""
+    """One login of a user or an asset; the token is stored only as its hash. An account has at
+    most one open session: opening one ends the others (`SessionService.open`)."""
 
     __tablename__ = "auth_sessions"
     __table_args__ = (
         Index("ix_auth_sessions_user_live", "user_id", "ended_at"),
         Index("ix_auth_sessions_asset_live", "asset_id", "ended_at"),
+        one_open_session("user_id"),
+        one_open_session("asset_id"),
     )
 
     token_hash: Mapped[str] = mapped_column(String(64), unique=True)

@@ -6,6 +6,7 @@ import uuid
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.audit.service import record
@@ -28,7 +29,22 @@ END_REASONS = {
     "removed": "the user was removed from the organisation",
     "password_changed": "the account's password was changed",
     "password_reset": "the account's password was reset by an administrator",
+    "expired": "the session expired",  # found past its expiry by the account's next login
 }
+
+
+def _session_active(account: Account, live: AuthSession) -> Conflict:
+    return Conflict(
+        f"{account.label} already has a live session (started "
+        f"{rfc3339(live.created_at.replace(microsecond=0))}, last active "
+        f'{rfc3339(live.last_seen_at.replace(microsecond=0))}); log in with "force": true '
+        "to end it",
+        code="session_active",
+        details={
+            "session_started_at": rfc3339(live.created_at),
+            "last_seen_at": rfc3339(live.last_seen_at),
+        },
+    )
 
 
 @dataclass(frozen=True)
@@ -82,23 +98,24 @@ class SessionService:
         )
 
     async def open(self, account: Account, *, force: bool, via: str = "login") -> IssuedToken:
-        """One live session per account: refuse with 409 while one is alive unless `force`."""
+        """One live session per account: refuse with 409 while one is alive unless `force`.
+
+        Every open session of the account is ended before the new one is added (a live one is
+        taken over, one past its expiry or idle timeout is ended as expired), so an account never
+        has two open sessions, and the database's partial unique index (`one_open_session`)
+        refuses a second on every backend. Concurrent logins of one account take turns when the
+        caller has claimed the account first (`LoginService`: a conditional write on its row),
+        so that what is read here is current; one that lost a race with another open anyway is
+        answered 409 `session_active`, as if it had seen that session."""
         now = utcnow()
         key = {"user_id": account.id} if account.kind == "user" else {"asset_id": account.id}
-        existing = [s for s in await self.repo.open_for(**key) if s.alive_at(now)]
-        if existing and not force:
-            live = existing[0]
-            raise Conflict(
-                f"{account.label} already has a live session (started "
-                f"{rfc3339(live.created_at.replace(microsecond=0))}, last active "
-                f'{rfc3339(live.last_seen_at.replace(microsecond=0))}); log in with "force": true '
-                "to end it",
-                code="session_active",
-                details={
-                    "session_started_at": rfc3339(live.created_at),
-                    "last_seen_at": rfc3339(live.last_seen_at),
-                },
-            )
+        open_now = await self.repo.open_for(**key)
+        live = [s for s in open_now if s.alive_at(now)]
+        if live and not force:
+            raise _session_active(account, live[0])
+        for stale in open_now:
+            if not stale.alive_at(now):
+                await self.end(stale, "expired")
         ttl, idle = self._policy(account.kind)
         token = new_token()
         session = AuthSession(
@@ -113,11 +130,19 @@ class SessionService:
             idle_timeout_s=idle,
             client_addr=self.uow.client_addr,
         )
-        self.repo.add(session)
-        await self.db.flush()
-        actor = account.principal(session.id)
-        for old in existing:
+        for old in live:
             await self.end(old, "taken_over")
+        self.repo.add(session)
+        try:
+            await self.db.flush()
+        except IntegrityError as err:  # another open of this account committed first
+            raise Conflict(
+                f"{account.label} already has a live session (opened by another login at the "
+                'same moment); log in with "force": true to end it',
+                code="session_active",
+            ) from err
+        actor = account.principal(session.id)
+        for old in live:
             await record(
                 self.uow,
                 actor,
@@ -125,8 +150,8 @@ class SessionService:
                 target=str(old.id),
                 previous_client_addr=old.client_addr,
             )
-        await record(self.uow, actor, via, target=str(session.id), forced=bool(existing))
-        return IssuedToken(token, session, tuple(old.id for old in existing))
+        await record(self.uow, actor, via, target=str(session.id), forced=bool(live))
+        return IssuedToken(token, session, tuple(old.id for old in live))
 
     async def authenticate(self, token: str) -> AuthSession:
         """The live session of a bearer token, its last activity refreshed; else Unauthorized."""
@@ -134,11 +159,13 @@ class SessionService:
         now = utcnow()
         if session is None:
             raise Unauthorized("unknown token")
+        if session.end_reason == "expired" or (
+            session.ended_at is None and not session.alive_at(now)
+        ):
+            raise Unauthorized("session expired", code="session_expired")
         if session.ended_at is not None:
             reason = END_REASONS.get(session.end_reason or "", "the session was ended")
             raise Unauthorized(f"session ended: {reason}", code="session_ended")
-        if not session.alive_at(now):
-            raise Unauthorized("session expired", code="session_expired")
         if (now - session.last_seen_at).total_seconds() >= 5:
             session.last_seen_at = now
         return session

@@ -27,10 +27,11 @@ from server.realtime.broker import Broker
 from server.realtime.channels import command_channel
 
 
-def parse_command(name: str, params: Mapping[str, Any]) -> CommandParams:
-    """The typed command of a request's name and params; 422 naming the field when they do not fit."""
+def parse_command(name: str, params: Mapping[str, Any], kind: str) -> CommandParams:
+    """The typed command of a request's name and params for an asset of `kind`; 422 naming the
+    field when they do not fit, or the kinds it is for when an asset of `kind` does not answer it."""
     try:
-        return vocabulary.parse(name, params)
+        command = vocabulary.parse(name, params)
     except vocabulary.UnknownCommand as err:
         known = ", ".join(sorted(vocabulary.COMMANDS))
         raise Unprocessable(f"{err}; known: {known}", code="invalid_command") from err
@@ -38,6 +39,10 @@ def parse_command(name: str, params: Mapping[str, Any]) -> CommandParams:
         raise Unprocessable(
             f"invalid params for {name}: {vocabulary.describe(err)}", code="invalid_command"
         ) from err
+    wrong = vocabulary.wrong_kind(command, kind)
+    if wrong:
+        raise Unprocessable(wrong, code="invalid_command")
+    return command
 
 
 async def create(
@@ -200,7 +205,7 @@ class CommandService(Service):
             self.db,
             organization_id=asset.organization_id,
             asset_id=asset.id,
-            command=parse_command(name, params),
+            command=parse_command(name, params, asset.kind.value),
             timeout_s=timeout_s,
             created_by=self.principal.actor_id,
         )

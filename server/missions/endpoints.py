@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import json
 import uuid
 from typing import Annotated, Literal
 
@@ -25,11 +24,9 @@ from server.missions.schemas import (
     ValidationReport,
 )
 from server.missions.service import MissionService, estimate, limits_from, rejected
-from server.missions.validate import Problem
+from server.missions.upload import read_import
 
 router = APIRouter(tags=["missions"])
-JSON_TYPES = {"application/json"}
-WPL_TYPES = {"text/plain", wpl.MEDIA_TYPE}
 
 
 def _service(uow: UoW, principal: Viewer, settings: SettingsDep) -> MissionService:
@@ -111,31 +108,6 @@ IMPORT_BODY = {
 }
 
 
-def _read_import(body: bytes, content_type: str) -> tuple[qgc.Imported, str]:
-    """Parse an uploaded file by its content type; raises ImportRejected or an AppError."""
-    media = content_type.split(";")[0].strip().lower()
-    if media in JSON_TYPES or media.endswith("+json"):
-        try:
-            document = json.loads(body)
-        except (ValueError, RecursionError) as err:
-            raise qgc.ImportRejected(
-                [Problem("body", f"not valid JSON: {str(err)[:200]}")]
-            ) from err
-        return qgc.parse_plan(document), "qgc"
-    if media in WPL_TYPES:
-        try:
-            text = body.decode("utf-8-sig")
-        except UnicodeDecodeError as err:
-            raise qgc.ImportRejected(
-                [Problem("body", "a waypoint file must be UTF-8 text")]
-            ) from err
-        return wpl.parse_wpl(text), "wpl"
-    raise UnsupportedMediaType(
-        f"content type {media or 'none'!r}: send application/json (QGroundControl .plan) or "
-        f"text/plain / {wpl.MEDIA_TYPE} (QGC WPL 110)"
-    )
-
-
 @router.post(
     "/api/v1/missions/import",
     status_code=201,
@@ -153,7 +125,9 @@ async def import_mission(
     """Import a QGroundControl .plan (JSON) or a WPL 110 file (text); 422 names every item refused."""
     body = await request.body()  # at most AEROBASE_MAX_IMPORT_BYTES (server/kit/bodylimit.py)
     try:
-        imported, source = _read_import(body, request.headers.get("content-type", ""))
+        imported, source = await read_import(
+            body, request.headers.get("content-type", ""), missions.limits.max_items
+        )
     except qgc.ImportRejected as err:
         raise rejected(err.problems, code="import_rejected") from err
     label = {"qgc": "QGroundControl plan", "wpl": "waypoint file"}[source]

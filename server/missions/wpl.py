@@ -32,10 +32,13 @@ def _float(text: str) -> float | None:
     return value
 
 
-def parse_wpl(text: str) -> Imported:
-    """`QGC WPL 110` text -> Imported; raises ImportRejected naming every line it cannot take."""
+def parse_wpl(text: str, *, max_items: int | None = None) -> Imported:
+    """`QGC WPL 110` text -> Imported; raises ImportRejected naming every line it cannot take,
+    or, before reading any, the file when it has more lines than home and `max_items` items."""
     lines = [ln.strip() for ln in text.replace("\r\n", "\n").replace("\r", "\n").split("\n")]
     lines = [ln for ln in lines if ln]
+    if max_items is not None and len(lines) - 2 > max_items:  # the header and home are no items
+        raise ImportRejected([Problem("lines", "too many items", len(lines) - 2, max_items)])
     if not lines or lines[0].split() != HEADER.split():
         got = lines[0][:40] if lines else ""
         raise ImportRejected(

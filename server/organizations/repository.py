@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import uuid
 
-from sqlalchemy import select
+from sqlalchemy import select, update
 from sqlalchemy.ext.asyncio import AsyncSession
 
 from server.kit.paging import Page, Paged, paginate, paginate_rows
@@ -47,6 +47,18 @@ class UserRepository:
         if lock:
             stmt = stmt.with_for_update()
         return (await self.db.execute(stmt)).scalar_one_or_none()
+
+    async def claim_for_login(self, user_id: uuid.UUID, password_hash: str) -> bool:
+        """Hold the user for a login's transaction on condition that their password is still
+        the one checked (False: changed since); a write that changes nothing, for the reasons
+        of `AssetRepository.claim_for_login`."""
+        stmt = (
+            update(User)  # unscoped: identity lookup, before any caller
+            .where(User.id == user_id, User.password_hash == password_hash)
+            .values(password_hash=User.password_hash)
+            .execution_options(synchronize_session=False)
+        )
+        return bool((await self.db.execute(stmt)).rowcount == 1)  # type: ignore[attr-defined]
 
     async def memberships(self, user_id: uuid.UUID) -> list[tuple[Membership, Organization]]:
         """Every membership of a user with its organisation."""

@@ -34,3 +34,32 @@ def test_a_good_command_is_queued_with_its_params_as_sent(api, tenant: Tenant):
     )
     assert r.status_code == 202, r.text
     assert r.json()["params"] == {"current_limit_ma": 4000} and r.json()["status"] == "queued"
+
+
+def test_a_command_for_the_other_kind_of_asset_is_a_422_and_nothing_is_queued(api, tenant: Tenant):
+    """Issue 48 finding 6: a base does not fly and a UAV has no panels."""
+    uav, base = tenant.create_asset("uav"), tenant.create_asset("landing_base")
+    wrong = {
+        base["id"]: ["start_mission", "return_to_base", "upload_mission", "land", "abort"],
+        uav["id"]: ["open", "close", "lift_up", "start_charging", "stop", "reset_faults"],
+    }
+    for asset_id, names in wrong.items():
+        url = f"/api/v1/assets/{asset_id}/commands"
+        kind = "landing_base" if asset_id == base["id"] else "uav"
+        for name in names:
+            item = {"command": 16, "lat": 47.39, "lon": 8.54, "alt": 20}
+            params = {"items": [item]} if name == "upload_mission" else {}
+            r = api.post(url, headers=tenant.h("operator"), json={"name": name, "params": params})
+            assert r.status_code == 422, (name, r.text)
+            error = r.json()["error"]
+            assert error["code"] == "invalid_command", error
+            assert error["message"].endswith(f"not a {kind}"), error
+        assert api.get(url, headers=tenant.h("viewer")).json() == []
+    # what both kinds answer is taken by either
+    for asset_id in wrong:
+        r = api.post(
+            f"/api/v1/assets/{asset_id}/commands",
+            headers=tenant.h("operator"),
+            json={"name": "check_availability"},
+        )
+        assert r.status_code == 202, r.text
