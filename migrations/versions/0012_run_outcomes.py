@@ -4,16 +4,16 @@ incomplete, aborted, failed: server/runs/outcome.py), with the degradations that
 re-judged where their timeline tells: a completed run turned home by the battery reserve, the
 geofence or its time budget is `incomplete`; one whose charging failed is `completed_with_issues`.
 
-Revision ID: 0011
-Revises: 0010
+Revision ID: 0012
+Revises: 0011
 Create Date: 2026-12-07
 """
 
 import sqlalchemy as sa
 from alembic import op
 
-revision = "0011"
-down_revision = "0010"
+revision = "0012"
+down_revision = "0011"
 branch_labels = None
 depends_on = None
 

@@ -1,4 +1,4 @@
-"""0011 re-judges the runs already recorded: a completed run that the battery reserve (or the
+"""0012 re-judges the runs already recorded: a completed run that the battery reserve (or the
 geofence, or its time budget) turned home is `incomplete` with that cause; one whose charging
 failed is `completed_with_issues` (`charging_refused`); a clean one stays `completed`; and the
 downgrade gives the old words back (an early return's cause kept on its run)."""
@@ -23,14 +23,14 @@ _RUNS = sa.table(
     *(_col(c) for c in (*_RUN_COLUMNS, "outcome", "cause")),
     *(_col(c) for c in ("step_started_at", "lease_until", "created_at", "updated_at")),
 )
-_RUNS_0011 = sa.table(
+_RUNS_0012 = sa.table(
     "runs", *(_col(c) for c in ("id", "state", "outcome", "cause")), sa.column("issues", sa.JSON())
 )
 _TRANSITIONS = sa.table(
     "run_transitions",
     *(_col(c) for c in ("id", "run_id", "at", "from_state", "to_state", "reason", "cause")),
 )
-# (flying exit's cause, the final transition's cause) -> (state, outcome, cause, issues) after 0011
+# (flying exit's cause, the final transition's cause) -> (state, outcome, cause, issues) after 0012
 RUNS = {
     "clean": (("", ""), ("completed", "completed", None, [])),
     "reserve": (("battery_reserve", ""), ("incomplete", "incomplete", "battery_reserve", [])),
@@ -86,18 +86,18 @@ def _seed(conn: sa.Connection) -> dict[str, uuid.UUID]:
 def _read(conn: sa.Connection) -> dict[uuid.UUID, tuple]:
     return {
         r.id: (r.state, r.outcome, r.cause, list(r.issues))
-        for r in conn.execute(sa.select(_RUNS_0011))
+        for r in conn.execute(sa.select(_RUNS_0012))
     }
 
 
 def _check(url: str) -> None:
-    migrate.upgrade(url, "0010")
+    migrate.upgrade(url, "0011")
     ids = _run_sync(url, _seed)
     migrate.upgrade(url)
     after = _run_sync(url, _read)
     for name, (_, expected) in RUNS.items():
         assert after[ids[name]] == expected, name
-    migrate.downgrade(url, "0010")
+    migrate.downgrade(url, "0011")
     back = _run_sync(
         url, lambda c: {r.id: (r.state, r.outcome, r.cause) for r in c.execute(sa.select(_RUNS))}
     )
@@ -109,23 +109,23 @@ def _check(url: str) -> None:
 
 
 @pytest.mark.slow
-def test_sqlite_0011_rejudges_recorded_runs_both_ways():
+def test_sqlite_0012_rejudges_recorded_runs_both_ways():
     with tempfile.TemporaryDirectory() as tmp:
         _check(f"sqlite+aiosqlite:///{tmp}/m.db")
 
 
 @pytest.mark.slow
-def test_postgresql_0011_rejudges_recorded_runs_both_ways():
+def test_postgresql_0012_rejudges_recorded_runs_both_ways():
     need_service("PostgreSQL", "127.0.0.1", 5432)
     import asyncpg
 
     async def make_db() -> None:
         conn = await asyncpg.connect("postgresql://postgres@127.0.0.1:5432/postgres")
-        await conn.execute("DROP DATABASE IF EXISTS aerobase_migrations_0011")
-        await conn.execute("CREATE DATABASE aerobase_migrations_0011")
+        await conn.execute("DROP DATABASE IF EXISTS aerobase_migrations_0012")
+        await conn.execute("CREATE DATABASE aerobase_migrations_0012")
         await conn.close()
 
     asyncio.run(make_db())
-    url = "postgresql+asyncpg://postgres@127.0.0.1:5432/aerobase_migrations_0011"
+    url = "postgresql+asyncpg://postgres@127.0.0.1:5432/aerobase_migrations_0012"
     _reset_postgres(url)
     _check(url)
