@@ -32,4 +32,4 @@ def test_non_finite_autopilot_values_are_dropped_and_the_rest_is_sent() -> None:
 
 def test_non_finite_event_details_are_dropped() -> None:
     event = Event("waypoint_reached", MappingProxyType({"index": 3, "dist": math.nan, "x": 1.5}))
-    assert to_event(event).data == {"index": 3, "x": 1.5}
+    assert to_event(event).data == {"index": 3, "number": 4, "x": 1.5}
