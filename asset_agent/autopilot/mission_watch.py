@@ -138,8 +138,13 @@ class MissionWatch:
         return self.at is not None
 
     def current_command(self) -> int | None:
-        """The MAV_CMD of the item the mission is known to fly (None before its start)."""
-        return self.command_at(self.at)
+        """The MAV_CMD of the item the mission is known to fly (None before its start): once an
+        item is reached the autopilot flies the next one at once, though its MISSION_CURRENT (1 Hz)
+        may not have said so yet."""
+        flying = self.at
+        if self.reached_at and self.at is not None and self.at != self.last_nav_index():
+            flying = self._nav_after(self.at)
+        return self.command_at(flying)
 
     def _ours(self, s: UavState) -> bool:
         """The state's MISSION_CURRENT is of the uploaded plan, as far as the ids tell."""

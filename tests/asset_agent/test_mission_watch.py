@@ -243,5 +243,13 @@ def test_a_mission_adopted_in_flight_follows_the_item_the_autopilot_reports():
     w.uploaded(6, SURVEY, adopted=True)
     w.on_change(on(3), on(3), 1.0)
     assert w.at == 3
+    assert w.current_command() == 16
     _, ours = w.on_reached(on(3), 4)
-    assert ours and w.current_command() == 16
+    assert ours and w.at == 3
+
+
+def test_once_an_item_is_reached_the_next_is_flown_before_its_mission_current_says_so():
+    f = Flight()
+    f.see(on(0))
+    f.reach(1, 3, 4, 5)  # the last waypoint reached: the RTL item flies (landing inference, RTL)
+    assert f.w.at == 4 and f.w.current_command() == 20 and f.w.finished is None
