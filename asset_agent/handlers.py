@@ -186,8 +186,9 @@ class Handlers:
             return ""
         if s.mode in RETURNING_MODES:
             return f"already returning to the base ({s.mode})"
-        # the mission this agent uploaded, or found on the autopilot when it started
-        command = self.autopilot.mission_watch.command_at(s.mission_current)
+        # the item of the mission this agent uploaded (or found on the autopilot when it
+        # started) that it is known to fly: not a stale MISSION_CURRENT of the last flight's
+        command = self.autopilot.mission_watch.current_command()
         if s.mode == "AUTO" and command == NAV_RETURN_TO_LAUNCH:
             return "already returning to the base: the mission's own return-home"
         return ""

@@ -176,8 +176,11 @@ def to_event(e: Event) -> EventPayload:
     """One protocol event from a derived autopilot event."""
     detail = dict(e.detail)
     message = MESSAGES.get(e.kind, e.kind.replace("_", " "))
-    if e.kind == "waypoint_reached" and "index" in detail:
-        message = f"waypoint {detail['index']} reached"
+    if e.kind == "waypoint_reached" and isinstance(detail.get("index"), int):
+        # numbered from 1, as the console numbers mission items ("Mission item 1 of 6"); the
+        # index stays the server's 0-based one
+        detail["number"] = detail["index"] + 1
+        message = f"waypoint {detail['number']} reached"
     return EventPayload(
         name=e.kind,
         severity=SEVERITY.get(e.kind, "info"),

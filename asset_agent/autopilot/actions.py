@@ -7,7 +7,7 @@ import time
 from collections.abc import Awaitable, Callable
 
 from asset_agent.autopilot.errors import AutopilotError
-from asset_agent.autopilot.flight_state import MissionWatch
+from asset_agent.autopilot.mission_watch import MissionWatch
 from asset_agent.autopilot.state import COPTER_MODES, MODE_NUMBERS, UavState
 
 # MAV_CMD numbers
@@ -68,6 +68,7 @@ class ActionsMixin:
             await self.arm()
         try:
             await self.command(CMD_MISSION_START, 0, 0)
+            self.mission_watch.start_commanded()  # its first item is this mission's start
             self.mode_changed = (time.monotonic(), "AUTO")
         except AutopilotError:
             if armed_here:

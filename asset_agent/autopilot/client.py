@@ -31,9 +31,10 @@ from asset_agent.autopilot.boot import BootWatch
 from asset_agent.autopilot.config import AutopilotConfig
 from asset_agent.autopilot.errors import AutopilotTimeout, CommandRejected, LinkLost
 from asset_agent.autopilot.fence import FenceMixin
-from asset_agent.autopilot.flight_state import MissionWatch, Thresholds, infer_landed_state
+from asset_agent.autopilot.flight_state import Thresholds, infer_landed_state
 from asset_agent.autopilot.items import MissionItem
 from asset_agent.autopilot.link import MavlinkLink
+from asset_agent.autopilot.mission_watch import MissionWatch
 from asset_agent.autopilot.setpoints import SetpointsMixin
 from asset_agent.autopilot.state import Notification, UavState
 from asset_agent.autopilot.streams import StreamKeeper, keep
@@ -154,7 +155,11 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
                 self._link_changed(True)
         self._check_reboot(getattr(msg, "time_boot_ms", None), now)
         prev = self.state
-        self.state = self._flight_state(prev, translate.apply(prev, msg), msg, now)
+        cur = self._flight_state(prev, translate.apply(prev, msg), msg, now)
+        reached = self.mission_watch.touched_down(prev, cur)
+        if reached is not None:  # a final RTL / LAND item ends at touchdown: before `landed`
+            self._notify(Notification("item_reached", index=reached))
+        self.state = cur
         if kind == "STATUSTEXT":
             text = msg.text if isinstance(msg.text, str) else msg.text.decode(errors="replace")
             text = text.rstrip("\x00")
@@ -163,8 +168,11 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
             del self.statustexts[:-200]
             self._notify(Notification("statustext", text, msg.severity))
         elif kind == "MISSION_ITEM_REACHED":
-            self._notify(Notification("item_reached", index=msg.seq - 1))
-            self.state = self.mission_watch.on_reached(self.state, msg.seq)
+            # only this mission's items, in turn: the last flight's, delivered late, are not
+            state, ours = self.mission_watch.on_reached(self.state, msg.seq)
+            if ours:
+                self._notify(Notification("item_reached", index=msg.seq - 1))
+            self.state = state
         for predicate, queue in list(self._taps):
             try:
                 if predicate(msg):
@@ -180,7 +188,7 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
         elif kind == "MISSION_CURRENT" and getattr(msg, "mission_state", 0):
             self.mission_watch.reported = True
         if not self.extended_state_seen and kind in ("HEARTBEAT", "GLOBAL_POSITION_INT"):
-            command = self.mission_watch.command_at(cur.mission_current)
+            command = self.mission_watch.current_command()
             landed = infer_landed_state(prev.landed_state, cur, self.thresholds, command)
             cur = replace(cur, landed_state=landed)
         return self.mission_watch.on_change(prev, cur, now)
@@ -344,9 +352,10 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
             log.warning("stream negotiation failed", exc_info=True)
         self.streams_requested.set()
 
-    def mission_uploaded(self, items: list[MissionItem]) -> None:
-        """`items` are on the autopilot: mission progress starts afresh."""
-        self.mission_watch.uploaded(len(items), [item.command for item in items])
+    def mission_uploaded(self, items: list[MissionItem], opaque_id: int = 0) -> None:
+        """`items` are on the autopilot (its plan id `opaque_id`, 0 if none): mission progress
+        starts afresh, and only this mission's start counts (mission_watch.py)."""
+        self.mission_watch.uploaded(len(items), [item.command for item in items], opaque_id)
         self.state = replace(self.state, mission_total=len(items), mission_state="NOT_STARTED")
 
     async def set_message_interval(self, msg_id: int, hz: float) -> None:
@@ -377,7 +386,8 @@ class Autopilot(ActionsMixin, SetpointsMixin, FenceMixin):
         the upload: a restart, in flight perhaps), so that its progress and last item are known."""
         items = await self.download_mission()
         if self.mission_watch.total is None:  # an upload of this agent's came first: it stands
-            self.mission_watch.uploaded(len(items), [item.command for item in items])
+            commands = [item.command for item in items]
+            self.mission_watch.uploaded(len(items), commands, adopted=True)
             self.state = replace(self.state, mission_total=len(items))
             log.info("the mission on the autopilot adopted: %d items", len(items))
 

@@ -4,7 +4,9 @@ Upload: MISSION_COUNT, then answer each MISSION_REQUEST_INT (or MISSION_REQUEST)
 MISSION_ITEM_INT until the final MISSION_ACK. On silence the last message is re-sent, up to
 `mission_retries` times per step, then MissionError(index, "timeout ..."). A MISSION_ACK with
 an error ends the upload with MissionError naming the item being sent and the
-MAV_MISSION_RESULT. Indices are the caller's (server list) indices: MAVLink seq - 1.
+MAV_MISSION_RESULT. Indices are the caller's (server list) indices: MAVLink seq - 1. The final MISSION_ACK's
+opaque_id (ArduPilot 4.5+, PX4) names the plan; MISSION_CURRENT.mission_id then says whether
+what the autopilot reports is of this plan (mission_watch.py).
 """
 
 from __future__ import annotations
@@ -14,9 +16,11 @@ import logging
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from asset_agent.autopilot import translate
 from asset_agent.autopilot.errors import MissionError, mission_result_text
 from asset_agent.autopilot.items import FRAME_GLOBAL, MissionItem
 from asset_agent.autopilot.state import UavState
+from asset_agent.autopilot.translate import OPAQUE_ID_OFFSET
 from asset_agent.autopilot.verify import compare
 
 if TYPE_CHECKING:
@@ -115,6 +119,7 @@ async def upload(
         with ap.tap(ours) as q:
             last_sent: int | None = None  # None: the count
             highest = -1
+            opaque_id = 0
             send_count()
             tries = 0
             while True:
@@ -138,6 +143,8 @@ async def upload(
                 tries = 0
                 if msg.get_type() == "MISSION_ACK":
                     if msg.type == MAV_MISSION_ACCEPTED and highest == len(full) - 1:
+                        # the plan's id, where the autopilot gives one (mission_watch.py)
+                        opaque_id = translate.extension_u32(msg, "opaque_id", OPAQUE_ID_OFFSET)
                         break
                     if msg.type == MAV_MISSION_ACCEPTED:
                         continue  # a stale ACK from an earlier transfer
@@ -155,7 +162,7 @@ async def upload(
                 highest = max(highest, seq)
     log.info("%s uploaded: %d items", TYPE_NAMES.get(mission_type, "list"), len(items))
     if mission:
-        ap.mission_uploaded(items)
+        ap.mission_uploaded(items, opaque_id)
     if progress is not None:
         progress("upload", len(items), len(items))
     if verify:

@@ -58,6 +58,7 @@ class UavState:
     mission_current: int | None = None
     mission_total: int | None = None
     mission_state: str = "UNKNOWN"
+    mission_id: int | None = None  # MISSION_CURRENT.mission_id: the plan's id (0: none given)
     home_lat: float | None = None
     home_lon: float | None = None
     home_alt_msl: float | None = None

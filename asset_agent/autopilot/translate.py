@@ -7,6 +7,7 @@ so they are tested without a link.
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
@@ -14,6 +15,8 @@ from typing import Any
 from asset_agent.autopilot.state import COPTER_MODES, LANDED_STATES, MISSION_STATES, UavState
 
 MAV_MODE_FLAG_SAFETY_ARMED = 128
+MISSION_ID_OFFSET = 6  # MISSION_CURRENT: seq, total (uint16), mission_state, mission_mode (uint8)
+OPAQUE_ID_OFFSET = 4  # MISSION_ACK: target system, component, type, mission_type (uint8)
 SENSOR_PREARM_CHECK = 0x10000000
 # MAV_SYS_STATUS_SENSOR: gyro, accel, mag, baro, GPS, AHRS, battery, pre-arm checks
 CRITICAL_SENSORS = 0x1 | 0x2 | 0x4 | 0x8 | 0x20 | 0x200000 | 0x2000000 | SENSOR_PREARM_CHECK
@@ -89,6 +92,22 @@ def _extended_sys_state(s: UavState, m: Any) -> UavState:
     return replace(s, landed_state=LANDED_STATES.get(m.landed_state, "UNDEFINED"))
 
 
+def extension_u32(m: Any, name: str, offset: int) -> int:
+    """A uint32 MAVLink 2 extension field: from the message when this pymavlink knows the field,
+    else read from the payload at `offset` (pymavlink 2.4.50 stops before MISSION_CURRENT's
+    mission_id and MISSION_ACK's opaque_id, added to common.xml in 2023); 0 when not sent
+    (MAVLink 2 truncates trailing zeros; MAVLink 1 has no extensions)."""
+    known = getattr(m, name, None)
+    if isinstance(known, int):
+        return known
+    get = getattr(m, "get_msgbuf", None)
+    buf = bytes(get()) if callable(get) else b""
+    if len(buf) < 10 or buf[0] != 0xFD:  # not a MAVLink 2 frame
+        return 0
+    payload = buf[10 : 10 + buf[1]].ljust(offset + 4, b"\0")
+    return int(struct.unpack_from("<I", payload, offset)[0])
+
+
 def _mission_current(s: UavState, m: Any) -> UavState:
     # total excludes home (on the last item seq == total); 0 = not reported, 0xFFFF = no mission
     total = getattr(m, "total", 0)
@@ -105,6 +124,7 @@ def _mission_current(s: UavState, m: Any) -> UavState:
         mission_total=mission_total,
         # 0: not reported (ArduPilot before 4.4): keep what flight_state.MissionWatch inferred
         mission_state=MISSION_STATES.get(state, "UNKNOWN") if state else s.mission_state,
+        mission_id=extension_u32(m, "mission_id", MISSION_ID_OFFSET),
     )
 
 

@@ -32,7 +32,12 @@ NO_ANSWER = -1  # not a MAV_RESULT: send no COMMAND_ACK at all
 
 def _arm_disarm(c: Copter, p: Params, link: Any) -> int:
     force = int(p[1]) == FORCE_MAGIC
-    return c.arm(force) if p[0] >= 0.5 else c.disarm(force)
+    if p[0] < 0.5:
+        return c.disarm(force)
+    result = c.arm(force)
+    if result == ACCEPTED:
+        c.faults.stale_mission.replay(c, "on_arming")  # the fault (stale.py)
+    return result
 
 
 def _takeoff(c: Copter, p: Params, link: Any) -> int:
@@ -54,9 +59,10 @@ def _set_mode(c: Copter, p: Params, link: Any) -> int:
 
 
 def _mission_start(c: Copter, p: Params, link: Any) -> int:
-    if not c.armed or len(c.items) <= 1:
+    if not c.armed or len(c.items) <= 1 or not c.set_mode(AUTO):
         return FAILED
-    return ACCEPTED if c.set_mode(AUTO) else FAILED
+    c.faults.stale_mission.replay(c, "on_start")  # the fault (stale.py): before the new item's
+    return ACCEPTED
 
 
 def _change_speed(c: Copter, p: Params, link: Any) -> int:

@@ -44,6 +44,17 @@ class LostAcks(BaseModel):
     count: int = Field(ge=0, le=100)
 
 
+class StaleMissionFault(BaseModel):
+    """Deliver the previous mission's end (its last MISSION_CURRENT and MISSION_ITEM_REACHED)
+    again, late or early, after the next upload (sim/vehicle/stale.py)."""
+
+    enabled: bool = True
+    before_ack: bool = Field(default=True, description="just before the upload's MISSION_ACK")
+    on_arming: bool = Field(default=True, description="when the vehicle arms after the upload")
+    on_start: bool = Field(default=True, description="right after MISSION_START (AUTO)")
+    repeat: int = Field(default=1, ge=1, le=20, description="copies each time")
+
+
 class BatteryOverride(BaseModel):
     """Set the battery level in percent."""
 
@@ -93,6 +104,7 @@ def faults(server: VehicleServer) -> dict[str, Any]:
         "drop_acks": f.drop_acks,
         "no_gnss_fix": not server.copter.gnss.has_fix,
         "gnss_bias_ne_m": list(server.copter.gnss.bias_ne_m),
+        "stale_mission": f.stale_mission.status(),
     }
 
 
@@ -141,6 +153,19 @@ def vehicle_router(server: VehicleServer, prefix: str = "/vehicle") -> APIRouter
         c.faults.drop_acks = body.count
         return faults(server)
 
+    @router.post("/faults/stale_mission")
+    async def stale_mission(body: StaleMissionFault) -> dict[str, Any]:
+        """Replay the previous mission's end after the next upload: before its MISSION_ACK, at
+        the arming, right after MISSION_START, each `repeat` times."""
+        stale = c.faults.stale_mission
+        stale.enabled, stale.repeat = body.enabled, body.repeat
+        stale.before_ack, stale.on_arming, stale.on_start = (
+            body.before_ack,
+            body.on_arming,
+            body.on_start,
+        )
+        return faults(server)
+
     @router.post("/faults/no_gnss_fix")
     async def no_fix(body: Toggle) -> dict[str, Any]:
         """Lose (or regain) the GNSS fix."""
@@ -166,6 +191,7 @@ def vehicle_router(server: VehicleServer, prefix: str = "/vehicle") -> APIRouter
         c.faults.mute_until = 0.0
         c.faults.drop_mission = False
         c.faults.drop_acks = 0
+        c.faults.stale_mission.enabled = False
         c.gnss.has_fix = True
         c.gnss.bias_ne_m = (0.0, 0.0)
         return faults(server)

@@ -38,6 +38,7 @@ from sim.vehicle.constants import (
 )  # fmt: skip
 from sim.vehicle.dynamics import Dynamics, DynamicsParams
 from sim.vehicle.failsafe import check_battery
+from sim.vehicle.faults import Faults
 from sim.vehicle.geo import GeoOrigin
 from sim.vehicle.gnss import FIX_3D, GnssModel, GnssParams, GnssReading
 from sim.vehicle.guidance import Guidance
@@ -98,20 +99,6 @@ class CopterConfig:
     powered_s: float = 0.0  # its uptime at the start: time_boot_ms wraps at 49.7 days (boot.py)
 
 
-@dataclass
-class Faults:
-    """Injected faults; the control interface sets them."""
-
-    prearm_failure: str | None = None  # reported as "PreArm: <text>"
-    mute_until: float = 0.0  # wall time; math.inf = until cleared
-    drop_mission: bool = False  # ignore every mission-protocol message
-    drop_acks: int = 0  # the next this many COMMAND_ACKs are lost (the command is carried out)
-
-    def muted(self, wall: float) -> bool:
-        """True while the autopilot answers nothing."""
-        return wall < self.mute_until
-
-
 def _ack(request: Any, command: int, result: int) -> Any:
     """COMMAND_ACK addressed to the sender of `request`, as ArduPilot fills it."""
     return mavlink.MAVLink_command_ack_message(
@@ -140,6 +127,7 @@ class Copter(MissionProtocolMixin, BootMixin):
         self.armed = False
         self.failsafe = False
         self.items: list[ms.Item] = [self.home_item()]
+        self.mission_id = 0  # the plan's opaque id (mission_report.py)
         self.mission_current = 0
         self.upload: ms.Upload | None = None
         self.upload_link: Any = None

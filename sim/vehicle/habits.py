@@ -12,6 +12,7 @@ did when an agent flew them (issue 13: ArduCopter 3.7-dev and 4.7.0-dev SITL):
 | `mode_heartbeat` | a HEARTBEAT at once on every mode change | at the next 1 Hz beat only | 4.x `Copter::set_mode` (ArduCopter/mode.cpp: `gcs().send_message(MSG_HEARTBEAT)` once the mode is set); the 3.6-era `set_mode` read sends none |
 | `extended_sys_state` | sent when asked | never | 3.7 SITL sent none; in Copter's stream groups it is in none |
 | `mission_current_extensions` | MISSION_CURRENT.total / mission_state | seq only | MAVLink fields added in 2023 (4.4+) |
+| `mission_ids` | MISSION_ACK.opaque_id and MISSION_CURRENT.mission_id: a CRC32 of the stored plan | none | 4.5+ `MissionItemProtocol::opaque_id` (sim/vehicle/mission_report.py) |
 | `ardupilot_storage` | params packed | packed | `AP_Mission::mavlink_int_to_mission_cmd` / `mission_cmd_to_mavlink_int` |
 | `streams_at_boot` | HEARTBEAT only | HEARTBEAT only | a companion port's `SRn_*` rates default to 0 |
 | `boot_s` | ~35 s to armable | ~40 s | pre-arm checks fail until the EKF and GPS are ready |
@@ -51,6 +52,7 @@ class Habits:
     mode_heartbeat: bool = True  # False: a mode change is told by the next 1 Hz HEARTBEAT only
     extended_sys_state: bool = True  # False: EXTENDED_SYS_STATE is never sent
     mission_current_extensions: bool = True  # False: MISSION_CURRENT carries seq only
+    mission_ids: bool = True  # False: no plan id in MISSION_ACK / MISSION_CURRENT (before 4.5)
     ardupilot_storage: bool = True  # pack mission params as AP_Mission stores them
     mission_fence: bool = True  # False: no MAV_PROTOCOL_CAPABILITY_MISSION_FENCE / _RALLY
     streams_at_boot: Literal["all", "heartbeat"] = "all"
@@ -83,6 +85,7 @@ PROFILES: dict[str, Habits] = {
         mode_heartbeat=False,
         extended_sys_state=False,
         mission_current_extensions=False,
+        mission_ids=False,
         mission_fence=False,
         streams_at_boot="heartbeat",
         boot_s=40.0,

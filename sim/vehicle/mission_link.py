@@ -10,11 +10,7 @@ from sim.vehicle import mission as ms
 from sim.vehicle.constants import AUTO, INFO
 from sim.vehicle.fence import FenceMixin
 from sim.vehicle.habits import stored
-
-
-def mission_total(items: list[ms.Item]) -> int:
-    """MISSION_CURRENT.total: items without home (the last seq), UINT16_MAX when there are none."""
-    return len(items) - 1 if len(items) > 1 else 0xFFFF
+from sim.vehicle.mission_report import MissionAckWithId, mission_id, mission_total
 
 
 class MissionProtocolMixin(FenceMixin):
@@ -24,6 +20,8 @@ class MissionProtocolMixin(FenceMixin):
     the fence parameters and enforces the fence."""
 
     items: list[ms.Item]
+    mission_id: int  # the stored plan's opaque id (mission_report.py)
+    faults: Any  # Faults: `stale_mission` replays the previous mission's end (stale.py)
     upload: ms.Upload | None
     upload_link: Any
     mission_current: int
@@ -63,6 +61,7 @@ class MissionProtocolMixin(FenceMixin):
             self.send(mavlink.MAVLink_mission_ack_message(255, 0, ms.DENIED), link)
             return
         cfg = self.config
+        self.faults.stale_mission.upload_began(self)  # type: ignore[arg-type]
         self.upload = ms.Upload(msg.count, self.wall, cfg.mission_resend_s, cfg.mission_timeout_s)
         self.upload_link = link
         self._upload_action(self.upload.start())
@@ -91,14 +90,22 @@ class MissionProtocolMixin(FenceMixin):
         if kind == "request":
             self.send(mavlink.MAVLink_mission_request_int_message(255, 0, value), self.upload_link)
             return
-        self.send(mavlink.MAVLink_mission_ack_message(255, 0, value), self.upload_link)
         if value == ms.ACCEPTED and self.upload is not None:
             items = self.upload.items[1:]
             if self.config.habits.ardupilot_storage:  # as AP_Mission packs them into storage
                 items = [stored(it) for it in items]
             self.items = [self.home_item(), *items]
+            self.mission_id = mission_id(self.items)
             self.mission_current = min(self.mission_current, len(self.items) - 1)
+            self.faults.stale_mission.replay(self, "before_ack")  # type: ignore[arg-type]
+            # 4.5+: the ack carries the new plan's id (MissionItemProtocol::send_mission_ack)
+            ack = mavlink.MAVLink_mission_ack_message(255, 0, value)
+            if self.config.habits.mission_ids:
+                ack = MissionAckWithId(255, 0, value, self.mission_id)
+            self.send(ack, self.upload_link)
             self.text(INFO, f"Flight plan received ({len(self.items)} items)")
+            return
+        self.send(mavlink.MAVLink_mission_ack_message(255, 0, value), self.upload_link)
 
     def _on_mission_request_list(self, msg: Any, link: Any) -> None:
         if getattr(msg, "mission_type", 0) != 0:
@@ -132,6 +139,7 @@ class MissionProtocolMixin(FenceMixin):
             self._typed_clear(msg, link)
             return
         self.items = [self.home_item()]
+        self.mission_id = 0
         self.mission_current = 0
         self.guidance.mission_cleared()
         self.send(mavlink.MAVLink_mission_ack_message(255, 0, ms.ACCEPTED), link)

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sim.vehicle.constants import AUTO, BRAKE, GUIDED, LAND, LOITER, ON_GROUND, RTL
-from sim.vehicle.mission_link import mission_total
+from sim.vehicle.mission_report import mission_current_message
 
 if TYPE_CHECKING:
     from sim.vehicle.copter import Copter
@@ -123,17 +123,6 @@ def _system_time(c: Copter) -> Any:
     return mavlink.MAVLink_system_time_message(0, c.time_boot_ms)
 
 
-def _mission_current(c: Copter) -> Any:
-    if not c.config.habits.mission_current_extensions:
-        return mavlink.MAVLink_mission_current_message(c.mission_current)
-    return mavlink.MAVLink_mission_current_message(
-        c.mission_current,
-        mission_total(c.items),
-        c.guidance.reported_mission_state(),
-        int(c.mode == AUTO),
-    )
-
-
 def _vfr_hud(c: Copter) -> Any:
     s = c.dyn.state
     speed = math.hypot(s.velocity[0], s.velocity[1])
@@ -163,7 +152,7 @@ BUILDERS: dict[int, Callable[[Copter], Any]] = {
     ATTITUDE: _attitude,
     LOCAL_POSITION_NED: _local_position,
     GLOBAL_POSITION_INT: _global_position,
-    MISSION_CURRENT: _mission_current,
+    MISSION_CURRENT: mission_current_message,
     VFR_HUD: _vfr_hud,
     BATTERY_STATUS: _battery,
     HOME_POSITION: _home,

@@ -1,5 +1,5 @@
-"""Each inference of asset_agent/autopilot/flight_state.py: landed state and mission completion
-for autopilots that send no EXTENDED_SYS_STATE and no MISSION_CURRENT.mission_state."""
+"""Each inference of asset_agent/autopilot/flight_state.py: the landed state for autopilots that
+send no EXTENDED_SYS_STATE (mission completion: test_mission_watch.py)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,8 @@ from dataclasses import replace
 
 import pytest
 
-from asset_agent.autopilot.flight_state import MissionWatch, infer_landed_state
+from asset_agent.autopilot.flight_state import infer_landed_state
 from asset_agent.autopilot.state import UavState
-from asset_agent.events import EventTracker
 
 HOME = (41.178, -8.596)
 GROUND = UavState(
@@ -92,156 +91,3 @@ def test_still_below_a_metre_after_flying_is_touched_down():
 
 def test_unknown_altitude_keeps_the_last_inference():
     assert infer_landed_state("IN_AIR", _s(alt_rel=None, vd=None)) == "IN_AIR"
-
-
-AUTO_LAST = _s(mode="AUTO", mission_current=4, mission_total=5, mission_state="ACTIVE", alt_rel=20)
-
-
-def test_reaching_the_last_item_finishes_the_mission():
-    w = MissionWatch()
-    w.uploaded(5)
-    assert w.on_reached(AUTO_LAST, 4).mission_state == "ACTIVE"  # seq 4: item 3
-    assert w.on_reached(AUTO_LAST, 5).mission_state == "COMPLETE"
-
-
-def test_disarming_in_auto_on_the_last_item_finishes_the_mission():
-    w = MissionWatch()
-    w.uploaded(5)
-    earlier = replace(AUTO_LAST, mission_current=2)
-    assert w.on_change(earlier, replace(earlier, armed=False), 100.0).mission_state == "ACTIVE"
-    assert (
-        w.on_change(AUTO_LAST, replace(AUTO_LAST, armed=False), 100.0).mission_state == "COMPLETE"
-    )
-
-
-def test_the_autopilot_leaving_auto_on_the_last_item_finishes_it_but_our_own_change_does_not():
-    hold = replace(AUTO_LAST, mode="LOITER")
-    w = MissionWatch()
-    w.uploaded(5)
-    w.asked_mode(99.5)  # the agent paused it
-    assert w.on_change(AUTO_LAST, hold, 100.0).mission_state == "ACTIVE"
-    assert w.on_change(AUTO_LAST, hold, 103.0).mission_state == "COMPLETE"
-
-
-def test_auto_and_armed_starts_the_mission():
-    w = MissionWatch()
-    w.uploaded(5)
-    before = _s(mode="GUIDED", mission_state="NOT_STARTED", mission_current=0)
-    assert w.on_change(before, replace(before, mode="AUTO"), 1.0).mission_state == "ACTIVE"
-
-
-def test_an_autopilot_reporting_mission_state_is_believed():
-    w = MissionWatch()
-    w.uploaded(5)
-    w.reported = True
-    assert w.on_change(AUTO_LAST, replace(AUTO_LAST, armed=False), 1.0).mission_state == "ACTIVE"
-    assert w.on_change(AUTO_LAST, replace(AUTO_LAST, mode="LOITER"), 9.0).mission_state == "ACTIVE"
-    done = replace(AUTO_LAST, mission_state="COMPLETE")
-    assert w.on_change(AUTO_LAST, done, 10.0).mission_state == "COMPLETE"
-
-
-# the survey's shape: takeoff, speed, waypoints, RTL (server numbering)
-SURVEY = [22, 178, 16, 16, 16, 20]
-ON_RTL = _s(mode="AUTO", mission_current=5, mission_total=6, mission_state="ACTIVE", alt_rel=20)
-
-
-@pytest.mark.parametrize("reported", [False, True])
-def test_reaching_the_last_item_finishes_even_when_the_autopilot_reports_mission_state(reported):
-    w = MissionWatch()
-    w.uploaded(6, SURVEY)
-    w.reported = reported  # ArduPilot 4.4+ sends mission_state too
-    assert w.on_reached(ON_RTL, 5).mission_state == "ACTIVE"  # item 4
-    assert w.on_reached(ON_RTL, 6).mission_state == "COMPLETE"
-
-
-@pytest.mark.parametrize("reported", [False, True])
-def test_a_final_rtl_item_starting_finishes_the_mission(reported):
-    w = MissionWatch()
-    w.uploaded(6, SURVEY)
-    w.reported = reported
-    flying = replace(ON_RTL, mission_current=4)
-    assert w.on_change(flying, flying, 1.0).mission_state == "ACTIVE"
-    assert w.on_change(flying, ON_RTL, 2.0).mission_state == "COMPLETE"
-    assert w.finished == "the last item (RTL) started"
-
-
-def test_a_final_land_item_starting_finishes_it_but_a_last_waypoint_or_an_earlier_rtl_does_not():
-    w = MissionWatch()
-    w.uploaded(4, [22, 16, 16, 21])
-    on_land = replace(ON_RTL, mission_current=3, mission_total=4)
-    before = replace(on_land, mission_current=2)
-    assert w.on_change(before, before, 1.0).mission_state == "ACTIVE"
-    assert w.on_change(before, on_land, 2.0).mission_state == "COMPLETE"
-    w = MissionWatch()
-    w.uploaded(4, [22, 20, 16, 16])
-    for current in (1, 3):  # an RTL in the middle; the last waypoint, flown to
-        s = replace(ON_RTL, mission_current=current, mission_total=4)
-        assert w.on_change(s, s, 1.0).mission_state == "ACTIVE"
-
-
-def test_a_stale_last_item_at_the_start_of_a_new_flight_is_not_the_end():
-    # the autopilot still names the last flight's last item when AUTO starts the new upload
-    w = MissionWatch()
-    w.uploaded(6, SURVEY)
-    on_the_lift = replace(ON_RTL, mode="GUIDED", alt_rel=0.0, mission_state="NOT_STARTED")
-    assert w.on_change(on_the_lift, ON_RTL, 1.0).mission_state == "ACTIVE"
-    first = replace(ON_RTL, mission_current=0)
-    assert w.on_change(ON_RTL, first, 1.5).mission_state == "ACTIVE"
-    assert w.finished is None
-
-
-def test_the_last_navigation_item_counts_not_trailing_do_commands():
-    w = MissionWatch()
-    w.uploaded(5, [22, 16, 16, 16, 183])  # ... DO_SET_SERVO after the last waypoint
-    s = replace(ON_RTL, mission_current=3, mission_total=5)
-    assert w.on_reached(s, 3).mission_state == "ACTIVE"
-    assert w.on_reached(s, 4).mission_state == "COMPLETE"
-
-
-def test_our_own_rtl_on_the_way_to_the_last_waypoint_is_an_abort_not_the_end():
-    w = MissionWatch()
-    w.uploaded(4, [22, 16, 16, 16])
-    to_last = replace(ON_RTL, mission_current=3, mission_total=4)
-    w.asked_mode(10.0)  # Autopilot.return_to_base
-    rtl = replace(to_last, mode="RTL", mission_state="PAUSED")
-    assert w.on_change(to_last, rtl, 10.5).mission_state == "PAUSED"
-    assert w.finished is None
-
-
-def test_finished_stays_finished_until_a_restart_or_a_new_upload():
-    w = MissionWatch()
-    w.uploaded(6, SURVEY)
-    w.reported = True
-    last_leg = replace(ON_RTL, mission_current=4)
-    assert w.on_change(last_leg, ON_RTL, 1.0).mission_state == "COMPLETE"
-    # the run switches to RTL: ArduPilot stops AP_Mission, MISSION_CURRENT says NOT_STARTED
-    rtl = replace(ON_RTL, mode="RTL", mission_state="NOT_STARTED")
-    assert w.on_change(ON_RTL, rtl, 2.0).mission_state == "COMPLETE"
-    landed = replace(rtl, armed=False, alt_rel=0.0)
-    assert w.on_change(rtl, landed, 30.0).mission_state == "COMPLETE"
-    # started again from the first item in AUTO: a new flight of the same mission
-    again = replace(ON_RTL, mission_current=0, mission_state="ACTIVE")
-    assert w.on_change(landed, again, 60.0).mission_state == "ACTIVE"
-    assert w.finished is None
-    assert w.on_change(again, ON_RTL, 90.0).mission_state == "COMPLETE"
-    w.uploaded(6, SURVEY)
-    assert w.finished is None
-
-
-def test_one_mission_finished_event_for_a_final_rtl_whatever_the_autopilot_says_after():
-    w, tracker = MissionWatch(), EventTracker()
-    w.uploaded(6, SURVEY)
-    w.reported = True
-    prev = replace(ON_RTL, mission_current=4)
-    kinds: list[str] = []
-    for cur in (
-        prev,
-        ON_RTL,  # the RTL item starts
-        replace(ON_RTL, mission_state="ACTIVE"),  # the autopilot: still running
-        replace(ON_RTL, mode="RTL", mission_state="NOT_STARTED"),  # the run's RTL stops it
-        replace(ON_RTL, mode="RTL", mission_state="COMPLETE"),
-    ):
-        state = w.on_change(prev, cur, 1.0)
-        kinds += [e.kind for e in tracker.update(state)]
-        prev = cur
-    assert kinds.count("mission_finished") == 1, kinds

@@ -49,6 +49,17 @@ async def test_upload_and_read_back_200_items(autopilot: Autopilot, vehicle: Veh
     await eventually(lambda: autopilot.state.mission_total == 200, 5, "MISSION_CURRENT total")
 
 
+async def test_the_upload_learns_the_plans_id_and_mission_current_carries_it(
+    autopilot: Autopilot, vehicle: VehicleServer
+) -> None:
+    """ArduPilot 4.5+'s MISSION_ACK.opaque_id and MISSION_CURRENT.mission_id, which pymavlink
+    2.4.50 does not decode, read from the payload (translate.extension_u32)."""
+    await autopilot.upload_mission(items_from_dicts(survey(5)))
+    plan = autopilot.mission_watch.opaque_id
+    assert plan == vehicle.copter.mission_id != 0
+    await eventually(lambda: autopilot.state.mission_id == plan, 5, "MISSION_CURRENT mission_id")
+
+
 async def test_clear_mission(autopilot: Autopilot, vehicle: VehicleServer) -> None:
     await autopilot.upload_mission(items_from_dicts(survey(5)))
     await autopilot.clear_mission()

@@ -37,7 +37,7 @@ def test_non_finite_autopilot_values_are_dropped_and_the_rest_is_sent() -> None:
 
 def test_non_finite_event_details_are_dropped() -> None:
     event = Event("waypoint_reached", MappingProxyType({"index": 3, "dist": math.nan, "x": 1.5}))
-    assert to_event(event).data == {"index": 3, "x": 1.5}
+    assert to_event(event).data == {"index": 3, "number": 4, "x": 1.5}
 
 
 def test_an_out_of_range_autopilot_value_leaves_out_its_part_alone_and_warns_once(

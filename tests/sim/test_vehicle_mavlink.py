@@ -217,11 +217,13 @@ async def test_control_routes_truth_and_faults(sim: VehicleServer, peer: Peer) -
         assert sim.muted()
         assert (await http.post("/vehicle/battery", json={"percent": 142})).status_code == 422
         cleared = (await http.post("/vehicle/faults/clear")).json()
+        stale = cleared.pop("stale_mission")
         assert cleared == {
             "prearm_failure": None, "muted": False, "mute_remaining_s": 0.0,
             "drop_mission": False, "drop_acks": 0, "no_gnss_fix": False,
             "gnss_bias_ne_m": [0.0, 0.0],
         }  # fmt: skip
+        assert stale["enabled"] is False
         await peer.recv("HEARTBEAT")
 
 
