@@ -3,15 +3,38 @@
 Frames and IR readings carry capture timestamps on the sensors' clock (in the simulator, the world
 clock). `SensorClock` fits that clock's offset and rate against the agent's monotonic clock, so
 fusion, the Kalman filter and the control step all run in sensor-clock seconds.
+
+A sensor's clock may restart (a camera or IR sensor that reboots counts from 0 again; the
+simulated world restarted under a running agent): its timestamps jump back, and read on the old
+time base every reading would look minutes old and be dropped as stale. A jump back in a source's
+own timestamps (they never go back otherwise) is a new epoch of that source: its timestamps are
+carried onto the agent's time base from there by a per-source shift, the new epoch's first
+reading taken as captured now. So the time base everything downstream holds (fusion's readings,
+the filter's last update, the vehicle's track, the landing's timers) stays continuous and nothing
+has to be reset. A jump forward beyond what the fit predicts is a new epoch too. A late reading
+of the previous epoch (in flight when the clock restarted) still maps by that epoch's shift.
 """
 
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
 import time
 from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class _Epoch:
+    """One source's time base: sensor timestamp + shift = agent sensor-clock time."""
+
+    shift: float = 0.0
+    last_ts: float = -math.inf  # the newest raw timestamp of this epoch
+    previous_shift: float | None = None  # the epoch before, for its late readings
 
 
 class SensorClock:
@@ -19,6 +42,9 @@ class SensorClock:
 
     now() = rate * wall + offset, with the rate fitted over the last `window_s` wall seconds (or
     fixed) and the offset the largest seen (the least-delayed sample); never goes backwards.
+    `observe` maps each source's timestamps onto that clock across the source's restarts
+    (`epoch_jump_s`: how far a source's timestamp may step back, or ahead of the fit, before it
+    is a new epoch).
     """
 
     def __init__(
@@ -26,17 +52,27 @@ class SensorClock:
         rate: float | None = None,
         window_s: float = 2.0,
         wall: Callable[[], float] = time.monotonic,
+        epoch_jump_s: float = 1.0,
     ) -> None:
         self.fixed_rate = rate
         self.window_s = window_s
         self.wall = wall
+        self.epoch_jump_s = epoch_jump_s
+        self.epochs = 0  # new epochs seen, over every source
         self._samples: deque[tuple[float, float]] = deque()
+        self._sources: dict[str, _Epoch] = {}
         self._last = -math.inf
 
     @property
     def ready(self) -> bool:
         """True once a timestamp has been seen."""
         return bool(self._samples)
+
+    @property
+    def settled(self) -> bool:
+        """The rate is fitted (or fixed): the clock can tell a timestamp far ahead of it."""
+        s = self._samples
+        return self.fixed_rate is not None or (len(s) >= 3 and s[-1][0] - s[0][0] >= 0.3)
 
     @property
     def rate(self) -> float:
@@ -58,20 +94,53 @@ class SensorClock:
         slope = sum((w - mw) * (t - mt) for w, t in self._samples) / var
         return slope if slope > 0 else 1.0
 
-    def observe(self, ts: float) -> None:
-        """A capture timestamp just received."""
+    def observe(self, ts: float, source: str = "sensor") -> float:
+        """A capture timestamp of `source` just received; returns it on this clock's time base."""
+        epoch = self._sources.setdefault(source, _Epoch())
+        t = self._map(epoch, ts, source)
         w = self.wall()
-        self._samples.append((w, ts))
+        self._samples.append((w, t))
         while self._samples and w - self._samples[0][0] > self.window_s:
             self._samples.popleft()
+        return t
+
+    def _map(self, epoch: _Epoch, ts: float, source: str) -> float:
+        if not self._samples:  # the first timestamp: the time base starts here
+            epoch.last_ts = max(epoch.last_ts, ts)
+            return ts + epoch.shift
+        predicted = self._predict()
+        # a source's first timestamp may be on another clock than the others' (its own sensor)
+        first = epoch.last_ts == -math.inf and ts < predicted - self.epoch_jump_s * self.rate
+        back = first or ts < epoch.last_ts - self.epoch_jump_s
+        ahead = self.settled and ts + epoch.shift > predicted + self.epoch_jump_s * self.rate
+        if not (back or ahead):
+            epoch.last_ts = max(epoch.last_ts, ts)
+            return ts + epoch.shift
+        old = epoch.previous_shift
+        if old is not None and abs(ts + old - predicted) <= self.epoch_jump_s * self.rate:
+            return ts + old  # a late reading of the previous epoch
+        epoch.previous_shift, epoch.shift, epoch.last_ts = epoch.shift, predicted - ts, ts
+        self.epochs += 1
+        log.warning(
+            "precland: the %s clock restarted (timestamp %.3f s after %.3f s): a new epoch, "
+            "carried on from %.3f s",
+            source,
+            ts,
+            predicted - epoch.previous_shift,
+            predicted,
+        )
+        return predicted
+
+    def _predict(self) -> float:
+        r = self.rate
+        offset = max(t - r * w for w, t in self._samples)
+        return max(self._last, r * self.wall() + offset)
 
     def now(self) -> float:
         """Current sensor-clock time (0.0 before any timestamp)."""
         if not self._samples:
             return 0.0
-        r = self.rate
-        offset = max(t - r * w for w, t in self._samples)
-        self._last = max(self._last, r * self.wall() + offset)
+        self._last = self._predict()
         return self._last
 
     async def sleep(self, seconds: float) -> None:
