@@ -2,7 +2,8 @@
 
 Kinds: armed, took_off, waypoint_reached, mission_finished, landing, landed, disarmed,
 failsafe, low_battery, fence_breach, autopilot_lost, autopilot_recovered; precision landing
-adds landing_aborted and precland_silent (precland/supervisor.py, precland/silence.py).
+adds landing_aborted, precland_silent and landed_without_precision (precland/supervisor.py,
+precland/silence.py).
 
     tracker = EventTracker(EventLimits(low_battery_pct=30))
     # on every telemetry tick: the Notifications heard since the last one, and the state now
@@ -22,6 +23,7 @@ EVENT_KINDS = (
     "armed", "took_off", "waypoint_reached", "mission_finished", "landing", "landed",
     "disarmed", "failsafe", "low_battery", "fence_breach", "autopilot_lost",
     "autopilot_recovered", "landing_aborted", "precland_silent",
+    "landed_without_precision",
 )  # fmt: skip
 
 

@@ -121,9 +121,13 @@ async def _report(agent: Agent, stop: asyncio.Event) -> None:
                 if agent.lander is not None:
                     events += agent.lander.drain_events()
                 for event in events:
+                    blind = None
                     if event.kind == "landed" and agent.lander is not None:
                         event = agent.lander.with_touchdown(event)
+                        blind = agent.lander.silence.blind_landing(event.detail["landing_path"])
                     await agent.link.send_event(to_event(event))
+                    if blind is not None:  # its sensors watched, it did not steer: said so
+                        await agent.link.send_event(to_event(blind))
                 if state.link_up:
                     await agent.link.send_telemetry(to_telemetry(state))
             except Exception:  # a bad sample is logged and skipped; the daemon keeps reporting

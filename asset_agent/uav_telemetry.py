@@ -47,6 +47,7 @@ SEVERITY: dict[str, Severity] = {
     "landing_aborted": "critical",
     "low_battery": "warning",
     "precland_silent": "warning",
+    "landed_without_precision": "warning",
 }
 MESSAGES = {
     "armed": "motors armed",
@@ -65,6 +66,8 @@ MESSAGES = {
     "height",
     "precland_silent": "precision landing sends no target while its sensors' readings arrive: "
     "the autopilot lands on GNSS alone",
+    "landed_without_precision": "landed on GNSS alone: precision landing sent no target while "
+    "its sensors' readings arrived",
 }
 
 

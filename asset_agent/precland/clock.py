@@ -35,6 +35,7 @@ class _Epoch:
     shift: float = 0.0
     last_ts: float = -math.inf  # the newest raw timestamp of this epoch
     previous_shift: float | None = None  # the epoch before, for its late readings
+    carried: bool = False  # the shift was set at a jump, from the first reading's arrival
 
 
 class SensorClock:
@@ -59,7 +60,7 @@ class SensorClock:
         self.wall = wall
         self.epoch_jump_s = epoch_jump_s
         self.epochs = 0  # new epochs seen, over every source
-        self._samples: deque[tuple[float, float]] = deque()
+        self._samples: deque[tuple[float, float, str]] = deque()
         self._sources: dict[str, _Epoch] = {}
         self._last = -math.inf
 
@@ -86,12 +87,12 @@ class SensorClock:
 
     def _slope(self) -> float:
         n = len(self._samples)
-        mw = sum(w for w, _ in self._samples) / n
-        mt = sum(t for _, t in self._samples) / n
-        var = sum((w - mw) ** 2 for w, _ in self._samples)
+        mw = sum(w for w, _, _ in self._samples) / n
+        mt = sum(t for _, t, _ in self._samples) / n
+        var = sum((w - mw) ** 2 for w, _, _ in self._samples)
         if var <= 0:
             return 1.0
-        slope = sum((w - mw) * (t - mt) for w, t in self._samples) / var
+        slope = sum((w - mw) * (t - mt) for w, t, _ in self._samples) / var
         return slope if slope > 0 else 1.0
 
     def observe(self, ts: float, source: str = "sensor") -> float:
@@ -99,7 +100,7 @@ class SensorClock:
         epoch = self._sources.setdefault(source, _Epoch())
         t = self._map(epoch, ts, source)
         w = self.wall()
-        self._samples.append((w, t))
+        self._samples.append((w, t, source))
         while self._samples and w - self._samples[0][0] > self.window_s:
             self._samples.popleft()
         return t
@@ -115,11 +116,17 @@ class SensorClock:
         ahead = self.settled and ts + epoch.shift > predicted + self.epoch_jump_s * self.rate
         if not (back or ahead):
             epoch.last_ts = max(epoch.last_ts, ts)
+            if epoch.carried and any(s != source for _, _, s in self._samples):
+                # the first reading of the epoch may have come late: its shift follows the
+                # least-delayed reading since, against the other sources' fit (else one late
+                # first frame would carry every later one ahead of the others)
+                epoch.shift = min(epoch.shift, self._predict(exclude=source) - ts)
             return ts + epoch.shift
         old = epoch.previous_shift
         if old is not None and abs(ts + old - predicted) <= self.epoch_jump_s * self.rate:
             return ts + old  # a late reading of the previous epoch
         epoch.previous_shift, epoch.shift, epoch.last_ts = epoch.shift, predicted - ts, ts
+        epoch.carried = True
         self.epochs += 1
         log.warning(
             "precland: the %s clock restarted (timestamp %.3f s after %.3f s): a new epoch, "
@@ -131,10 +138,11 @@ class SensorClock:
         )
         return predicted
 
-    def _predict(self) -> float:
+    def _predict(self, exclude: str | None = None) -> float:
         r = self.rate
-        offset = max(t - r * w for w, t in self._samples)
-        return max(self._last, r * self.wall() + offset)
+        offset = max(t - r * w for w, t, s in self._samples if s != exclude)
+        now = r * self.wall() + offset
+        return now if exclude is not None else max(self._last, now)
 
     def now(self) -> float:
         """Current sensor-clock time (0.0 before any timestamp)."""

@@ -4,8 +4,8 @@ A landing loop runs, frames or IR readings keep arriving, and yet no LANDING_TAR
 for `window_s` wall seconds (wall, not sensor seconds: the sensors' clock may be what is wrong):
 the autopilot is landing on GNSS alone while the log would say precision landing is active. The
 watch raises one `precland_silent` warning per such silence (a target sent ends it), and the
-landing's counters go into the `landed` event, so a landing that came down that way is told as
-one (`landing_path` `gnss` with frames seen: the server alerts on the run).
+landing's counters go into the `landed` event; a landing that came down that way is followed by
+a `landed_without_precision` event, on which the server alerts on the run.
 """
 
 from __future__ import annotations
@@ -85,6 +85,17 @@ class SilenceWatch:
             "clock_epochs": clock_epochs,
         }
         return Event("precland_silent", MappingProxyType(detail))
+
+    def blind_landing(self, path: str | None) -> Event | None:
+        """`landed_without_precision` for a landing that came down while its sensors' readings
+        arrived and no target went out (none at all, or a silence still told at touchdown),
+        unless the landing's own rule chose the GNSS (`rtk-fallback`, `search-then-precision`
+        are the search's: takeover.py)."""
+        if path not in ("gnss", "precision") or not (self.frames or self.ir_readings):
+            return None
+        if self.targets and not self._warned:
+            return None
+        return Event("landed_without_precision", MappingProxyType(self.landed_detail()))
 
     def landed_detail(self) -> dict[str, Any]:
         """This landing's counters for the `landed` event."""

@@ -102,3 +102,26 @@ def test_delayed_readings_are_not_a_restart() -> None:
     assert clock.observe(51.5, "camera") == pytest.approx(51.5)
     assert clock.observe(51.1, "camera") == pytest.approx(51.1)
     assert clock.epochs == 0
+
+
+def test_a_late_first_reading_of_a_new_epoch_does_not_carry_the_source_ahead() -> None:
+    """The camera's clock restarted and its first frame came 0.3 s late: the next frames, 0.05 s
+    late, set its shift, so the camera stays level with the IR sensor within its own least delay
+    (which the agent cannot see) instead of 0.3 s ahead, where the clock's now would have left the
+    IR's readings behind: stale for fusion's 0.1 s window."""
+    wall = Wall()
+    clock = SensorClock(wall=wall)
+    for i in range(20):
+        clock.observe(200.0 + i * 0.1, "ir")  # on time
+        clock.observe(199.95 + i * 0.1, "camera")
+        wall.t += 0.1
+    truth = 202.0  # the sensors' time now, on the IR's count
+    # the camera restarted: its count says 12.0 at the IR's 202.0; its first frame is 0.3 s late
+    assert clock.observe(11.7, "camera") == pytest.approx(truth, abs=0.01)
+    assert clock.epochs == 1
+    for i in range(1, 10):
+        wall.t += 0.1
+        clock.observe(truth + i * 0.1, "ir")
+        t = clock.observe(12.0 + i * 0.1 - 0.05, "camera")  # captured 0.05 s ago
+    captured = truth + 0.9 - 0.05
+    assert captured <= t < captured + 0.05 + 0.015, t - captured

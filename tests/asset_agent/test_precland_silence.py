@@ -57,6 +57,8 @@ async def test_a_landing_that_sends_nothing_while_readings_arrive_warns_at_once(
         assert told["landing_path"] == "gnss", told
         assert told["precland_targets"] == 0 and told["precland_warnings"] == 1, told
         assert told["precland_ir_readings"] > 10, told
+        blind = lander.silence.blind_landing(told["landing_path"])  # sent after `landed`
+        assert blind is not None and blind.kind == "landed_without_precision", blind
 
 
 def test_one_warning_per_silence_and_none_while_targets_go_out() -> None:
