@@ -334,6 +334,7 @@ class PrecisionLander:
         target = tick.target
         if target is not None and target.kind != "held" and target.sources:
             self.last_fix = PadFix(tick.t, target.rel_ned, target.sources)
+            self.stats.measured += 1
         lt = tick.landing_target
         if lt is None:
             return

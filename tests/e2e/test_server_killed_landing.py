@@ -82,12 +82,14 @@ async def fix_types(p: Platform) -> AsyncIterator[set[int]]:
 
 async def restart_the_sensors_clock(p: Platform) -> None:
     """The world's sensors count 15 minutes, then start again from 0, under the running agent;
-    each time the agent receives IR readings of the new count."""
+    each time the agent receives IR readings of the new count. On the old count the agent reads
+    its clock, as a landing's loop does (the issue's agent had landed on the world before)."""
     lander = p.agent.lander
     for at in (RESTARTED_FROM_S, 0.0):
         p.world.restart_sensor_clocks(at)
         readings = lander.stats.ir_readings
         await eventually(lambda n=readings: lander.stats.ir_readings > n + 20, 20, "IR readings")
+        lander.clock.now()
 
 
 async def fly_with_the_server_killed(
