@@ -34,8 +34,9 @@ class _Epoch:
 
     shift: float = 0.0
     last_ts: float = -math.inf  # the newest raw timestamp of this epoch
+    last_w: float = 0.0  # when it arrived (wall)
     previous_shift: float | None = None  # the epoch before, for its late readings
-    carried: bool = False  # the shift was set at a jump, from the first reading's arrival
+    carried_at: float | None = None  # when (wall) the shift was set at a jump
 
 
 class SensorClock:
@@ -44,8 +45,9 @@ class SensorClock:
     now() = rate * wall + offset, with the rate fitted over the last `window_s` wall seconds (or
     fixed) and the offset the largest seen (the least-delayed sample); never goes backwards.
     `observe` maps each source's timestamps onto that clock across the source's restarts
-    (`epoch_jump_s`: how far a source's timestamp may step back, or ahead of the fit, before it
-    is a new epoch).
+    (`epoch_jump_s`: how far a source's timestamp may step back before it is a new epoch;
+    `epoch_ahead_s`: how far ahead of what the wall time since its last reading explains; a new
+    epoch's shift follows its least-delayed reading for `settle_s` wall seconds).
     """
 
     def __init__(
@@ -54,11 +56,15 @@ class SensorClock:
         window_s: float = 2.0,
         wall: Callable[[], float] = time.monotonic,
         epoch_jump_s: float = 1.0,
+        epoch_ahead_s: float = 30.0,
+        settle_s: float = 2.0,
     ) -> None:
         self.fixed_rate = rate
         self.window_s = window_s
         self.wall = wall
         self.epoch_jump_s = epoch_jump_s
+        self.epoch_ahead_s = epoch_ahead_s
+        self.settle_s = settle_s
         self.epochs = 0  # new epochs seen, over every source
         self._samples: deque[tuple[float, float, str]] = deque()
         self._sources: dict[str, _Epoch] = {}
@@ -68,12 +74,6 @@ class SensorClock:
     def ready(self) -> bool:
         """True once a timestamp has been seen."""
         return bool(self._samples)
-
-    @property
-    def settled(self) -> bool:
-        """The rate is fitted (or fixed): the clock can tell a timestamp far ahead of it."""
-        s = self._samples
-        return self.fixed_rate is not None or (len(s) >= 3 and s[-1][0] - s[0][0] >= 0.3)
 
     @property
     def rate(self) -> float:
@@ -98,35 +98,41 @@ class SensorClock:
     def observe(self, ts: float, source: str = "sensor") -> float:
         """A capture timestamp of `source` just received; returns it on this clock's time base."""
         epoch = self._sources.setdefault(source, _Epoch())
-        t = self._map(epoch, ts, source)
         w = self.wall()
+        t = self._map(epoch, ts, source, w)
         self._samples.append((w, t, source))
         while self._samples and w - self._samples[0][0] > self.window_s:
             self._samples.popleft()
         return t
 
-    def _map(self, epoch: _Epoch, ts: float, source: str) -> float:
+    def _map(self, epoch: _Epoch, ts: float, source: str, w: float) -> float:
         if not self._samples:  # the first timestamp: the time base starts here
-            epoch.last_ts = max(epoch.last_ts, ts)
+            epoch.last_ts, epoch.last_w = ts, w
             return ts + epoch.shift
-        predicted = self._predict()
+        predicted, rate = self._predict(), self.rate
         # a source's first timestamp may be on another clock than the others' (its own sensor)
-        first = epoch.last_ts == -math.inf and ts < predicted - self.epoch_jump_s * self.rate
-        back = first or ts < epoch.last_ts - self.epoch_jump_s
-        ahead = self.settled and ts + epoch.shift > predicted + self.epoch_jump_s * self.rate
+        seen = epoch.last_ts != -math.inf
+        back = ts < epoch.last_ts - self.epoch_jump_s or (
+            not seen and ts < predicted - self.epoch_jump_s * rate
+        )
+        # ahead by far more than the wall time since its last reading explains (not a burst of
+        # readings queued behind a stalled loop: each is a little after the one before)
+        ahead = seen and ts - epoch.last_ts > rate * (w - epoch.last_w) + self.epoch_ahead_s
         if not (back or ahead):
-            epoch.last_ts = max(epoch.last_ts, ts)
-            if epoch.carried and any(s != source for _, _, s in self._samples):
+            if ts > epoch.last_ts:
+                epoch.last_ts, epoch.last_w = ts, w
+            settling = epoch.carried_at is not None and w - epoch.carried_at <= self.settle_s
+            if settling and any(s != source for _, _, s in self._samples):
                 # the first reading of the epoch may have come late: its shift follows the
                 # least-delayed reading since, against the other sources' fit (else one late
                 # first frame would carry every later one ahead of the others)
                 epoch.shift = min(epoch.shift, self._predict(exclude=source) - ts)
             return ts + epoch.shift
         old = epoch.previous_shift
-        if old is not None and abs(ts + old - predicted) <= self.epoch_jump_s * self.rate:
+        if old is not None and abs(ts + old - predicted) <= self.epoch_ahead_s:
             return ts + old  # a late reading of the previous epoch
-        epoch.previous_shift, epoch.shift, epoch.last_ts = epoch.shift, predicted - ts, ts
-        epoch.carried = True
+        epoch.previous_shift, epoch.shift = epoch.shift, predicted - ts
+        epoch.last_ts, epoch.last_w, epoch.carried_at = ts, w, w
         self.epochs += 1
         log.warning(
             "precland: the %s clock restarted (timestamp %.3f s after %.3f s): a new epoch, "

@@ -125,3 +125,17 @@ def test_a_late_first_reading_of_a_new_epoch_does_not_carry_the_source_ahead() -
         t = clock.observe(12.0 + i * 0.1 - 0.05, "camera")  # captured 0.05 s ago
     captured = truth + 0.9 - 0.05
     assert captured <= t < captured + 0.05 + 0.015, t - captured
+
+
+@pytest.mark.parametrize("rate", [2.0, 5.0])
+def test_a_burst_of_readings_after_a_stalled_loop_is_not_a_new_epoch(rate: float) -> None:
+    """The agent's loop stalled 1.5 s (a busy machine): the readings queued meanwhile arrive at
+    once, each a little after the one before; none is a restart, each keeps its own time."""
+    wall = Wall()
+    clock = SensorClock(wall=wall)
+    streamed(clock, wall, "ir", 100.0, 30, rate)  # last 100 + 2.9 rate, at 0.1 s intervals
+    start = 100.0 + 3.0 * rate
+    wall.t += 1.5  # stalled
+    burst = [clock.observe(start + i * 0.1 * rate, "ir") for i in range(16)]
+    assert clock.epochs == 0
+    assert burst == pytest.approx([start + i * 0.1 * rate for i in range(16)])
