@@ -36,6 +36,7 @@ class _Epoch:
     last_ts: float = -math.inf  # the newest raw timestamp of this epoch
     last_w: float = 0.0  # when it arrived (wall)
     previous_shift: float | None = None  # the epoch before, for its late readings
+    previous_last_ts: float = -math.inf  # the newest raw timestamp of the epoch before
     carried_at: float | None = None  # when (wall) the shift was set at a jump
 
 
@@ -128,10 +129,13 @@ class SensorClock:
                 # first frame would carry every later one ahead of the others)
                 epoch.shift = min(epoch.shift, self._predict(exclude=source) - ts)
             return ts + epoch.shift
-        old = epoch.previous_shift
-        if old is not None and abs(ts + old - predicted) <= self.epoch_ahead_s:
-            return ts + old  # a late reading of the previous epoch
+        old, carried = epoch.previous_shift, epoch.carried_at
+        # a reading in flight when the sensor restarted continues the previous epoch's count
+        if old is not None and carried is not None and w - carried <= self.settle_s:
+            if abs(ts - epoch.previous_last_ts) <= self.epoch_jump_s + rate * (w - carried):
+                return ts + old
         epoch.previous_shift, epoch.shift = epoch.shift, predicted - ts
+        epoch.previous_last_ts = epoch.last_ts
         epoch.last_ts, epoch.last_w, epoch.carried_at = ts, w, w
         self.epochs += 1
         log.warning(

@@ -139,3 +139,18 @@ def test_a_burst_of_readings_after_a_stalled_loop_is_not_a_new_epoch(rate: float
     burst = [clock.observe(start + i * 0.1 * rate, "ir") for i in range(16)]
     assert clock.epochs == 0
     assert burst == pytest.approx([start + i * 0.1 * rate for i in range(16)])
+
+
+def test_a_restart_whose_new_count_is_near_an_older_epochs_count_is_still_a_new_epoch() -> None:
+    """The sensors counted 20 s, jumped to 900 (the world restarted with a later count), then
+    restarted from 0: the count near the first epoch's is a new epoch, not that epoch's late
+    reading (fresh for fusion, not 20 s old)."""
+    wall = Wall()
+    clock = SensorClock(wall=wall)
+    streamed(clock, wall, "ir", 10.0, 100)  # 10-19.9
+    streamed(clock, wall, "ir", 900.0, 30)
+    now = clock.now()
+    wall.t += 5.0
+    t = clock.observe(0.5, "ir")
+    assert clock.epochs == 2
+    assert t == pytest.approx(now + 5.0, abs=0.05)
