@@ -33,6 +33,8 @@ from tests.polling import eventually
 pytestmark = [
     pytest.mark.slow,  # whole processes end to end: not in the fast lane
     pytest.mark.realtime,  # landing loops through the camera (tests/priority.py)
+    # a run takes 60-140 s of wall time, more beside busy processes: over the suite's 180 s
+    pytest.mark.timeout(420),
 ]
 
 KILLED_S = 20.0  # wall seconds the server stays down, from the start of the descent
