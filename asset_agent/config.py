@@ -6,9 +6,10 @@ import tomllib
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from asset_agent.precland.config import PrecisionLandingConfig
+from assetlink.rtk import parse_source
 
 
 class ServerSection(BaseModel):
@@ -102,6 +103,23 @@ class VideoSection(BaseModel):
     allow_loopback_ice: bool = False
 
 
+class RtkSection(BaseModel):
+    """`[rtk]`: the base's RTCM3 stream on the site's network (base_station `[rtk] serve_port`),
+    injected first; the server's relay only while it is silent (corrections.py). Empty: the
+    server's relay alone."""
+
+    model_config = ConfigDict(extra="forbid")
+    local_source: str = ""  # e.g. "tcp://192.168.1.10:2102"
+    local_silence_s: float = Field(default=3.0, gt=0)
+
+    @field_validator("local_source")
+    @classmethod
+    def _valid_source(cls, value: str) -> str:
+        if value:
+            parse_source(value)
+        return value
+
+
 class MetricsSection(BaseModel):
     """The agent's own Prometheus /metrics (assetlink/metrics.py): off unless a port is set;
     on this machine only unless `host` says otherwise."""
@@ -121,6 +139,7 @@ class AgentConfig(BaseModel):
     availability: AvailabilitySection = AvailabilitySection()
     precland: PreclandSection = PreclandSection()
     video: VideoSection = VideoSection()
+    rtk: RtkSection = RtkSection()
     metrics: MetricsSection = MetricsSection()
 
     @classmethod

@@ -2,7 +2,8 @@
 
 Kinds: armed, took_off, waypoint_reached, mission_finished, landing, landed, disarmed,
 failsafe, low_battery, fence_breach, autopilot_lost, autopilot_recovered; precision landing
-adds landing_aborted (precland/supervisor.py).
+adds landing_aborted, precland_silent and landed_without_precision (precland/supervisor.py,
+precland/silence.py).
 
     tracker = EventTracker(EventLimits(low_battery_pct=30))
     # on every telemetry tick: the Notifications heard since the last one, and the state now
@@ -21,7 +22,8 @@ from asset_agent.autopilot.state import Notification, UavState
 EVENT_KINDS = (
     "armed", "took_off", "waypoint_reached", "mission_finished", "landing", "landed",
     "disarmed", "failsafe", "low_battery", "fence_breach", "autopilot_lost",
-    "autopilot_recovered", "landing_aborted",
+    "autopilot_recovered", "landing_aborted", "precland_silent",
+    "landed_without_precision",
 )  # fmt: skip
 
 

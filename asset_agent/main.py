@@ -2,7 +2,8 @@
 
 setup() reads the configuration and the encrypted asset file; run() keeps the autopilot link and
 the server link, reports telemetry and events, answers commands and injects RTK corrections;
-main() is the console entry point. If the server link drops, the flight goes on: the autopilot
+main() is the console entry point. RTK corrections come from the base's stream on the site's
+network when one is configured, else (or while it is silent) through the server (corrections.py). If the server link drops, the flight goes on: the autopilot
 flies its mission and everything the agent reports waits in the link's on-disk outbox. The
 landing is the agent's too: precision landing (precland/supervisor.py) follows the autopilot, not
 the server, so the mission's own return-home lands on the pad with it; when the link returns the
@@ -29,6 +30,7 @@ from asset_agent.autopilot import Autopilot, AutopilotConfig, AutopilotError
 from asset_agent.autopilot.config import DEFAULT_STREAMS
 from asset_agent.availability import AvailabilityLimits
 from asset_agent.config import AgentConfig
+from asset_agent.corrections import Corrections
 from asset_agent.events import EventLimits, EventTracker
 from asset_agent.handlers import Handlers
 from asset_agent.metrics import families
@@ -40,6 +42,7 @@ from assetlink.configfile import AssetConfig, ConfigFileError
 from assetlink.configfile_cli import PasswordSourceError, load_config
 from assetlink.link import Link
 from assetlink.metrics import DaemonMetrics, MetricsServer
+from assetlink.rtk import RtkConfig, RtkReader
 from assetlink.settings import LinkSettings
 from assetlink.statefile import StateFileError
 from asynckit.tasks import cancel_and_wait
@@ -57,6 +60,8 @@ class Agent:
     link: Link
     tracker: EventTracker
     lander: PrecisionLander | None = None
+    corrections: Corrections | None = None  # RTK corrections into the autopilot
+    local_rtk: RtkReader | None = None  # the base's stream on the site's network, if configured
 
 
 def setup(config: AgentConfig, asset: AssetConfig) -> Agent:
@@ -88,15 +93,18 @@ def setup(config: AgentConfig, asset: AssetConfig) -> Agent:
     for command, handler in Handlers(autopilot, limits, checks).table().items():
         link.on_command(command.name, handler)
 
-    def inject_rtcm(frame: bytes) -> None:
-        autopilot.inject_rtcm(frame)  # the fragment count is of no use to the link
-
-    link.on_rtcm(inject_rtcm)
+    # RTK corrections: the base's local stream first, the server's relay while it is silent
+    corrections = Corrections(autopilot.inject_rtcm, config.rtk.local_silence_s)
+    link.on_rtcm(corrections.from_server)
+    local = None
+    if config.rtk.local_source:
+        source = RtkConfig(source=config.rtk.local_source, reconnect_max_s=2.0)
+        local = RtkReader(source, on_frame=corrections.from_local_async)
     lander = PrecisionLander(autopilot, config.precland, link) if precland else None
     if lander is not None:
         link.on_command("precland_fault", lander.fault_command)
     tracker = EventTracker(EventLimits(low_battery_pct=config.telemetry.low_battery_pct))
-    return Agent(config, asset, autopilot, link, tracker, lander)
+    return Agent(config, asset, autopilot, link, tracker, lander, corrections, local)
 
 
 async def _report(agent: Agent, stop: asyncio.Event) -> None:
@@ -113,9 +121,13 @@ async def _report(agent: Agent, stop: asyncio.Event) -> None:
                 if agent.lander is not None:
                     events += agent.lander.drain_events()
                 for event in events:
+                    blind = None
                     if event.kind == "landed" and agent.lander is not None:
                         event = agent.lander.with_touchdown(event)
+                        blind = agent.lander.silence.blind_landing(event.detail["landing_path"])
                     await agent.link.send_event(to_event(event))
+                    if blind is not None:  # its sensors watched, it did not steer: said so
+                        await agent.link.send_event(to_event(blind))
                 if state.link_up:
                     await agent.link.send_telemetry(to_telemetry(state))
             except Exception:  # a bad sample is logged and skipped; the daemon keeps reporting
@@ -151,6 +163,8 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
     stop = stop or asyncio.Event()
     await agent.autopilot.start()
     await agent.link.start()
+    if agent.local_rtk is not None:
+        agent.local_rtk.start()
     log.info(
         "agent %s running: autopilot %s, server %s",
         agent.asset.name,
@@ -180,6 +194,8 @@ async def run(agent: Agent, stop: asyncio.Event | None = None) -> None:
         if video is not None:
             await video.stop()
             await video.track.aclose()
+        if agent.local_rtk is not None:
+            await agent.local_rtk.stop()
         await agent.link.stop()
         await agent.autopilot.close()
 

@@ -54,6 +54,8 @@ SEVERITY: dict[str, Severity] = {
     "fence_breach": "critical",
     "landing_aborted": "critical",
     "low_battery": "warning",
+    "precland_silent": "warning",
+    "landed_without_precision": "warning",
 }
 MESSAGES = {
     "armed": "motors armed",
@@ -70,6 +72,10 @@ MESSAGES = {
     "landing_aborted": "landing abandoned: the pad was not found (or lost with no retry left) "
     "and the GNSS has no RTK fixed fix, or the wind held the UAV off the pad; holding at a safe "
     "height",
+    "precland_silent": "precision landing sends no target while its sensors' readings arrive: "
+    "the autopilot lands on GNSS alone",
+    "landed_without_precision": "landed on GNSS alone: precision landing sent no target while "
+    "its sensors' readings arrived",
 }
 
 

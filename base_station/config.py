@@ -138,12 +138,15 @@ class ServerConfig(_Section):
 
 
 class RtkConfig(_Section):
-    """Where the base GNSS receiver's RTCM3 stream comes from."""
+    """Where the base GNSS receiver's RTCM3 stream comes from, and where the base serves it on
+    the site's network (rtcm_server.py: off unless `serve_port` is set)."""
 
     tcp_host: str = "127.0.0.1"
     tcp_port: int = Field(default=5021, ge=0, le=65535)
     serial_device: str = ""
     baudrate: int = 115200
+    serve_host: str = "0.0.0.0"
+    serve_port: int = Field(default=0, ge=0, le=65535)
 
 
 class MetricsConfig(_Section):

@@ -10,8 +10,8 @@ from collections.abc import Iterator
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metric
 
 from assetlink.metrics import gauge, round_trips
+from assetlink.rtk import RtkReader, rtk_state
 from base_station.coordinator import Coordinator
-from base_station.rtk import RtkReader, rtk_state
 
 RTK_STATES = ("disconnected", "waiting", "stale", "streaming")
 

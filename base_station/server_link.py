@@ -16,12 +16,13 @@ from assetlink.configfile import AssetConfig
 from assetlink.dispatch import CommandRequest, Handler
 from assetlink.link import Link
 from assetlink.metrics import DaemonMetrics, MetricsServer
+from assetlink.rtk import RtkConfig as ReaderConfig
+from assetlink.rtk import RtkReader, source_url, to_telemetry
 from asynckit.tasks import cancel_and_wait
 from base_station.config import StationConfig
 from base_station.events import Event, EventKind
 from base_station.metrics import families
-from base_station.rtk import RtkConfig as ReaderConfig
-from base_station.rtk import RtkReader, source_url, to_telemetry
+from base_station.rtcm_server import RtcmServer
 from base_station.station import Progress, Result, Station
 from protocol.messages import CommandProgress, CommandResultPayload, EventPayload, Severity
 from protocol.vocabulary import CommandParams
@@ -77,12 +78,15 @@ def link_runner(link: Link):  # type: ignore[no-untyped-def]
         for command in station.commands:
             link.on_command(command.name, handler)
         await link.start()
-        reader = None
-        if config.rtk.tcp_port or config.rtk.serial_device:
-            reader = RtkReader(
-                ReaderConfig(source=source_url(**config.rtk.model_dump())), on_frame=link.send_rtcm
-            )
+        reader = rtcm = None
+        rc = config.rtk
+        if rc.tcp_port or rc.serial_device:
+            source = source_url(rc.tcp_host, rc.tcp_port, rc.serial_device, rc.baudrate)
+            reader = RtkReader(ReaderConfig(source=source), on_frame=link.send_rtcm)
             reader.start()
+            if rc.serve_port:  # the corrections' path beside the server's (rtcm_server.py)
+                rtcm = RtcmServer(reader, rc.serve_host, rc.serve_port)
+                await rtcm.start()
         metrics = None
         if config.metrics.port:
             collector = DaemonMetrics(link, lambda: families(station.coord, reader))
@@ -114,6 +118,8 @@ def link_runner(link: Link):  # type: ignore[no-untyped-def]
             events.close()
             if metrics:
                 metrics.close()
+            if rtcm:
+                await rtcm.close()
             if reader:
                 await reader.stop()
             await link.stop()

@@ -114,6 +114,7 @@ class IrBeaconSensor:
         self.config = config or IrSensorConfig()
         self.host, self.port = host, port
         self.sent = 0
+        self.stamp_offset = 0.0  # reading timestamps are the clock's seconds less this
         self._rng = np.random.default_rng(seed)
         self._subs = _Subscriptions()
         self._transport: asyncio.DatagramTransport | None = None
@@ -128,6 +129,11 @@ class IrBeaconSensor:
         self.port = self._transport.get_extra_info("sockname")[1]
         self._task = asyncio.create_task(self._run(), name="ir-sensor")
         return self.port
+
+    def restart_stamps(self, at: float = 0.0) -> None:
+        """Reading timestamps count from `at` again (the sensor rebooted, or the world restarted
+        under a running agent); the schedule runs on."""
+        self.stamp_offset = self.clock.now() - at
 
     async def stop(self) -> None:
         """Stop sending and close the socket."""
@@ -149,7 +155,7 @@ class IrBeaconSensor:
             if self.clock.now() - next_t > period:
                 next_t = self.clock.now()
             try:
-                ts = self.clock.now()
+                ts = self.clock.now() - self.stamp_offset
                 detected, ax, ay = ir_reading(self.pose_fn(), self.config, self._rng)
                 assert self._transport is not None
                 data = encode_reading(seq, ts, detected, ax, ay)
@@ -188,6 +194,11 @@ class IrPart:
             self.port,
         )
         world.ports["ir"] = await self.sensor.start()
+
+    def restart_stamps(self, at: float = 0.0) -> None:
+        """The sensor's timestamps count from `at` again."""
+        if self.sensor is not None:
+            self.sensor.restart_stamps(at)
 
     async def stop(self) -> None:
         """Stop the sensor."""

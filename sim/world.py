@@ -116,6 +116,15 @@ class World:
             for part in self.parts:
                 part.step(sub)
 
+    def restart_sensor_clocks(self, at: float = 0.0, parts: tuple[str, ...] = ()) -> None:
+        """The sensors' timestamps (camera, IR; those of `parts` when named) count from `at` again,
+        as after the world was restarted under a running agent, or the sensors rebooted; the
+        models run on."""
+        for part in self.parts:
+            restart = getattr(part, "restart_stamps", None)
+            if restart is not None and (not parts or part.name in parts):
+                restart(at)
+
     async def _run_loop(self) -> None:
         while True:
             now = self.clock.now()

@@ -10,7 +10,7 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 
 from assetlink.link import Link
-from base_station.rtk import RtkConfig, RtkReader
+from assetlink.rtk import RtkConfig, RtkReader
 from protocol.rtcm import Reframer
 from sim.clock import SimClock
 from sim.gnss.receiver import GnssReceiver, running_receiver

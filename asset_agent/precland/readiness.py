@@ -12,10 +12,13 @@ landing (PX4 has its own landing-target estimator, other parameters): nothing to
 from __future__ import annotations
 
 import logging
+from collections.abc import Awaitable, Callable
+from typing import Any
 
 from asset_agent.autopilot.client import Autopilot
 from asset_agent.autopilot.errors import AutopilotError
-from asset_agent.autopilot.params import NoSuchParam, read_param, unanswered
+from asset_agent.autopilot.params import NoSuchParam, read_param, set_param, unanswered
+from asset_agent.precland.config import AutopilotDescentConfig
 from protocol.vocabulary import AvailabilityCondition
 
 log = logging.getLogger(__name__)
@@ -80,3 +83,29 @@ def _no_plnd() -> AvailabilityCondition:
         message="the autopilot has no PLND_ENABLED (not ArduPilot's precision landing): "
         "LANDING_TARGETs go to its own estimator, not checked here",
     )  # fmt: skip
+
+
+async def descent_gate(
+    autopilot: Any,
+    cfg: AutopilotDescentConfig,
+    now: Callable[[], float],
+    sleep: Callable[[float], Awaitable[None]],
+    confirmed: Callable[[float], None],
+) -> None:
+    """PLND_XY_DIST_MAX for one landing: the configured radius (LAND descends only while its
+    target estimate is that close), relaxed once the landing is `relax_after_s` old (`now` and
+    `sleep` in the sensors' seconds); `confirmed` hears each value the autopilot holds. An
+    autopilot without the parameter (ArduPilot 3.x, PX4) is asked once per boot."""
+    if unanswered(autopilot, "PLND_XY_DIST_MAX"):
+        log.info("precland: the autopilot has no PLND_XY_DIST_MAX, LAND descends as it will")
+        return
+    start = now()
+    try:
+        for wait in (0.0, cfg.relax_after_s):
+            await sleep(wait)
+            value = cfg.xy_dist_max_at(now() - start)
+            if value is not None:
+                confirmed(await set_param(autopilot, "PLND_XY_DIST_MAX", value))
+                log.info("precland: the autopilot holds PLND_XY_DIST_MAX %.2f m", value)
+    except AutopilotError as exc:  # PX4, ArduPilot 3.x, or the link went: its own default
+        log.warning("precland: PLND_XY_DIST_MAX not set, LAND descends as it will: %s", exc)

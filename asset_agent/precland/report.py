@@ -18,6 +18,7 @@ class LandingStats:
     frames: int = 0
     ir_readings: int = 0
     targets_sent: int = 0
+    measured: int = 0  # control steps with a new (not held) measurement of the pad
     first_sent_t: float | None = None  # sensor clock
     last_sent_t: float | None = None
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import logging
 import time
 from types import MappingProxyType
@@ -35,8 +36,6 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from asset_agent.autopilot.errors import AutopilotError
-from asset_agent.autopilot.params import set_param, unanswered
 from asset_agent.config import PreclandSection
 from asset_agent.events import Event
 from asset_agent.precland.clock import SensorClock
@@ -44,8 +43,10 @@ from asset_agent.precland.config import SOURCES, AutopilotDescentConfig, FaultCo
 from asset_agent.precland.hold import HoldWatch
 from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import Tick, VehicleState
+from asset_agent.precland.readiness import descent_gate
 from asset_agent.precland.report import LandingStats, PadFix, pad_offset_ned
 from asset_agent.precland.resume import Memory, TakeoverRecord
+from asset_agent.precland.silence import SilenceWatch
 from asset_agent.precland.takeover import Takeover, descending
 from asset_agent.precland.transport import IrReceiver, frames_forever
 from assetlink.dispatch import CommandRequest, result
@@ -76,6 +77,7 @@ class PrecisionLander:
         self.clock = SensorClock(section.clock_rate)
         self.faults: dict[str, FaultConfig] = dict(self.config.faults)
         self.stats = LandingStats()
+        self.silence = SilenceWatch()  # frames in, no target out: a warning (silence.py)
         self.loop: PrecisionLandingLoop | None = None
         self._loop_task: asyncio.Task[None] | None = None
         self._camera_task: asyncio.Task[None] | None = None
@@ -193,6 +195,12 @@ class PrecisionLander:
             self.first_look = asyncio.create_task(look)
         self._armed = bool(state.armed)
         self.hold.check(state, taken)
+        warning = self.silence.check(self.clock.epochs, taken)
+        if warning is not None:
+            log.warning(
+                "precland: no LANDING_TARGET sent while readings arrive: %s", warning.detail
+            )
+            self.events.append(warning)
         lands = descending(state) or taken
         if lands and self.section.camera_port is not None and self._camera_task is None:
             self._camera_task = asyncio.create_task(self._camera(), name="precland-camera")
@@ -212,6 +220,7 @@ class PrecisionLander:
                 if task is not None:
                     task.cancel()
             self._loop_task = self.loop = self._takeover_task = self._gate_task = None
+            self.silence.stop()
             log.info("precland: inactive (%d LANDING_TARGET sent)", self.stats.targets_sent)
 
     @property
@@ -248,6 +257,7 @@ class PrecisionLander:
         if config.mode == "landing_target" and config.autopilot.xy_dist_max_m is not None:
             self._gate_task = asyncio.create_task(self._descent_gate(config.autopilot))
         self.stats.landings += 1
+        self.silence.start()
         log.info("precland: active at %.1f m (pad prior %s)", state.alt_rel or 0.0, prior)
 
     async def _take_over(self, takeover: Takeover) -> None:
@@ -266,22 +276,12 @@ class PrecisionLander:
             self.events.append(Event("landing_aborted", MappingProxyType(detail)))
 
     async def _descent_gate(self, cfg: AutopilotDescentConfig) -> None:
-        """PLND_XY_DIST_MAX for this landing: the configured radius (LAND descends only while
-        its target estimate is that close), relaxed once the landing is `relax_after_s` old.
-        An autopilot without the parameter (ArduPilot 3.x, PX4) is asked once per boot."""
-        if unanswered(self.autopilot, "PLND_XY_DIST_MAX"):
-            log.info("precland: the autopilot has no PLND_XY_DIST_MAX, LAND descends as it will")
-            return
-        start = self.clock.now()
-        try:
-            for wait in (0.0, cfg.relax_after_s):
-                await self.clock.sleep(wait)
-                value = cfg.xy_dist_max_at(self.clock.now() - start)
-                if value is not None:
-                    self.xy_dist_max = await set_param(self.autopilot, "PLND_XY_DIST_MAX", value)
-                    log.info("precland: the autopilot holds PLND_XY_DIST_MAX %.2f m", value)
-        except AutopilotError as exc:  # PX4, ArduPilot 3.x, or the link went: its own default
-            log.warning("precland: PLND_XY_DIST_MAX not set, LAND descends as it will: %s", exc)
+        """PLND_XY_DIST_MAX for this landing (readiness.py), the confirmed value kept."""
+
+        def confirmed(value: float) -> None:
+            self.xy_dist_max = value
+
+        await descent_gate(self.autopilot, cfg, self.clock.now, self.clock.sleep, confirmed)
 
     def drain_events(self) -> list[Event]:
         """The events precision landing raised since the last call."""
@@ -291,6 +291,7 @@ class PrecisionLander:
     async def _stop_loop(self) -> None:
         await cancel_and_wait([self._takeover_task, self._gate_task])
         task, self._loop_task, self.loop = self._loop_task, None, None
+        self.silence.stop()
         if task is not None:
             await cancel_and_wait([task])
             log.info("precland: inactive (%d LANDING_TARGET sent)", self.stats.targets_sent)
@@ -317,10 +318,13 @@ class PrecisionLander:
         path = self.takeover.path if self.takeover is not None else None
         if path not in ("search-then-precision", "rtk-fallback"):
             path = "precision" if self.last_fix is not None else "gnss"
+        # what the landing loop saw and sent: frames with no target is a landing the camera
+        # watched and did not steer (the server alerts on it)
+        seen = self.silence.landed_detail() if self.stats.landings else {}
         if self.last_fix is None:  # landed on GNSS alone: nothing was measured
-            return {"offset_source": "none", "landing_path": path}
+            return {"offset_source": "none", "landing_path": path, **seen}
         fix = self.last_fix.touchdown(self.clock.now())
-        return {"offset_source": "precland", "landing_path": path, **fix}
+        return {"offset_source": "precland", "landing_path": path, **fix, **seen}
 
     def with_touchdown(self, event: Event) -> Event:
         """The `landed` event with the measured touchdown offset in its data."""
@@ -330,12 +334,14 @@ class PrecisionLander:
         target = tick.target
         if target is not None and target.kind != "held" and target.sources:
             self.last_fix = PadFix(tick.t, target.rel_ned, target.sources)
+            self.stats.measured += 1
         lt = tick.landing_target
         if lt is None:
             return
         self.autopilot.send_landing_target(
             lt.angle_x, lt.angle_y, lt.distance, lt.frame, (lt.x, lt.y, lt.z)
         )
+        self.silence.sent()
         st = self.stats
         st.targets_sent += 1
         st.last_sent_t = tick.t
@@ -346,17 +352,20 @@ class PrecisionLander:
 
     async def _camera(self) -> None:
         async for frame in frames_forever(self.section.camera_host, self.section.camera_port or 0):
-            self.clock.observe(frame.capture_ts)
+            # on the agent's time base across the camera clock's restarts (clock.py)
+            t = self.clock.observe(frame.capture_ts, "camera")
             self.stats.frames += 1
+            self.silence.reading("camera")
             if self.loop is not None:
-                self.loop.frame(frame)
+                self.loop.frame(dataclasses.replace(frame, capture_ts=t))
 
     async def _ir(self, ir: IrReceiver) -> None:
         async for reading in ir.readings():
-            self.clock.observe(reading.capture_ts)
+            t = self.clock.observe(reading.capture_ts, "ir")
             self.stats.ir_readings += 1
+            self.silence.reading("ir")
             if self.loop is not None:
-                self.loop.ir(reading)
+                self.loop.ir(dataclasses.replace(reading, capture_ts=t))
 
     async def _states(self) -> None:
         wanted = (ATTITUDE, LOCAL_POSITION_NED)

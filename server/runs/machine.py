@@ -224,6 +224,11 @@ def uav_landed(seen: Seen) -> bool:
     return seen.obs.uav_landed or "landed" in seen.obs.uav_events
 
 
+def landed_without_precision(seen: Seen) -> bool:
+    """The agent says its precision landing watched the pad's sensors and sent no target."""
+    return "landed_without_precision" in seen.obs.uav_events
+
+
 def landing_abandoned(seen: Seen) -> bool:
     """The UAV gave its landing up (no pad found or lost without RTK fixed GNSS to land on, or
     held off the pad by the wind): it holds up."""
@@ -415,6 +420,10 @@ STEPS: dict[State, Step] = {
             State.landing, 5, "Returning to the base and landing on the pad",
             (Action("uav", ReturnToBase),), 900,
             done=(
+                Exit(State.confirming, "the UAV reports it has landed on GNSS alone: its "
+                     "precision landing sent no target while its camera's frames arrived; check "
+                     "the camera and its clock", "landed_without_precision", alert=True,
+                     when=both(uav_landed, landed_without_precision)),
                 Exit(State.confirming, "the UAV reports it has landed", when=uav_landed),
                 Exit(State.failed, "the UAV gave up its landing: the pad was not found (or lost "
                      "too high with its retries used up) and its GNSS has no RTK fix to land "

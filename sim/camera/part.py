@@ -98,6 +98,11 @@ class CameraPart:
         )
         world.ports["camera"] = await self.server.start()
 
+    def restart_stamps(self, at: float = 0.0) -> None:
+        """The camera's capture timestamps count from `at` again."""
+        if self.server is not None:
+            self.server.restart_stamps(at)
+
     async def stop(self) -> None:
         """Stop serving."""
         if self.server is not None:

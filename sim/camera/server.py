@@ -100,6 +100,7 @@ class CameraServer:
         self.fps = fps
         self.jpeg_quality = jpeg_quality
         self.frames_sent = 0
+        self.stamp_offset = 0.0  # capture timestamps are the clock's seconds less this
         self._server: asyncio.Server | None = None
         self._slots: set[_Slot] = set()
         self._task: asyncio.Task | None = None
@@ -113,6 +114,11 @@ class CameraServer:
         self._task = asyncio.create_task(self._capture_loop(), name="camera-capture")
         log.info("camera serving on %s:%d at %.0f FPS", self.host, self.port, self.fps)
         return self.port
+
+    def restart_stamps(self, at: float = 0.0) -> None:
+        """Capture timestamps count from `at` again (the camera rebooted, or the world restarted
+        under a running agent); the capture schedule runs on."""
+        self.stamp_offset = self.clock.now() - at
 
     async def stop(self) -> None:
         """Stop capturing and close every connection (closing a writer does not wake a handler
@@ -136,7 +142,7 @@ class CameraServer:
                 continue
             try:
                 pose = self.pose_fn()
-                ts = self.clock.now()
+                ts = self.clock.now() - self.stamp_offset
                 image = await asyncio.to_thread(self.renderer.render, pose)
                 data = await asyncio.to_thread(
                     encode_frame, self._seq, ts, image, self.jpeg_quality

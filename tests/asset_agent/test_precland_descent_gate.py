@@ -74,6 +74,7 @@ async def test_an_autopilot_without_the_parameter_still_lands(caplog) -> None:
     """ArduPilot 3.7 (no PLND_XY_DIST_MAX: it answers nothing): the daemon asks, gives up with a
     warning, and the autopilot lands as before; the next landing does not ask again."""
     caplog.set_level(logging.INFO, logger="asset_agent.precland.supervisor")
+    caplog.set_level(logging.INFO, logger="asset_agent.precland.readiness")  # the gate's
     old = profile("ardupilot-3.7")
     habits = replace(old, streams_at_boot="all", boot_s=0.0)
     gate = AutopilotDescentConfig(xy_dist_max_m=0.05)

@@ -12,7 +12,7 @@ import pytest
 from pydantic import ValidationError
 from pyrtcm import RTCMReader
 
-from base_station.rtk import (
+from assetlink.rtk import (
     Backoff,
     RateMeter,
     RtkConfig,

@@ -15,6 +15,7 @@ from typing import Any
 
 import httpx
 
+from aerobase.ports import free_port
 from asset_agent.config import AgentConfig
 from asset_agent.main import run as run_agent
 from asset_agent.main import setup as setup_agent
@@ -165,6 +166,7 @@ async def platform(
     base_process: bool = False,
     metrics_ports: dict[str, int] | None = None,
     video: dict[str, Any] | None = None,
+    local_rtk: bool = False,
 ) -> AsyncIterator[Platform]:
     """World + daemons connected to the server at `server_url`, assets registered in `tenant`.
 
@@ -175,7 +177,9 @@ async def platform(
     the base daemon runs as its own `aerobase base-station` process (`Platform.base_daemon`), to
     be killed. `metrics_ports`: {"base": port, "agent": port} turns on the daemons' own /metrics.
     `video`: the UAV's camera description ({"width", "height", "fps"}); the agent publishes the
-    world's downward camera at that size ([video], loopback ICE: the server must allow it too)."""
+    world's downward camera at that size ([video], loopback ICE: the server must allow it too).
+    `local_rtk`: the base serves its RTCM3 stream on a local port and the agent reads it there
+    (base [rtk] serve_port, agent [rtk] local_source), beside the server's relay."""
     extra = {"base": BaseParams(pad_geodetic=pad)} if pad else {}
     world = full_world(WorldConfig.for_tests(speed=speed, seed=seed, **extra))
     if habits is not None:
@@ -208,6 +212,10 @@ async def platform(
             sconf = sconf.model_copy(
                 update={"rtk": sconf.rtk.model_copy(update={"tcp_port": world.ports["gnss"]})}
             )
+            rtk_port = free_port() if local_rtk else 0
+            if rtk_port:
+                rtk = {"serve_host": "127.0.0.1", "serve_port": rtk_port}
+                sconf = sconf.model_copy(update={"rtk": sconf.rtk.model_copy(update=rtk)})
             ports = metrics_ports or {}
             if "base" in ports:
                 sconf = sconf.model_copy(
@@ -225,6 +233,9 @@ async def platform(
                         "link_timeout_s": 2.0,
                     },
                     "telemetry": {"rate_hz": 5},
+                    **(
+                        {"rtk": {"local_source": f"tcp://127.0.0.1:{rtk_port}"}} if rtk_port else {}
+                    ),
                     **({"metrics": {"port": ports["agent"]}} if "agent" in ports else {}),
                     **(
                         {

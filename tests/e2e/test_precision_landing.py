@@ -211,6 +211,58 @@ async def test_unreachable_sensors_leave_the_landing_to_gnss(live_server, tenant
         assert report["landing"]["base_confirmed"] and report["landing"]["landed_at"], report
 
 
+async def test_a_camera_whose_timestamps_restart_mid_descent_lands_on_the_new_epoch(
+    live_server, tenant: Tenant, tmp_path
+):
+    """The camera alone steers (no IR); below 7 m its timestamps start again from 0 (it rebooted,
+    or the world restarted under the agent): the landing carries on with the new epoch's frames
+    and lands on the contacts. Before issue 46 every frame after the restart looked a minute old
+    to the agent: none was fused and no LANDING_TARGET went out for the rest of the descent."""
+    async with platform(
+        live_server.url, tenant, tmp_path, speed=SPEED, seed=SEED, precland={"ir_port": None}
+    ) as p:
+        lander, copter = p.agent.lander, p.copter
+        assert lander is not None
+        run_id = await p.start_run()
+        await p.wait_state(run_id, ("flying",), 60)
+        await eventually(
+            lambda: (
+                lander.loop is not None
+                and lander.stats.targets_sent > 10
+                and (p.agent.autopilot.state.alt_rel or 99.0) < 7.0
+            ),
+            240,
+            "the camera to steer the descent",
+        )
+        sent, height = lander.stats.targets_sent, p.agent.autopilot.state.alt_rel
+        measured = lander.stats.measured
+        p.world.restart_sensor_clocks(0.0, parts=("camera",))
+        await eventually(lambda: not copter.armed, 120, "the landing")
+        body = await p.wait_state(run_id, FINAL, 120)
+        events = await p.uav_events()
+        landed = next(e for e in reversed(events) if e["name"] == "landed")
+        seen = {
+            "restarted_at_m": height,
+            "targets_before": sent,
+            "targets_after": lander.stats.targets_sent - sent,
+            "measured_after": lander.stats.measured - measured,
+            "epochs": lander.clock.epochs,
+            "pad_distance_m": round(copter.pad_distance(), 4),
+            "landed": landed["data"],
+        }
+        print(f"camera restart mid-descent: {seen}")
+        # it steered on with the new epoch's frames: measured, not a target held from before
+        assert lander.stats.measured - measured > 20, seen
+        assert lander.stats.targets_sent - sent > 20, seen
+        assert lander.clock.epochs == 1, seen
+        # the camera alone may not see the pad at the loop's start (10 m): searched, then precision
+        assert landed["data"]["landing_path"] in ("precision", "search-then-precision"), seen
+        assert landed["data"]["fix_age_s"] < 1.0, seen  # measured to the end, not held from before
+        assert not {"precland_silent", "landed_without_precision"} & {e["name"] for e in events}
+        assert copter.pad_distance() < 0.05, seen
+        assert body["state"] == "completed" and not body["alert"], (body["reason"], seen)
+
+
 async def _report(p, run_id: str) -> dict:  # type: ignore[no-untyped-def]
     r = await p.api.get(f"/api/v1/runs/{run_id}/report", headers=p.tenant.h("viewer"))
     assert r.status_code == 200, r.text

@@ -20,7 +20,7 @@ from fastapi.middleware.gzip import GZipMiddleware
 from pygnssutils import GNSSNTRIPClient
 from pyrtcm import RTCMReader
 
-from base_station.rtk import RtkConfig, RtkReader
+from assetlink.rtk import RtkConfig, RtkReader
 from protocol.rtcm import Reframer, frame_ok, message_type
 from server.kit.metrics import REGISTRY
 from server.realtime.broker import InProcessBroker

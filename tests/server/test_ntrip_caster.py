@@ -17,7 +17,7 @@ from typing import Any
 import pytest
 from pygnssutils import GNSSNTRIPClient
 
-from base_station.rtk import RtkConfig, RtkReader
+from assetlink.rtk import RtkConfig, RtkReader
 from protocol.rtcm import Reframer, frame_ok, message_type
 from server.stations import caster as caster_module
 from server.stations.caster import Caster, parse_request

@@ -145,6 +145,17 @@ def test_a_landing_the_uav_gave_up_fails_at_once_with_an_alert_and_the_base_open
     assert not any(a.name in ("close", "close_panels") for a in t.extra_actions)
 
 
+def test_a_landing_that_came_down_without_precision_goes_on_with_an_alert():
+    """The agent's precision landing sent no target while its camera's frames arrived (issue 46):
+    the run goes on to the scale, alerted; a landing that steered has no alert."""
+    told = ["landed", "landed_without_precision"]
+    t = advance(State.landing, obs(uav_events=told, uav_landed=True))
+    assert t is not None and t.to is State.confirming and t.alert
+    assert t.cause == "landed_without_precision" and "no target" in t.reason
+    t = advance(State.landing, obs(uav_events=["landed"], uav_landed=True))
+    assert t is not None and t.to is State.confirming and not t.alert
+
+
 @pytest.mark.parametrize("state", [State.flying, State.landing, State.confirming])
 def test_no_failure_after_take_off_closes_the_panels(state):
     for o in (

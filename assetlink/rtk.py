@@ -1,4 +1,6 @@
-"""RTK corrections in: RTCM3 from the base's GNSS receiver over TCP or a serial port.
+"""RTK corrections in: RTCM3 over TCP or a serial port, for both daemons: the base reads its GNSS
+receiver; the agent reads the base's local stream (base_station/rtcm_server.py) on the site's
+network, so corrections reach the UAV with the server down (asset_agent/corrections.py).
 
 The byte stream is reframed and CRC-checked (`protocol.rtcm.Reframer`); good frames go to an
 async callback and to any number of async-iterator subscribers; bad frames, skipped bytes,
@@ -13,7 +15,7 @@ import contextlib
 import logging
 import time
 from collections import Counter, deque
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import AsyncGenerator, Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 from urllib.parse import parse_qs, urlsplit
@@ -294,7 +296,7 @@ class RtkReader:
             message_counts=dict(self._types),
         )
 
-    async def frames(self) -> AsyncIterator[bytes]:
+    async def frames(self) -> AsyncGenerator[bytes, None]:
         """Every good frame from now on (a slow consumer loses the oldest, counted as dropped)."""
         queue: asyncio.Queue[bytes] = asyncio.Queue(self.config.subscriber_queue)
         self._subscribers.add(queue)
