@@ -195,6 +195,7 @@ class RunEngine:
             mission_finished="mission_finished" in names,
             returned=await repo.flying_exit_cause(db, run.id),
             operator_return=await repo.operator_returned(db, run.uav_id, run.flight_started_at),
+            landed_without_precision="landed_without_precision" in names,
         )
 
     async def _record(

@@ -42,7 +42,8 @@ class Run(IdMixin, Base):
     # completed | completed_with_issues | incomplete | aborted | failed (runs/outcome.py)
     outcome: Mapped[str | None] = mapped_column(String(32), default=None)
     cause: Mapped[str | None] = mapped_column(String(64), default=None)
-    # degradations that did not stop the job: charging_refused, landing_off_contacts
+    # degradations that did not stop the job: charging_refused, landing_off_contacts,
+    # landed_without_precision
     issues: Mapped[list[Any]] = mapped_column(JSON, default=list)
     reason: Mapped[str] = mapped_column(String(2000), default="")
     alert: Mapped[bool] = mapped_column(default=False)

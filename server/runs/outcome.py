@@ -6,8 +6,10 @@ The sequence (machine.py) says where a run stopped; this says whether the job wa
   UAV landed on the pad (the base's scale confirmed it), the base closed and charging started.
 - `completed_with_issues`: the same job done, but with a degradation that did not stop it, named
   in `issues`: `charging_refused` (the charger would not start), `landing_off_contacts` (on the
-  lift but off the charging contacts, so charging was refused). Alert: a person must seat the
-  UAV or see to the charger before its next flight.
+  lift but off the charging contacts, so charging was refused), `landed_without_precision` (its
+  precision landing sent no target while its sensors' readings arrived: it came down on GNSS
+  alone). Alert: a person must seat the UAV, see to the charger or check the camera and its
+  clock before its next flight.
 - `incomplete`: the UAV came back, landed and the base closed, but the mission was not flown to
   its last item; `cause` says why it came home early: `battery_reserve`, `fence_breach`,
   `mission_overrun`, `operator_return` (a person sent the UAV home outside the run),
@@ -22,7 +24,7 @@ A run is a success (the fleet report's `success_rate`) only when `completed`.
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from server.runs.machine import CommandOutcome, State, Transition
 
@@ -42,6 +44,7 @@ class RunIssue(enum.StrEnum):
 
     charging_refused = "charging_refused"
     landing_off_contacts = "landing_off_contacts"
+    landed_without_precision = "landed_without_precision"
 
 
 # the causes of an `incomplete` run: why the UAV came home before its mission's last item
@@ -62,6 +65,7 @@ class Flight:
     mission_finished: bool = False  # the UAV reported `mission_finished` during the flight
     returned: str = ""  # the cause of the run's flying -> landing step ("": mission finished)
     operator_return: bool = False  # a person sent the UAV `return_to_base` during the flight
+    landed_without_precision: bool = False  # it reported landing on GNSS alone, sensors alive
 
 
 @dataclass(frozen=True)
@@ -91,10 +95,14 @@ def judge(transition: Transition, flight: Flight, charging: CommandOutcome | Non
     cause. A charging refusal becomes an issue of the outcome instead of its cause.
     """
     issues = issues_of(charging) if transition.cause == "charging_failed" else ()
+    if flight.landed_without_precision:
+        issues = (*issues, RunIssue.landed_without_precision)
     if transition.to == State.completed:
         if flight.mission_finished:
-            outcome = RunOutcome.completed_with_issues if issues else RunOutcome.completed
-            return Verdict(transition, outcome, issues[0].value if issues else None, issues)
+            if not issues:
+                return Verdict(transition, RunOutcome.completed, None, issues)
+            flagged = replace(transition, alert=True)  # a person must look before it flies again
+            return Verdict(flagged, RunOutcome.completed_with_issues, issues[0].value, issues)
         cause: str = flight.returned or "returned_early"
         if cause == "returned_early" and flight.operator_return:
             cause = "operator_return"

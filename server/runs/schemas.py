@@ -61,7 +61,8 @@ class RunOut(BaseModel):
     issues: list[RunIssue] = Field(
         default_factory=list,
         description="degradations that did not stop the job (a `completed_with_issues` run's, or "
-        "any run's whose charging was refused): `charging_refused`, `landing_off_contacts`",
+        "any run's whose charging was refused): `charging_refused`, `landing_off_contacts`, "
+        "`landed_without_precision`",
     )
     reason: str
     alert: bool

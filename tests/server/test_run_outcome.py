@@ -41,6 +41,8 @@ def ended(charging: CommandOutcome, *, aborting: bool = False) -> Transition:
         (OK, Flight(returned="returned_early", operator_return=True), "incomplete", "operator_return", (), False),
         (OK, Flight(returned="returned_early"), "incomplete", "returned_early", (), True),
         (FAULT, Flight(returned="battery_reserve"), "incomplete", "battery_reserve", ("charging_refused",), True),
+        (OK, Flight(mission_finished=True, landed_without_precision=True), "completed_with_issues", "landed_without_precision", ("landed_without_precision",), True),
+        (FAULT, Flight(mission_finished=True, landed_without_precision=True), "completed_with_issues", "charging_refused", ("charging_refused", "landed_without_precision"), True),
     ],
 )  # fmt: skip
 def test_a_run_that_reached_charging_is_completed_only_with_its_mission_flown(

@@ -33,6 +33,7 @@ export const CAUSES = {
   returned_early: "returned early on its own",
   charging_refused: "charging refused",
   landing_off_contacts: "landed off the charging contacts",
+  landed_without_precision: "landed on GNSS alone (precision landing sent nothing)",
   operator_abort: "aborted by an operator",
 };
 
