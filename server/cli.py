@@ -21,6 +21,7 @@ from server.auth.service import Account, SessionService
 from server.config import Settings
 from server.kit.db import make_engine, make_sessionmaker
 from server.kit.errors import AppError
+from server.kit.http_head import HeadTimeoutProtocol
 from server.kit.principal import Role
 from server.kit.security import Passwords
 from server.kit.uow import SessionEndListener, UnitOfWork
@@ -99,7 +100,11 @@ def uvicorn_options(settings: Settings) -> dict[str, Any]:
         "ws_per_message_deflate": False,
         "ws_ping_interval": settings.ws_ping_interval_s,
         "ws_ping_timeout": settings.ws_ping_timeout_s,
+        # an HTTP request head (a WebSocket upgrade's too) is due within http_header_timeout_s
+        "http": HeadTimeoutProtocol,
+        # X-Forwarded-For believed from the reverse proxy's own address(es) only
         "proxy_headers": True,
+        "forwarded_allow_ips": settings.forwarded_allow_ips,
         # explicit, not uvicorn's "auto" (which silently falls back to asyncio's loop, ~27 % more
         # CPU per message on the telemetry path)
         "loop": "uvloop" if _has_uvloop() else "asyncio",

@@ -81,6 +81,22 @@ class Settings(BaseSettings):
         "60s): a proxy that sends a request on a connection the server is just closing answers a "
         "POST with 502",
     )
+    http_header_timeout_s: float = Field(
+        default=10.0,
+        gt=0,
+        description="a connection that has not sent a whole request head (the request line and "
+        "headers, a WebSocket upgrade's too) this many seconds after it opened, or after the "
+        "first byte of its next request, is answered 408 and closed: silent and trickling "
+        "clients hold no connection longer",
+    )
+    forwarded_allow_ips: str = Field(
+        default="127.0.0.1",
+        validation_alias=AliasChoices("AEROBASE_FORWARDED_ALLOW_IPS", "FORWARDED_ALLOW_IPS"),
+        description="the reverse proxy's own address(es) (comma-separated IPs or networks): only "
+        "a connection from one of them has its X-Forwarded-For / X-Forwarded-Proto believed, "
+        'as the caller\'s address for the login limits and the audit log. Never "*" in '
+        "production: any client could then choose its address",
+    )
     log_format: Literal["auto", "json", "console"] = "auto"
     log_level: str = "INFO"
 
@@ -222,6 +238,11 @@ class Settings(BaseSettings):
             )
         if self.video_ice_loopback and self.environment == "production":
             raise ValueError("AEROBASE_VIDEO_ICE_LOOPBACK is for tests and development only")
+        if self.environment == "production" and "*" in self.forwarded_allow_ips:
+            raise ValueError(
+                "FORWARDED_ALLOW_IPS must name the reverse proxy's address(es), not *: with * any "
+                "client chooses the address the login limits and the audit log see"
+            )
         if self.video_path == "janus" and not self.janus_url:
             raise ValueError("AEROBASE_VIDEO_PATH=janus needs JANUS_URL")
         return self

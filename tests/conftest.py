@@ -154,7 +154,7 @@ class LiveServer:
 
         # as `aerobase server` serves it (the hot sockets natively, uvloop, the WebSocket limits)
         options = {**uvicorn_options(settings), "host": "127.0.0.1", "port": self.port}
-        config = uvicorn.Config(self.app, forwarded_allow_ips="127.0.0.1", lifespan="on", **options)
+        config = uvicorn.Config(self.app, lifespan="on", **options)
         self.server = uvicorn.Server(config)
         self.thread = threading.Thread(
             target=self.server.run, name=f"server-{self.port}", daemon=True

@@ -28,6 +28,7 @@ from uvicorn.config import WS_PROTOCOLS, Config
 from uvicorn.importer import import_from_string
 from uvicorn.server import ServerState
 
+from server.kit.http_head import app_services
 from server.realtime import rfc6455 as ws
 from server.realtime.frames import Disconnected, bearer_token
 from server.realtime.native_socket import Limits, NativeSocket
@@ -75,19 +76,6 @@ class Route:
 ROUTES: dict[str, Route] = {}  # filled by endpoints.py
 
 
-def _services(config: Config) -> Any:
-    """The app's services, found through uvicorn's middleware wrappers (`.app` chains)."""
-    app: Any = config.loaded_app
-    for _ in range(16):
-        services = getattr(getattr(app, "state", None), "services", None)
-        if services is not None:
-            return services
-        app = getattr(app, "app", None)
-        if app is None:
-            break
-    return None
-
-
 class WebSocketProtocol(asyncio.Protocol):
     """uvicorn's `ws` protocol class: the hot paths natively, the rest by uvicorn's default."""
 
@@ -124,7 +112,7 @@ class WebSocketProtocol(asyncio.Protocol):
             self.other.connection_made(self.transport)
             self.other.data_received(head)
             return
-        services = _services(self.config)
+        services = app_services(self.config)
         settings = getattr(services, "settings", None)
         limits = Limits(
             max_size=self.config.ws_max_size,

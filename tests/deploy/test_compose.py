@@ -6,6 +6,7 @@ runs natively in test_proxy.py (nginx with the very server block the compose fil
 
 from __future__ import annotations
 
+import ipaddress
 import re
 import shutil
 import subprocess
@@ -26,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[2]
 COMPOSE = ROOT / "docker-compose.yml"
 ENV_EXAMPLE = ROOT / ".env.example"
 # read by other programs in the image, not by server/config.py
-NOT_OURS = {"FORWARDED_ALLOW_IPS"}  # uvicorn: whose X-Forwarded-For to believe
+NOT_OURS: set[str] = set()
 
 
 def compose() -> dict[str, Any]:
@@ -145,6 +146,25 @@ def test_the_proxy_mounts_the_server_block_the_native_topology_runs_and_points_a
     assert (
         compose()["services"]["server-1"]["environment"]["AEROBASE_NTRIP_PROXY_PROTOCOL"] == "true"
     )
+
+
+def test_the_replicas_believe_forwarded_addresses_from_the_proxy_alone():
+    """X-Forwarded-For from the proxy's fixed address only, one outside the range the other
+    containers' addresses come from; the proxy overwrites it (tests/deploy/test_proxy_trust.py
+    runs that nginx)."""
+    services = compose()["services"]
+    proxy_ip = services["proxy"]["networks"]["default"]["ipv4_address"]
+    ipam = compose()["networks"]["default"]["ipam"]["config"][0]
+    address = ipaddress.ip_address(proxy_ip)
+    assert address in ipaddress.ip_network(ipam["subnet"])
+    assert address not in ipaddress.ip_network(ipam["ip_range"])
+    for name in ("server-1", "server-2"):
+        env = services[name]["environment"]
+        assert "FORWARDED_ALLOW_IPS" not in env
+        assert env["AEROBASE_FORWARDED_ALLOW_IPS"] == proxy_ip
+        assert Settings(environment="production", forwarded_allow_ips=proxy_ip)
+    with pytest.raises(ValueError, match="not \\*"):
+        Settings(environment="production", forwarded_allow_ips="*")
 
 
 def test_the_replicas_wait_for_the_migration_and_do_not_migrate_themselves():
