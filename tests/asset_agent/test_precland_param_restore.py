@@ -16,9 +16,9 @@ from asset_agent.precland.config import AutopilotDescentConfig
 from asset_agent.precland.restore import KEY
 from asset_agent.precland.supervisor import PrecisionLander
 from sim.vehicle.server import VehicleServer
-from tests.asset_agent.blind_landing import take_off_and_land
+from tests.asset_agent.blind_landing import blind_beacon_lander, take_off_and_land
 from tests.asset_agent.test_precland_descent_gate import PLND, flying, lander
-from tests.asset_agent.test_precland_takeover import state_file
+from tests.asset_agent.test_precland_takeover import SEARCH, state_file
 from tests.polling import eventually
 
 # the contacts' 5 cm, never relaxed within these landings
@@ -120,3 +120,20 @@ async def test_a_record_left_by_an_agent_is_restored_by_the_next_on_the_ground(
         async with lander(ap, vehicle, GATE, memory=memory) as second:
             await restored(vehicle, second)
         assert await every_param(ap, vehicle) == before
+
+
+async def test_an_abandoned_landing_gives_the_parameter_back_in_its_hold() -> None:
+    """No pad found on a plain fix: the landing is abandoned and the vehicle holds at its safe
+    height for the operator; the landing's parameter is given back there."""
+    async with flying(PLND) as (vehicle, ap):
+        before = await every_param(ap, vehicle)
+        async with blind_beacon_lander(
+            ap, vehicle, search=SEARCH, pad_sigma_m=0.5, autopilot=GATE
+        ) as daemon:
+            await take_off_and_land(ap, vehicle)
+            await eventually(lambda: daemon.xy_dist_max == pytest.approx(0.05), 20, "the gate")
+            await eventually(lambda: daemon.takeover and daemon.takeover.path, 40, "its end")
+            assert daemon.takeover is not None and daemon.takeover.path == "aborted-climb"
+            await restored(vehicle, daemon)
+            assert ap.state.mode == "GUIDED" and vehicle.copter.flying  # in the hold
+            assert await every_param(ap, vehicle) == before
