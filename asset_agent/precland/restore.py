@@ -25,7 +25,7 @@ import time
 from typing import Any
 
 from asset_agent.autopilot.params import MAV_PARAM_TYPE_REAL32, read_param, set_param
-from asset_agent.precland.resume import Memory
+from asset_agent.precland.resume import Memory, known
 from asynckit.tasks import cancel_and_wait
 
 log = logging.getLogger(__name__)
@@ -90,7 +90,7 @@ class ParamLedger:
     def check(self, state: Any, busy: bool) -> None:
         """Each supervision step: restore once the phase is over (`busy`: a landing loop of the
         agent's runs, the vehicle descends, or the first look is not done)."""
-        if not self.changed or busy or not state.link_up:
+        if not self.changed or busy or not known(state):  # a descent not yet heard of
             return
         if self._task is not None and not self._task.done():
             return
