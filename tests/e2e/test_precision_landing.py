@@ -34,12 +34,12 @@ SEED = 21
 PLND = replace(profile("ardupilot-4"), streams_at_boot="all", boot_s=0.0)
 
 
-async def _params(p) -> dict[str, float]:
+async def autopilot_params(p) -> dict[str, float]:
     """Every parameter of the simulated autopilot as it answers the agent's PARAM_REQUEST_READ."""
     return {n: await read_param(p.agent.autopilot, n) for n in list(p.copter.fence.params)}
 
 
-async def _while_flying(p, flown: list[float]) -> None:
+async def watch_while_flying(p, flown: list[float]) -> None:
     """PLND_XY_DIST_MAX as the autopilot holds it, each step it flies."""
     while True:
         if p.copter.flying:
@@ -81,9 +81,9 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         assert (await _command(p, "precland_fault", {"source": "sonar"}))["status"] == "rejected"
         assert lander.faults["ir"].r_drop == 0.3
         # every parameter over MAVLink before the flight, and PLND_XY_DIST_MAX while it flies
-        before = await _params(p)
+        before = await autopilot_params(p)
         flown: list[float] = []
-        watch = asyncio.create_task(_while_flying(p, flown))
+        watch = asyncio.create_task(watch_while_flying(p, flown))
         run_id = await p.start_run()
         await p.wait_state(run_id, ("flying",), 60)
         await eventually(
@@ -128,7 +128,7 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         # and given back once landed (precland/restore.py): every parameter as before the flight
         default = before["PLND_XY_DIST_MAX"]
         await eventually(lambda: copter.param("PLND_XY_DIST_MAX") == default, 30, "it back")
-        assert await _params(p) == before
+        assert await autopilot_params(p) == before
         assert lander.stats.landings >= 1 and lander.stats.targets_sent > 20, seen
         assert copter.plnd.was_acquired, seen
         assert copter.plnd.accepted > 20 and copter.plnd.rejected == 0, seen
