@@ -17,8 +17,9 @@ from typing import Any
 
 from asset_agent.autopilot.client import Autopilot
 from asset_agent.autopilot.errors import AutopilotError
-from asset_agent.autopilot.params import NoSuchParam, read_param, set_param, unanswered
+from asset_agent.autopilot.params import NoSuchParam, read_param, unanswered
 from asset_agent.precland.config import AutopilotDescentConfig
+from asset_agent.precland.restore import ParamLedger
 from protocol.vocabulary import AvailabilityCondition
 
 log = logging.getLogger(__name__)
@@ -87,6 +88,7 @@ def _no_plnd() -> AvailabilityCondition:
 
 async def descent_gate(
     autopilot: Any,
+    ledger: ParamLedger,
     cfg: AutopilotDescentConfig,
     now: Callable[[], float],
     sleep: Callable[[float], Awaitable[None]],
@@ -94,8 +96,9 @@ async def descent_gate(
 ) -> None:
     """PLND_XY_DIST_MAX for one landing: the configured radius (LAND descends only while its
     target estimate is that close), relaxed once the landing is `relax_after_s` old (`now` and
-    `sleep` in the sensors' seconds); `confirmed` hears each value the autopilot holds. An
-    autopilot without the parameter (ArduPilot 3.x, PX4) is asked once per boot."""
+    `sleep` in the sensors' seconds); `confirmed` hears each value the autopilot holds. Set
+    through `ledger`, which gives the value from before back when the landing ends (restore.py).
+    An autopilot without the parameter (ArduPilot 3.x, PX4) is asked once per boot."""
     if unanswered(autopilot, "PLND_XY_DIST_MAX"):
         log.info("precland: the autopilot has no PLND_XY_DIST_MAX, LAND descends as it will")
         return
@@ -105,7 +108,7 @@ async def descent_gate(
             await sleep(wait)
             value = cfg.xy_dist_max_at(now() - start)
             if value is not None:
-                confirmed(await set_param(autopilot, "PLND_XY_DIST_MAX", value))
+                confirmed(await ledger.change("PLND_XY_DIST_MAX", value))
                 log.info("precland: the autopilot holds PLND_XY_DIST_MAX %.2f m", value)
     except AutopilotError as exc:  # PX4, ArduPilot 3.x, or the link went: its own default
         log.warning("precland: PLND_XY_DIST_MAX not set, LAND descends as it will: %s", exc)

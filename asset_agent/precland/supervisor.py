@@ -7,21 +7,18 @@ MAV_FRAME_BODY_FRD) at the configured rate.
 
 Active while the autopilot is landing (landed_state LANDING — LAND mode, RTL's or a mission's final
 descent — or mode LAND) below `activation_height_m`, once the pad's position is known (surveyed,
-or home: an agent just started may not have heard HOME_POSITION yet, and a search or a fallback
-would centre on its own position). landed_state is the autopilot's own
-EXTENDED_SYS_STATE when it sends one; for those that send none (ArduPilot 3.x) the adapter infers
-it (autopilot/flight_state.py): a descent in LAND mode or on a mission's NAV_LAND item, or an
-RTL descent within 5 m of home — never a climb, and never a descent on the way home. The camera is
-streamed only then (a frame server renders only for subscribers); the IR sensor is subscribed all
-along. Every source is optional and may be unreachable: then nothing is sent and the autopilot
-lands on GNSS alone. When the sources run but none has seen the pad within `[precland.search]
-acquire_s`, the agent takes the vehicle to search for it and applies the fallback rule before it
-hands the descent back (takeover.py); an abandoned landing is reported as a `landing_aborted`
-event. Restarted while the agent flew the landing itself, it hands the descent back (resume.py).
-An abandoned landing holds in GUIDED at the safe height for the operator; a failsafe the
-autopilot reports meanwhile hands LAND back (hold.py).
-The autopilot's states are stamped with the `SensorClock` (clock.py), so the loop runs in the
-sensors' seconds.
+or home: an agent just started may not have heard HOME_POSITION yet). landed_state is the
+autopilot's EXTENDED_SYS_STATE, or inferred where it sends none (autopilot/flight_state.py). The
+camera is streamed only then (a frame server renders only for subscribers); the IR sensor is
+subscribed all along. Every source is optional and may be unreachable: then nothing is sent and
+the autopilot lands on GNSS alone. When the sources run but none has seen the pad within
+`[precland.search] acquire_s`, the agent takes the vehicle to search for it and applies the
+fallback rule before it hands the descent back (takeover.py); an abandoned landing is reported as
+a `landing_aborted` event. Restarted while the agent flew the landing itself, it hands the descent
+back (resume.py). An abandoned landing holds in GUIDED at the safe height for the operator; a
+failsafe the autopilot reports meanwhile hands LAND back (hold.py). The parameters a landing sets
+are given back once it is over, by a restarted agent too (restore.py). The autopilot's states are
+stamped with the `SensorClock` (clock.py), so the loop runs in the sensors' seconds.
 """
 
 from __future__ import annotations
@@ -45,6 +42,7 @@ from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import Tick, VehicleState
 from asset_agent.precland.readiness import descent_gate
 from asset_agent.precland.report import LandingStats, PadFix, pad_offset_ned
+from asset_agent.precland.restore import ParamLedger
 from asset_agent.precland.resume import Memory, TakeoverRecord
 from asset_agent.precland.silence import SilenceWatch
 from asset_agent.precland.takeover import Takeover, descending
@@ -95,6 +93,7 @@ class PrecisionLander:
         self.first_look: asyncio.Task[None] | None = None
         # the first look, and a failsafe in the hold of an abandoned landing (hold.py)
         self.hold = HoldWatch(autopilot, self.record, self.clock.sleep)
+        self.params = ParamLedger(autopilot, memory)  # what a landing changed, given back after
         self.events: list[Event] = []  # for the daemon's event stream (drained by the reporter)
         if self.config.mode != "landing_target":
             log.warning(
@@ -139,6 +138,7 @@ class PrecisionLander:
         """Watch the autopilot; run the landing loop while it lands. Never raises but cancel."""
         try:
             await self.record.load()
+            await self.params.load()
         except Exception:  # the state file is the link's: it says why it failed
             log.exception("precland: what the previous agent kept could not be read")
         tasks = [asyncio.create_task(self._states(), name="precland-states")]
@@ -177,6 +177,7 @@ class PrecisionLander:
         await self._stop_loop()
         await cancel_and_wait([self._camera_task, self.first_look, *tasks])
         await self.hold.close()
+        await self.params.close()
         if ir is not None:
             ir.close()
 
@@ -191,8 +192,7 @@ class PrecisionLander:
         decision = self.record.first_sight(state) if prior is not None else None
         disarmed = self._armed and not state.armed and self.record.current is not None
         if decision is not None or disarmed:
-            look = self.hold.act_on_first_sight(decision or "none")
-            self.first_look = asyncio.create_task(look)
+            self.first_look = asyncio.create_task(self.hold.act_on_first_sight(decision or "none"))
         self._armed = bool(state.armed)
         self.hold.check(state, taken)
         warning = self.silence.check(self.clock.epochs, taken)
@@ -222,6 +222,8 @@ class PrecisionLander:
             self._loop_task = self.loop = self._takeover_task = self._gate_task = None
             self.silence.stop()
             log.info("precland: inactive (%d LANDING_TARGET sent)", self.stats.targets_sent)
+        undecided = self.record.left is not None and self.record.decision is None  # restore.py
+        self.params.check(state, self._loop_task is not None or lands or not resumed or undecided)
 
     @property
     def ready(self) -> bool:
@@ -277,11 +279,11 @@ class PrecisionLander:
 
     async def _descent_gate(self, cfg: AutopilotDescentConfig) -> None:
         """PLND_XY_DIST_MAX for this landing (readiness.py), the confirmed value kept."""
+        ap, now, sleep = self.autopilot, self.clock.now, self.clock.sleep
+        await descent_gate(ap, self.params, cfg, now, sleep, self._confirmed)
 
-        def confirmed(value: float) -> None:
-            self.xy_dist_max = value
-
-        await descent_gate(self.autopilot, cfg, self.clock.now, self.clock.sleep, confirmed)
+    def _confirmed(self, value: float) -> None:
+        self.xy_dist_max = value
 
     def drain_events(self) -> list[Event]:
         """The events precision landing raised since the last call."""

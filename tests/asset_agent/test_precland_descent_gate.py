@@ -14,6 +14,7 @@ import pytest
 
 from asset_agent.autopilot import Autopilot
 from asset_agent.precland.config import AutopilotDescentConfig, SearchConfig
+from asset_agent.precland.resume import Memory
 from sim.vehicle.copter import CopterConfig
 from sim.vehicle.habits import profile
 from sim.vehicle.server import VehicleServer, run_vehicle
@@ -37,10 +38,17 @@ async def flying(habits) -> AsyncIterator[tuple[VehicleServer, Autopilot]]:
         yield vehicle, ap
 
 
-def lander(ap: Autopilot, vehicle: VehicleServer, gate: AutopilotDescentConfig):
+def lander(
+    ap: Autopilot,
+    vehicle: VehicleServer,
+    gate: AutopilotDescentConfig,
+    memory: Memory | None = None,
+):
     """The daemon's precision landing, mode landing_target, its beacon blind; no search, so the
-    autopilot keeps LAND."""
-    return blind_beacon_lander(ap, vehicle, search=SearchConfig(enabled=False), autopilot=gate)
+    autopilot keeps LAND (its state file `memory`)."""
+    return blind_beacon_lander(
+        ap, vehicle, search=SearchConfig(enabled=False), autopilot=gate, memory=memory
+    )
 
 
 def test_the_gate_is_the_configured_radius_until_the_landing_is_too_old() -> None:

@@ -3,6 +3,7 @@ the autopilot flies on, and the new agent takes the flight up where it finds it.
 
 from __future__ import annotations
 
+import asyncio
 from typing import Any
 
 import pytest
@@ -11,6 +12,7 @@ from sim.vehicle.constants import AUTO, GUIDED
 from tests.conftest import Tenant
 from tests.e2e.harness import FINAL, Platform, platform
 from tests.e2e.test_autonomous_run import WHOLE_SEQUENCE
+from tests.e2e.test_precision_landing import PLND, SEED, SPEED, autopilot_params, watch_while_flying
 from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
@@ -127,3 +129,34 @@ async def test_an_agent_restarted_in_its_own_search_hands_the_descent_back_and_t
         assert lander.takeover is not None and lander.takeover.path == "rtk-fallback"
         names = [e["name"] for e in await p.uav_events()]
         assert "landing_aborted" not in names and names.count("landed") == 1, names
+
+
+@pytest.mark.realtime  # a landing loop through the camera (tests/priority.py)
+async def test_an_agent_restarted_in_the_middle_of_a_precision_landing_gives_its_parameter_back(
+    live_server, tenant: Tenant, tmp_path
+):
+    """Restarted while the autopilot's LAND descends by the PLND_XY_DIST_MAX it set (5 cm): the
+    autopilot keeps the value (ArduPilot saves a PARAM_SET); the new agent reads what its
+    predecessor changed from the state file, leaves it under the landing and gives the value from
+    before back once the UAV is down: every parameter reads back over MAVLink as before."""
+    async with platform(
+        live_server.url, tenant, tmp_path, speed=SPEED, seed=SEED, precland={}, habits=PLND
+    ) as p:
+        before = await autopilot_params(p)
+        run_id = await p.start_run()
+        first = p.agent.lander
+        assert first is not None
+        await eventually(
+            lambda: first.xy_dist_max == pytest.approx(0.05), 240, "the gate set in the landing"
+        )
+        await p.restart_agent()
+        assert p.copter.flying and p.copter.param("PLND_XY_DIST_MAX") == pytest.approx(0.05)
+        flown: list[float] = []
+        watch = asyncio.create_task(watch_while_flying(p, flown))
+        body = await p.wait_state(run_id, FINAL, 240)
+        watch.cancel()
+        assert body["state"] in ("completed", "completed_with_issues"), body["reason"]
+        assert flown and all(v == pytest.approx(0.05) for v in flown)  # never under the landing
+        default = before["PLND_XY_DIST_MAX"]
+        await eventually(lambda: p.copter.param("PLND_XY_DIST_MAX") == default, 30, "it back")
+        assert await autopilot_params(p) == before

@@ -11,6 +11,7 @@ from dataclasses import replace
 
 import pytest
 
+from asset_agent.autopilot.params import read_param
 from asset_agent.precland.config import RetryConfig
 from sim.vehicle.habits import profile
 from tests.conftest import Tenant
@@ -31,6 +32,19 @@ GATE_M = 0.03  # an operator's tighter PLND_XY_DIST_MAX than the default 5 cm (s
 SEED = 21
 # the autopilot as ArduPilot 4.x lands with LANDING_TARGET (its PLND), without the boot wait
 PLND = replace(profile("ardupilot-4"), streams_at_boot="all", boot_s=0.0)
+
+
+async def autopilot_params(p) -> dict[str, float]:
+    """Every parameter of the simulated autopilot as it answers the agent's PARAM_REQUEST_READ."""
+    return {n: await read_param(p.agent.autopilot, n) for n in list(p.copter.fence.params)}
+
+
+async def watch_while_flying(p, flown: list[float]) -> None:
+    """PLND_XY_DIST_MAX as the autopilot holds it, each step it flies."""
+    while True:
+        if p.copter.flying:
+            flown.append(p.copter.param("PLND_XY_DIST_MAX"))
+        await asyncio.sleep(0.01)
 
 
 async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
@@ -66,6 +80,10 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         ] == "succeeded"
         assert (await _command(p, "precland_fault", {"source": "sonar"}))["status"] == "rejected"
         assert lander.faults["ir"].r_drop == 0.3
+        # every parameter over MAVLink before the flight, and PLND_XY_DIST_MAX while it flies
+        before = await autopilot_params(p)
+        flown: list[float] = []
+        watch = asyncio.create_task(watch_while_flying(p, flown))
         run_id = await p.start_run()
         await p.wait_state(run_id, ("flying",), 60)
         await eventually(
@@ -104,8 +122,13 @@ async def test_a_windy_run_lands_on_the_contacts_by_landing_target(
         lasted = lander.stats.last_sent_t - lander.stats.first_sent_t
         radii = {gate.xy_dist_max_at(lasted - 2.0), gate.xy_dist_max_at(lasted + 2.0)}
         assert GATE_M == gate.xy_dist_max_at(0.0)
-        held = copter.param("PLND_XY_DIST_MAX")
+        watch.cancel()
+        held = flown[-1]  # to the touchdown
         assert any(held == pytest.approx(r) for r in radii), (held, lasted, radii, seen)
+        # and given back once landed (precland/restore.py): every parameter as before the flight
+        default = before["PLND_XY_DIST_MAX"]
+        await eventually(lambda: copter.param("PLND_XY_DIST_MAX") == default, 30, "it back")
+        assert await autopilot_params(p) == before
         assert lander.stats.landings >= 1 and lander.stats.targets_sent > 20, seen
         assert copter.plnd.was_acquired, seen
         assert copter.plnd.accepted > 20 and copter.plnd.rejected == 0, seen
