@@ -1,8 +1,9 @@
 """Precision landing that sends nothing while its sensors' readings arrive says so at once.
 
-A landing loop runs, frames or IR readings keep arriving, and yet no LANDING_TARGET has gone out
-for `window_s` wall seconds (wall, not sensor seconds: the sensors' clock may be what is wrong):
-the autopilot is landing on GNSS alone while the log would say precision landing is active. The
+A landing loop runs, frames or IR readings that see the pad keep arriving, and yet no
+LANDING_TARGET has gone out for `window_s` wall seconds (wall, not sensor seconds: the sensors'
+clock may be what is wrong): the autopilot is landing on GNSS alone while the log would say
+precision landing is active. The
 watch raises one `precland_silent` warning per such silence (a target sent ends it), and the
 landing's counters go into the `landed` event; a landing that came down that way is followed by
 a `landed_without_precision` event, on which the server alerts on the run.
@@ -17,6 +18,7 @@ from types import MappingProxyType
 from typing import Any
 
 from asset_agent.events import Event
+from asset_agent.precland.detect import Detections
 
 
 @dataclass
@@ -46,15 +48,20 @@ class SilenceWatch:
         """The landing loop ended (its counters stay for the `landed` event)."""
         self._active = False
 
-    def reading(self, source: str) -> None:
-        """A camera frame ("camera") or an IR reading arrived."""
-        if not self._active:
+    def reading(self, source: str, found: bool = True) -> None:
+        """A camera frame ("camera") or an IR reading arrived; `found`: it saw the pad (a sensor
+        that sees no pad sends no target, rightly: only readings of the pad count here)."""
+        if not self._active or not found:
             return
         if source == "camera":
             self.frames += 1
         else:
             self.ir_readings += 1
         self._last_reading = self.wall()
+
+    def detections(self, _t: float, det: Detections) -> None:
+        """The detector's answer on a camera frame: one that found the pad is a reading."""
+        self.reading("camera", any(e is not None for e in (det.frame, det.pattern, det.aruco)))
 
     def sent(self) -> None:
         """A LANDING_TARGET went out."""

@@ -233,8 +233,8 @@ class PrecisionLander:
 
     def _start_loop(self, state: Any, prior: tuple[float, float, float]) -> None:
         config = self.config.model_copy(update={"faults": dict(self.faults)})
-        loop = PrecisionLandingLoop(
-            config, on_tick=self._on_tick, now_fn=self.clock.now, sleep_fn=self.clock.sleep
+        loop = PrecisionLandingLoop(  # a camera frame that saw the pad: a reading (silence.py)
+            config, self._on_tick, self.silence.detections, self.clock.now, self.clock.sleep
         )
         loop.pipeline.set_pad_prior(prior, self.section.pad_sigma_m)
         now = self.clock.now()
@@ -357,7 +357,6 @@ class PrecisionLander:
             # on the agent's time base across the camera clock's restarts (clock.py)
             t = self.clock.observe(frame.capture_ts, "camera")
             self.stats.frames += 1
-            self.silence.reading("camera")
             if self.loop is not None:
                 self.loop.frame(dataclasses.replace(frame, capture_ts=t))
 
@@ -365,7 +364,7 @@ class PrecisionLander:
         async for reading in ir.readings():
             t = self.clock.observe(reading.capture_ts, "ir")
             self.stats.ir_readings += 1
-            self.silence.reading("ir")
+            self.silence.reading("ir", reading.detected)
             if self.loop is not None:
                 self.loop.ir(dataclasses.replace(reading, capture_ts=t))
 
