@@ -77,7 +77,11 @@ async def test_a_headwind_home_turns_the_uav_back_before_the_reserve(
         body = await p.wait_state(run_id, FINAL, 240)
         assert body["state"] == "incomplete", (body["reason"], body["timeline"])
         assert body["outcome"] == "incomplete" and body["cause"] == "battery_reserve", body
-        assert body["alert"] and body["issues"] == [], body
+        # the headwind landing is GNSS's (no camera here): the contacts may or may not be seated,
+        # and the outcome says which, as the world has it
+        seated = p.world.base.contacts_seated
+        expected = [] if seated else ["landing_off_contacts"]
+        assert body["alert"] and body["issues"] == expected, (seated, body)
         assert "not flown to its last item" in body["reason"], body["reason"]
         assert "battery reserve" in body["reason"], body["reason"]
         fleet = (await p.api.get("/api/v1/reports/fleet", headers=tenant.h("viewer"))).json()
