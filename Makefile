@@ -24,7 +24,7 @@ lint: $(STAMP)
 # three pytest-xdist workers, a test file each at a time (a file's fixtures stay in one worker; each
 # worker has a PostgreSQL database of its own: tests/conftest.py); the slowest tests are listed.
 # Three on two cores: with two, a third of the CPU sat idle while tests waited on sockets and
-# simulated flights (README, "Other figures", the `make test` row). The files go out longest first,
+# simulated flights (docs/figures.md, "Other figures", the `make test` row). The files go out longest first,
 # by their seconds in a recorded run (tests/schedule.py, tests/durations.json), not xdist's order
 PARALLEL ?= -n 3 --dist loadfile --no-loadscope-reorder
 
