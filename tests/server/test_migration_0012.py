@@ -5,7 +5,6 @@ downgrade gives the old words back (an early return's cause kept on its run)."""
 
 from __future__ import annotations
 
-import asyncio
 import itertools
 import tempfile
 import uuid
@@ -15,8 +14,15 @@ import pytest
 import sqlalchemy as sa
 
 from server import migrate
-from tests.conftest import _reset_postgres, need_service
-from tests.server.test_migrations import _ASSETS, _MISSIONS, _ORGS, _RUN_COLUMNS, _col, _run_sync
+from tests.server.test_migrations import (
+    _ASSETS,
+    _MISSIONS,
+    _ORGS,
+    _RUN_COLUMNS,
+    _col,
+    _run_sync,
+    fresh_postgres,
+)
 
 _RUNS = sa.table(
     "runs",
@@ -116,16 +122,4 @@ def test_sqlite_0012_rejudges_recorded_runs_both_ways():
 
 @pytest.mark.slow
 def test_postgresql_0012_rejudges_recorded_runs_both_ways():
-    need_service("PostgreSQL", "127.0.0.1", 5432)
-    import asyncpg
-
-    async def make_db() -> None:
-        conn = await asyncpg.connect("postgresql://postgres@127.0.0.1:5432/postgres")
-        await conn.execute("DROP DATABASE IF EXISTS aerobase_migrations_0012")
-        await conn.execute("CREATE DATABASE aerobase_migrations_0012")
-        await conn.close()
-
-    asyncio.run(make_db())
-    url = "postgresql+asyncpg://postgres@127.0.0.1:5432/aerobase_migrations_0012"
-    _reset_postgres(url)
-    _check(url)
+    _check(fresh_postgres("aerobase_migrations_0012"))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import os
 import tempfile
 import uuid
 from datetime import UTC, datetime
@@ -16,7 +15,25 @@ from sqlalchemy.ext.asyncio import create_async_engine
 
 from server import migrate
 from server.kit.db import Base, UTCDateTime
-from tests.conftest import PG_URL_DEFAULT, _reset_postgres, need_service
+from tests.conftest import _reset_postgres, need_service
+
+
+def fresh_postgres(name: str) -> str:
+    """The URL of an empty PostgreSQL database `name` of the calling test's own (dropped and made
+    again), so the suite's live server, which may use /test, is not disturbed."""
+    need_service("PostgreSQL", "127.0.0.1", 5432)
+    import asyncpg
+
+    async def make_db() -> None:
+        conn = await asyncpg.connect("postgresql://postgres@127.0.0.1:5432/postgres")
+        await conn.execute(f"DROP DATABASE IF EXISTS {name}")
+        await conn.execute(f"CREATE DATABASE {name}")
+        await conn.close()
+
+    asyncio.run(make_db())
+    url = f"postgresql+asyncpg://postgres@127.0.0.1:5432/{name}"
+    _reset_postgres(url)
+    return url
 
 
 def _diff(url: str) -> list:
@@ -50,23 +67,7 @@ def test_sqlite_upgrade_downgrade_upgrade_and_no_autogenerate_diff():
 
 @pytest.mark.slow
 def test_postgresql_upgrade_downgrade_upgrade_and_no_autogenerate_diff():
-    need_service("PostgreSQL", "127.0.0.1", 5432)
-    url = os.environ.get(
-        "AEROBASE_MIGRATION_TEST_PG_URL", PG_URL_DEFAULT.replace("/test", "/postgres")
-    )
-    # a database of its own, so the suite's live server (which may use /test) is not disturbed
-    import asyncpg
-
-    async def make_db() -> None:
-        conn = await asyncpg.connect("postgresql://postgres@127.0.0.1:5432/postgres")
-        await conn.execute("DROP DATABASE IF EXISTS aerobase_migrations")
-        await conn.execute("CREATE DATABASE aerobase_migrations")
-        await conn.close()
-
-    asyncio.run(make_db())
-    url = "postgresql+asyncpg://postgres@127.0.0.1:5432/aerobase_migrations"
-    _reset_postgres(url)
-    _cycle(url)
+    _cycle(fresh_postgres("aerobase_migrations"))
 
 
 # --- 0005: runs' step commands and flight facts move out of JSON into a table and columns ---
@@ -226,16 +227,4 @@ def test_sqlite_0005_carries_runs_over_both_ways():
 
 @pytest.mark.slow
 def test_postgresql_0005_carries_runs_over_both_ways():
-    need_service("PostgreSQL", "127.0.0.1", 5432)
-    import asyncpg
-
-    async def make_db() -> None:
-        conn = await asyncpg.connect("postgresql://postgres@127.0.0.1:5432/postgres")
-        await conn.execute("DROP DATABASE IF EXISTS aerobase_migrations_data")
-        await conn.execute("CREATE DATABASE aerobase_migrations_data")
-        await conn.close()
-
-    asyncio.run(make_db())
-    url = "postgresql+asyncpg://postgres@127.0.0.1:5432/aerobase_migrations_data"
-    _reset_postgres(url)
-    _check_data_migration(url)
+    _check_data_migration(fresh_postgres("aerobase_migrations_data"))
