@@ -103,6 +103,14 @@ def _part(name: str, build: Callable[[], T | None]) -> T | None:
     return part
 
 
+def _whole(name: str, model: Callable[..., T], **values: float | None) -> T | None:
+    """Part `name` built from `values`, or None when one of them is missing (non-finite) or out
+    of range (`_part`)."""
+    if any(v is None for v in values.values()):
+        return None
+    return _part(name, lambda: model(**values))
+
+
 def _f(v: float | None) -> float | None:
     """The value when it is a finite number, else None (dropped)."""
     return v if v is not None and math.isfinite(v) else None
@@ -116,33 +124,17 @@ def _clamp(v: float | None, lo: float, hi: float) -> float | None:
 def to_telemetry(s: UavState) -> UavTelemetry:
     """One telemetry sample from the autopilot's state; non-finite values are left out, and each
     part (position, velocity, attitude, battery, GNSS, mission) whose values are out of range."""
-    lat, lon, alt_msl = _f(s.lat), _f(s.lon), _f(s.alt_msl)
-    position = _part(
-        "position",
-        lambda: (
-            Position(lat=lat, lon=lon, alt_msl_m=alt_msl, alt_rel_m=_f(s.alt_rel) or 0.0)
-            if lat is not None and lon is not None and alt_msl is not None
-            else None
-        ),
+    position = _whole(
+        "position", Position, lat=_f(s.lat), lon=_f(s.lon), alt_msl_m=_f(s.alt_msl),
+        alt_rel_m=_f(s.alt_rel) or 0.0,
+    )  # fmt: skip
+    velocity = _whole(
+        "velocity", Velocity, north_m_s=_f(s.vn), east_m_s=_f(s.ve), down_m_s=_f(s.vd)
     )
-    vn, ve, vd = _f(s.vn), _f(s.ve), _f(s.vd)
-    velocity = _part(
-        "velocity",
-        lambda: (
-            Velocity(north_m_s=vn, east_m_s=ve, down_m_s=vd)
-            if vn is not None and ve is not None and vd is not None
-            else None
-        ),
-    )
-    roll, pitch, yaw = _f(s.roll_deg), _f(s.pitch_deg), _f(s.yaw_deg)
-    attitude = _part(
-        "attitude",
-        lambda: (
-            Attitude(roll_deg=roll, pitch_deg=pitch, yaw_deg=yaw)
-            if roll is not None and pitch is not None and yaw is not None
-            else None
-        ),
-    )
+    attitude = _whole(
+        "attitude", Attitude, roll_deg=_f(s.roll_deg), pitch_deg=_f(s.pitch_deg),
+        yaw_deg=_f(s.yaw_deg),
+    )  # fmt: skip
     heading = _f(s.heading_deg)
     mission = _part(
         "mission",
