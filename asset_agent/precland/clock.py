@@ -43,12 +43,15 @@ class _Epoch:
 class SensorClock:
     """The sensors' clock as seen from here: rate and offset against `wall` from received stamps.
 
-    now() = rate * wall + offset, with the rate fitted over the last `window_s` wall seconds (or
-    fixed) and the offset the largest seen (the least-delayed sample); never goes backwards.
+    now() = rate * wall + offset, with the rate fitted over the last `window_s` wall seconds through
+    the least-delayed readings (or fixed) and the offset the largest seen (the least-delayed
+    sample); never goes backwards.
     `observe` maps each source's timestamps onto that clock across the source's restarts
     (`epoch_jump_s`: how far a source's timestamp may step back before it is a new epoch;
-    `epoch_ahead_s`: how far ahead of what the wall time since its last reading explains; a new
-    epoch's shift follows its least-delayed reading for `settle_s` wall seconds).
+    `epoch_ahead_s`: how far ahead of what the wall time since its last reading explains;
+    `first_behind_s`: how far behind the others' a source's first timestamp must be to be on
+    another epoch; a new epoch's shift follows its least-delayed reading for `settle_s` wall
+    seconds).
     """
 
     def __init__(
@@ -59,6 +62,8 @@ class SensorClock:
         epoch_jump_s: float = 1.0,
         epoch_ahead_s: float = 30.0,
         settle_s: float = 2.0,
+        first_behind_s: float = 10.0,
+        min_span_s: float = 0.3,
     ) -> None:
         self.fixed_rate = rate
         self.window_s = window_s
@@ -66,10 +71,14 @@ class SensorClock:
         self.epoch_jump_s = epoch_jump_s
         self.epoch_ahead_s = epoch_ahead_s
         self.settle_s = settle_s
+        self.first_behind_s = first_behind_s
+        self.min_span_s = min_span_s
         self.epochs = 0  # new epochs seen, over every source
         self._samples: deque[tuple[float, float, str]] = deque()
         self._sources: dict[str, _Epoch] = {}
         self._last = -math.inf
+        self._rate = 1.0  # fitted (_refit) unless fixed
+        self._fitted_at = -math.inf
 
     @property
     def ready(self) -> bool:
@@ -79,22 +88,26 @@ class SensorClock:
     @property
     def rate(self) -> float:
         """Sensor seconds per wall second."""
-        if self.fixed_rate is not None:
-            return self.fixed_rate
-        s = self._samples
-        if len(s) < 3 or s[-1][0] - s[0][0] < 0.3:
-            return 1.0 if len(s) < 2 or s[-1][0] == s[0][0] else self._slope()
-        return self._slope()
+        return self.fixed_rate if self.fixed_rate is not None else self._rate
 
-    def _slope(self) -> float:
-        n = len(self._samples)
-        mw = sum(w for w, _, _ in self._samples) / n
-        mt = sum(t for _, t, _ in self._samples) / n
-        var = sum((w - mw) ** 2 for w, _, _ in self._samples)
-        if var <= 0:
-            return 1.0
-        slope = sum((w - mw) * (t - mt) for w, t, _ in self._samples) / var
-        return slope if slope > 0 else 1.0
+    def _refit(self, w: float) -> None:
+        """The rate from the least-delayed reading of each half of the window, `min_span_s` wall
+        seconds apart at least, else the rate so far. Readings that queued behind a stalled loop
+        arrive in a burst, each later than the one before by more than its own interval: a fit
+        through them (a least-squares slope of a burst a few milliseconds long) once read 1000x
+        and carried the clock 10 s ahead of its sensors, where every reading was stale."""
+        s = self._samples
+        if self.fixed_rate is not None or len(s) < 3 or w - self._fitted_at < 0.05:
+            return
+        self._fitted_at = w
+        mid, r = (s[0][0] + s[-1][0]) / 2, self._rate
+        early = max((x for x in s if x[0] <= mid), key=lambda x: x[1] - r * x[0], default=None)
+        late = max((x for x in s if x[0] > mid), key=lambda x: x[1] - r * x[0], default=None)
+        if early is None or late is None or late[0] - early[0] < self.min_span_s:
+            return
+        slope = (late[1] - early[1]) / (late[0] - early[0])
+        if slope > 0:
+            self._rate = slope
 
     def observe(self, ts: float, source: str = "sensor") -> float:
         """A capture timestamp of `source` just received; returns it on this clock's time base."""
@@ -104,6 +117,7 @@ class SensorClock:
         self._samples.append((w, t, source))
         while self._samples and w - self._samples[0][0] > self.window_s:
             self._samples.popleft()
+        self._refit(w)
         return t
 
     def _map(self, epoch: _Epoch, ts: float, source: str, w: float) -> float:
@@ -111,10 +125,13 @@ class SensorClock:
             epoch.last_ts, epoch.last_w = ts, w
             return ts + epoch.shift
         predicted, rate = self._predict(), self.rate
-        # a source's first timestamp may be on another clock than the others' (its own sensor)
+        # a source's first timestamp may be on another clock than the others' (its own sensor
+        # restarted before it was first seen); a first reading merely late (a camera's first
+        # frame, slow to render on a loaded machine) is on theirs: taken for an epoch, it would
+        # be read as captured now, ahead of every other source
         seen = epoch.last_ts != -math.inf
         back = ts < epoch.last_ts - self.epoch_jump_s or (
-            not seen and ts < predicted - self.epoch_jump_s * rate
+            not seen and ts < predicted - self.first_behind_s
         )
         # ahead by far more than the wall time since its last reading explains (not a burst of
         # readings queued behind a stalled loop: each is a little after the one before)

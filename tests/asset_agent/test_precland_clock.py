@@ -154,3 +154,39 @@ def test_a_restart_whose_new_count_is_near_an_older_epochs_count_is_still_a_new_
     t = clock.observe(0.5, "ir")
     assert clock.epochs == 2
     assert t == pytest.approx(now + 5.0, abs=0.05)
+
+
+def test_readings_queued_behind_a_stalled_loop_do_not_run_the_clock_ahead() -> None:
+    """The agent's loop stalled 2.5 s at 5x (longer than the fit's window): the 125 IR readings
+    queued meanwhile arrive within 12 ms. A fit through that burst read 1000x and left the clock
+    10 s ahead of its sensors (every reading stale for fusion's 0.1 s window); the rate stays."""
+    wall = Wall()
+    clock = SensorClock(wall=wall)
+    ts = 100.0
+    for _ in range(100):  # 50 Hz, on time
+        clock.observe(ts, "ir")
+        ts, wall.t = ts + 0.1, wall.t + 0.02
+    queued = []
+    for _ in range(125):  # stalled: captured, not yet read
+        queued.append(ts)
+        ts, wall.t = ts + 0.1, wall.t + 0.02
+    for q in queued:
+        clock.observe(q, "ir")
+        wall.t += 0.0001
+    assert clock.rate == pytest.approx(5.0, rel=0.01)
+    for _ in range(20):  # on time again: each reading is the clock's now as it arrives
+        clock.observe(ts, "ir")
+        assert clock.now() == pytest.approx(ts, abs=0.01)
+        ts, wall.t = ts + 0.1, wall.t + 0.02
+    assert clock.epochs == 0
+
+
+def test_a_camera_first_frame_slow_to_render_is_not_a_new_epoch() -> None:
+    """At 5x, the camera's first frame of a landing comes 1.5 wall seconds late (7.5 sensor
+    seconds): the same clock as the IR's, late, not a restarted camera taken as captured now."""
+    wall = Wall()
+    clock = SensorClock(wall=wall)
+    streamed(clock, wall, "ir", 100.0, 30, 5.0)
+    now = clock.now()
+    assert clock.observe(now - 7.5, "camera") == pytest.approx(now - 7.5)
+    assert clock.epochs == 0
