@@ -13,7 +13,6 @@ same timestamp (to the microsecond a `datetime` carries) are merged into one poi
 from __future__ import annotations
 
 import asyncio
-import gzip
 import logging
 import uuid
 from collections.abc import Sequence
@@ -40,9 +39,9 @@ from server.telemetry.influx_lines import (
     NS_MIN,
     InfluxStoreError,
     clamp_ns,
+    encode_batch,
     major_version,
     rfc3339,
-    to_line,
     to_ns,
 )
 from server.telemetry.influx_ql import (
@@ -182,11 +181,12 @@ class InfluxTelemetryStore:
     async def write(self, samples: Sequence[Sample], db: Any = None) -> None:
         """Store a batch; returns when InfluxDB has acknowledged it (points with bad values logged).
         `db` (the caller's SQL transaction) is not InfluxDB's: ignored."""
-        lines = [line for line in map(to_line, samples) if line is not None]
-        for i in range(0, len(lines), WRITE_CHUNK):
-            chunk = lines[i : i + WRITE_CHUNK]
-            if self.major == 1:
-                await self._write_v1("\n".join(chunk))
+        v1 = self.major == 1
+        # formatting and compressing off the event loop (at 1,000 UAVs x 10 Hz, formatting on
+        # it was 65 % of the server's time and held the loop ~77 ms a batch: p99 2-3 s)
+        for chunk in await asyncio.to_thread(encode_batch, samples, WRITE_CHUNK, v1):
+            if isinstance(chunk, bytes):
+                await self._write_v1(chunk)
             else:
                 await asyncio.to_thread(self._write_v2, chunk)
 
@@ -277,13 +277,14 @@ class InfluxTelemetryStore:
                 raise InfluxStoreError(f"InfluxQL error: {result['error']} in {text[:200]}")
         return body
 
-    async def _write_v1(self, body: str) -> None:
+    async def _write_v1(self, body: bytes) -> None:
+        """One gzip-compressed line-protocol body to /write."""
         params = {"db": self._db, "precision": "ns", **({"rp": self._rp} if self._rp else {})}
         try:
             r = await self._need_http().post(
                 "/write",
                 params=params,
-                content=gzip.compress(body.encode(), compresslevel=1),  # ~8x smaller, cheap
+                content=body,
                 headers={"Content-Encoding": "gzip"},
             )
         except httpx.HTTPError as err:
