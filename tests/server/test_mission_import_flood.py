@@ -107,7 +107,9 @@ async def test_eight_oversized_imports_are_refused_while_the_health_check_answer
         f"slowest {slowest * 1000:.0f} ms, median "
         f"{sorted(latencies)[len(latencies) // 2] * 1000:.0f} ms"
     )
-    assert len(latencies) >= IMPORTS, latencies
+    # answered while they arrived (how many times depends on how fast the imports are refused:
+    # 4 answers in one CI run where all eight took under 130 ms)
+    assert latencies, "the health check did not answer while the imports arrived"
     assert slowest <= SLOWEST_HEALTH_S, f"the health check took {slowest * 1000:.0f} ms"
 
 
