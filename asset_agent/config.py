@@ -67,6 +67,9 @@ class PreclandSection(PrecisionLandingConfig):
     pad_lat: float | None = Field(default=None, ge=-90, le=90)
     pad_lon: float | None = Field(default=None, ge=-180, le=180)
     pad_sigma_m: float = Field(default=1.0, gt=0)
+    # a LAND farther than this from the pad is not a landing on it (a contingency landing in the
+    # field, a failsafe's LAND far out): the autopilot lands as it will, no search flies to the pad
+    pad_reach_m: float = Field(default=50.0, gt=0)
     state_rate_hz: float = Field(default=25.0, gt=0, le=100)
     clock_rate: float | None = Field(default=None, gt=0)
 

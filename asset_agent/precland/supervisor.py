@@ -27,6 +27,7 @@ import asyncio
 import contextlib
 import dataclasses
 import logging
+import math
 import time
 from types import MappingProxyType
 from typing import Any
@@ -299,7 +300,8 @@ class PrecisionLander:
             log.info("precland: inactive (%d LANDING_TARGET sent)", self.stats.targets_sent)
 
     def _pad_prior(self, state: Any) -> tuple[float, float, float] | None:
-        """Pad minus vehicle (NED, camera height as down) from the surveyed pad and the GNSS position."""
+        """Pad minus vehicle (NED, camera height as down) from the surveyed pad and the GNSS
+        position; None when unknown, or farther than `pad_reach_m`."""
         s = self.section
         if s.pad_source == "surveyed" and s.pad_lat is not None and s.pad_lon is not None:
             pad = (s.pad_lat, s.pad_lon)
@@ -310,6 +312,8 @@ class PrecisionLander:
         if state.lat is None or state.lon is None or state.alt_rel is None:
             return None
         dn, de = pad_offset_ned(state.lat, state.lon, *pad)
+        if math.hypot(dn, de) > self.section.pad_reach_m:
+            return None  # landing somewhere else: nothing to look for here
         return dn, de, state.alt_rel + self.config.control.touchdown_height
 
     def touchdown_offset(self) -> dict[str, Any]:

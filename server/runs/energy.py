@@ -1,4 +1,4 @@
-"""The run's margin to get home now, from what it observes (the pure rules are in reserve.py)."""
+"""The run's margin to get home now, and whether home is in reach at all, from what it observes (the pure rules are in reserve.py)."""
 
 from __future__ import annotations
 
@@ -6,14 +6,14 @@ from typing import Any
 
 from server.assets.models import Asset
 from server.runs.models import Run
-from server.runs.reserve import finite, return_margin_pct, return_model
+from server.runs.reserve import HomeReach, finite, home_reach, return_model
 
 
-async def return_margin(
+async def return_reach(
     db: Any, run: Run, uav: dict[str, Any], base: dict[str, Any]
-) -> float | None:
-    """Battery left above the reserve if the UAV flew home now (reserve.py); None unknown.
-    Home is the run's base (its position; unknown: the mission's home)."""
+) -> HomeReach | None:
+    """What flying home now would cost and leave (reserve.py); None unknown. Home is the run's
+    base (its position; unknown: the mission's home)."""
     from server.missions.models import Mission
     from server.missions.reach import base_position
 
@@ -29,7 +29,7 @@ async def return_margin(
     if home is None or any(v is None for v in values):
         return None
     lat, lon, alt, battery = (float(v) for v in values if v is not None)
-    return return_margin_pct(
+    return home_reach(
         battery,
         (lat, lon, alt),
         home,

@@ -30,7 +30,7 @@ from server.kit.principal import Principal, Role
 from server.kit.time import utcnow
 from server.realtime.channels import asset_channel, command_channel
 from server.runs import repository as repo
-from server.runs.energy import return_margin
+from server.runs.energy import return_reach
 from server.runs.machine import (
     FINAL,
     STEPS,
@@ -337,12 +337,15 @@ class RunEngine:
             and _after(uav.get("ts"), since)
         )
         airspace = await self._airspace(db, run) if run.state == State.checking.value else ""
-        margin = (
-            await return_margin(db, run, uav, base) if run.state == State.flying.value else None
-        )
+        # in flight: the reserve's margin (flying) and whether home is in reach at all (landing)
+        heading_out = run.state in (State.flying.value, State.landing.value)
+        reach = await return_reach(db, run, uav, base) if heading_out else None
         return Observations(
             airspace=airspace,
-            return_margin_pct=margin,
+            return_margin_pct=reach.margin_pct if reach is not None else None,
+            home_out_of_reach=reach is not None and reach.out_of_reach,
+            home_need_pct=reach.need_pct if reach is not None else None,
+            battery_pct=reach.battery_pct if reach is not None else None,
             elapsed_s=(utcnow() - since).total_seconds(),
             timeout_s=self.timeout_s(State(run.state)),
             commands=outcomes,

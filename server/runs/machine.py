@@ -36,6 +36,7 @@ from protocol.vocabulary import (
     Close,
     CommandParams,
     CommandStatus,
+    Land,
     Open,
     ReturnToBase,
     StartCharging,
@@ -131,6 +132,11 @@ class Observations:
     took_off: bool = False
     airspace: str = ""  # why the mission's path breaks the airspace now ("": it does not)
     return_margin_pct: float | None = None  # battery left above the reserve after going home now
+    # flying home now would land with less than the critical level (reserve.py), what it would
+    # cost and what the battery holds (percent)
+    home_out_of_reach: bool = False
+    home_need_pct: float | None = None
+    battery_pct: float | None = None
 
 
 @dataclass(frozen=True)
@@ -179,6 +185,13 @@ class Seen:
             "mass": f"{obs.base_mass_g:.0f} g" if obs.base_mass_g is not None else "no reading",
             "airspace": obs.airspace,
             "margin": f"{obs.return_margin_pct:.1f}" if obs.return_margin_pct is not None else "",
+            "need": f"{obs.home_need_pct:.0f}" if obs.home_need_pct is not None else "?",
+            "battery": f"{obs.battery_pct:.0f}" if obs.battery_pct is not None else "?",
+            "left": (
+                f"{obs.battery_pct - obs.home_need_pct:.0f}"
+                if obs.battery_pct is not None and obs.home_need_pct is not None
+                else "?"
+            ),
         }
 
 
@@ -244,6 +257,12 @@ def reserve_reached(seen: Seen) -> bool:
     """Going home now would leave no more than the battery reserve (reserve.py)."""
     margin = seen.obs.return_margin_pct
     return margin is not None and margin <= 0 and took_off(seen)
+
+
+def home_out_of_reach(seen: Seen) -> bool:
+    """Flying home now would land with less than the critical battery level, the UAV still in
+    the air (the step's: it follows the flight; a UAV that has landed is where it is)."""
+    return seen.obs.home_out_of_reach and not seen.obs.uav_landed
 
 
 def fence_breached(seen: Seen) -> bool:
@@ -318,6 +337,7 @@ class Step:
 
 
 CLOSE, STOP = Action("base", Close), Action("base", Stop)
+LAND_HERE = Action("uav", Land)  # the contingency when home is out of reach
 ABORT_NOTHING_MOVED = Exit(State.aborted, "{why}; nothing had moved", "operator_abort")
 ABORT_ON_THE_LIFT = Exit(
     State.closing,
@@ -425,6 +445,12 @@ STEPS: dict[State, Step] = {
                      "the camera and its clock", "landed_without_precision", alert=True,
                      when=both(uav_landed, landed_without_precision)),
                 Exit(State.confirming, "the UAV reports it has landed", when=uav_landed),
+                Exit(State.failed, "the UAV cannot reach its base: flying home against the "
+                     "wind the base measures would take {need} % of its {battery} % and land it "
+                     "with {left} %, under its critical level; it is landing where it is — "
+                     "recover it there",
+                     "home_out_of_reach", alert=True, safe=(LAND_HERE,),
+                     when=home_out_of_reach),
                 Exit(State.failed, "the UAV gave up its landing: the pad was not found (or lost "
                      "too high with its retries used up) and its GNSS has no RTK fix to land "
                      "on, or the wind held it off the pad; it climbed and holds there; the base "

@@ -28,6 +28,9 @@ class ReturnModel:
     consumption_pct_per_s: float = 0.1  # battery percent a flight second (17 A on 5 Ah ~ 0.094)
     reserve_pct: float = 20.0
     min_ground_mps: float = 1.0
+    # home is out of reach once flying there now would land with less than this: the run lands
+    # the UAV where it is instead (ArduPilot's critical battery level, BATT_CRT_PCT, lands it too)
+    critical_pct: float = 5.0
 
 
 def return_need_pct(
@@ -64,6 +67,30 @@ def return_margin_pct(
     return battery_pct - need - model.reserve_pct
 
 
+@dataclass(frozen=True)
+class HomeReach:
+    """Flying home now, as the run judges it (percent of the battery)."""
+
+    battery_pct: float
+    need_pct: float  # the return's cost (return_need_pct)
+    margin_pct: float  # left above the reserve on arrival (negative: the reserve is reached)
+    out_of_reach: bool  # it would land home with less than the critical level
+
+
+def home_reach(
+    battery_pct: float,
+    uav: tuple[float, float, float],
+    base: tuple[float, float],
+    wind_mps: float | None,
+    wind_from_deg: float | None,
+    model: ReturnModel,
+) -> HomeReach:
+    """What flying home now would cost and leave; out of reach below `critical_pct` on arrival."""
+    need = return_need_pct(uav, base, wind_mps, wind_from_deg, model)
+    left = battery_pct - need
+    return HomeReach(battery_pct, need, left - model.reserve_pct, left < model.critical_pct)
+
+
 def finite(v: Any) -> float | None:
     """The value as a float when it is a finite number, else None."""
     ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
@@ -72,11 +99,13 @@ def finite(v: Any) -> float | None:
 
 def return_model(attributes: dict[str, Any], mission: Any) -> ReturnModel:
     """The return's figures: the UAV's attributes (`consumption_pct_per_s`,
-    `battery_reserve_pct`, `cruise_speed_mps`) or the mission's speed, else the defaults."""
+    `battery_reserve_pct`, `battery_critical_pct`, `cruise_speed_mps`) or the mission's speed,
+    else the defaults."""
     d = ReturnModel()
     values = {
         "consumption_pct_per_s": finite(attributes.get("consumption_pct_per_s")),
         "reserve_pct": finite(attributes.get("battery_reserve_pct")),
+        "critical_pct": finite(attributes.get("battery_critical_pct")),
         "cruise_mps": finite(getattr(mission, "speed_mps", None))
         or finite(attributes.get("cruise_speed_mps")),
     }

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from server.runs.machine import BEING_CLOSED, CommandOutcome
 
 CLOSED = "the base is closed"
+LANDING_HERE = "the UAV took the order to land where it is"
 
 
 @dataclass(frozen=True)
@@ -40,7 +41,13 @@ def settle(reason: str, outcomes: Mapping[tuple[str, str], CommandOutcome]) -> S
         (name, o) for (_, name), o in outcomes.items() if o.status != "succeeded" and name != "stop"
     ]
     if not failed:
-        note = CLOSED if ("base", "close") in outcomes else "the safe actions are done"
+        note = (
+            CLOSED
+            if ("base", "close") in outcomes
+            else LANDING_HERE
+            if ("uav", "land") in outcomes
+            else "the safe actions are done"
+        )
         return Settled(reason.replace(BEING_CLOSED, CLOSED), note, "safe_state_reached", False)
     name, outcome = failed[0]
     what = "the base could not be closed" if name == "close" else f"{name} did not succeed"

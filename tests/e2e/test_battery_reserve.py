@@ -96,3 +96,55 @@ async def test_a_headwind_home_turns_the_uav_back_before_the_reserve(
         # take-off to touchdown by the UAV's own events, not the run's step times
         events = {e["name"]: e["ts"] for e in await p.uav_events() if e["name"] in ("took_off",)}
         assert events and report["flight_time_s"] > 0, (events, report["flight_time_s"])
+
+
+async def test_a_wind_it_cannot_beat_lands_the_uav_where_it_is_with_an_alert(
+    live_server, tenant: Tenant, tmp_path
+):
+    """Issue 48 finding 3: 15 m/s gusting 20 from the south, over the UAV's 8 m/s cruise: the
+    reserve turns it home, it is blown north all the same, and once flying home would land it
+    below the critical level the run lands it where it is (failed, `home_out_of_reach`, an
+    alert naming what home would take), with battery left, instead of flying home till it is
+    empty."""
+    # with the camera and IR beacon: a LAND 300 m from the pad is not a precision landing on it
+    # (no search flies it back towards the pad: [precland] pad_reach_m)
+    async with platform(
+        live_server.url, tenant, tmp_path, pad=PAD, plan=_plan(), precland={}
+    ) as p:
+        r = await p.api.patch(
+            f"/api/v1/assets/{p.ids['uav_id']}",
+            headers=tenant.h("admin"),
+            json={
+                "attributes": {
+                    "mass_g": 1450,
+                    "consumption_pct_per_s": 0.1,
+                    "battery_reserve_pct": RESERVE_PCT,
+                }
+            },
+        )
+        assert r.status_code == 200, r.text
+        run_id = await p.start_run()
+        body = await p.wait_state(run_id, ("flying", *FINAL), 90)
+        assert body["state"] == "flying", (body["reason"], body["timeline"])
+        copter = p.copter
+        await eventually(lambda: copter.dyn.state.altitude > 10, 60, "the UAV climbing out")
+        # the wind rises in flight (the checks before take-off would have refused it)
+        p.world.weather.force(wind_mps=15.0, gust_mps=20.0, direction_deg=180.0)
+        copter.dyn.set_battery(40.0)
+        body = await p.wait_state(run_id, ("landing", *FINAL), 120)
+        turned = next(t for t in body["timeline"] if t["to_state"] == "landing")
+        assert turned["cause"] == "battery_reserve", body["timeline"]
+        body = await p.wait_state(run_id, FINAL, 240)
+        assert body["state"] == "failed", (body["reason"], body["timeline"])
+        assert body["outcome"] == "failed" and body["cause"] == "home_out_of_reach", body
+        assert body["alert"] is True
+        assert "cannot reach its base" in body["reason"] and "landing where it is" in body["reason"]
+        await eventually(lambda: not copter.armed, 120, "landed where it is, disarmed")
+        north = copter.dyn.state.position[0]
+        assert north > 200.0, north  # far out, not home
+        assert copter.dyn.state.battery_pct > 0.0
+        assert copter.pad_distance() > 200.0
+        lander = p.agent.lander
+        assert lander is not None and lander.stats.landings == 0 and lander.takeover is None
+        fleet = (await p.api.get("/api/v1/reports/fleet", headers=tenant.h("viewer"))).json()
+        assert fleet["by_outcome"] == {"failed": {"home_out_of_reach": 1}}, fleet

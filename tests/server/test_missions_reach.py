@@ -172,7 +172,7 @@ async def test_the_battery_reserve_measures_the_way_home_to_the_base(
 
     from sqlalchemy.ext.asyncio import AsyncSession, create_async_engine
 
-    from server.runs.energy import return_margin
+    from server.runs.energy import return_reach
     from server.runs.models import Run
 
     base = tenant.create_asset(
@@ -205,11 +205,12 @@ async def test_the_battery_reserve_measures_the_way_home_to_the_base(
                 "position.alt_rel_m": 15.0,
                 "battery.percent": 90.0,
             }
-            margin = await return_margin(db, run, over_base, {})
+            reach = await return_reach(db, run, over_base, {})
     finally:
         await engine.dispose()
     # 90 % less the descent (15 m at 1.5 m/s) and the landing (30 s) at 0.1 %/s, less 20 %
-    assert margin == pytest.approx(90.0 - (10 + 30) * 0.1 - 20.0)
+    assert reach is not None and not reach.out_of_reach
+    assert reach.margin_pct == pytest.approx(90.0 - (10 + 30) * 0.1 - 20.0)
 
 
 def test_a_run_that_outlasts_the_uavs_endurance_from_the_base_is_refused(api, tenant: Tenant):

@@ -6,7 +6,13 @@ import pytest
 
 from server.missions.geometry import LocalProjection
 from server.runs.machine import Observations, State, advance
-from server.runs.reserve import ReturnModel, return_margin_pct, return_model, return_need_pct
+from server.runs.reserve import (
+    ReturnModel,
+    home_reach,
+    return_margin_pct,
+    return_model,
+    return_need_pct,
+)
 
 BASE = (41.178, -8.596)
 NORTH_400 = (*LocalProjection(*BASE).to_geo(0.0, 400.0), 15.0)  # 400 m north, 15 m up
@@ -48,3 +54,35 @@ def test_the_run_turns_home_at_the_reserve_only_once_airborne():
     assert "-0.5" in t.reason
     assert advance(State.flying, obs(3.0, True)) is None
     assert advance(State.flying, obs(-0.5, False)) is None  # still on the lift: not this exit
+
+
+def test_home_is_out_of_reach_when_the_return_would_land_below_the_critical_level():
+    """Issue 48 finding 3: 15 m/s from the south, 400 m north of the base: the return is flown at
+    the model's 1 m/s over ground (460 s at 0.1 %/s: 44 %); with 40 % left it would land at -4 %."""
+    storm = home_reach(40.0, NORTH_400, BASE, 15.0, 180.0, MODEL)
+    assert storm.need_pct == pytest.approx(44.0)
+    assert storm.margin_pct == pytest.approx(40.0 - 44.0 - 20.0)
+    assert storm.out_of_reach
+    calm = home_reach(40.0, NORTH_400, BASE, None, None, MODEL)
+    assert not calm.out_of_reach and calm.margin_pct == pytest.approx(11.0)
+    # below the reserve but above the critical level: home is still in reach (the reserve's job)
+    tight = home_reach(16.0, NORTH_400, BASE, None, None, MODEL)  # would land with 7 %
+    assert tight.margin_pct < 0 and not tight.out_of_reach
+    assert return_model({"battery_critical_pct": 8}, None).critical_pct == 8.0
+
+
+def test_a_uav_that_cannot_reach_home_is_landed_where_it_is_with_an_alert():
+    def obs(**kw) -> Observations:  # type: ignore[no-untyped-def]
+        # the landing step's own events: the take-off was the flying step's
+        return Observations(elapsed_s=5, timeout_s=100, commands={}, **kw)
+
+    far = {"home_out_of_reach": True, "home_need_pct": 61.4, "battery_pct": 22.0}
+    t = advance(State.landing, obs(**far))
+    assert t is not None and t.to == State.failed and t.cause == "home_out_of_reach" and t.alert
+    assert [(a.target, a.name) for a in t.extra_actions] == [("uav", "land")]
+    assert "61 % of its 22 %" in t.reason and "with -39 %" in t.reason, t.reason
+    assert "landing where it is" in t.reason
+    assert advance(State.landing, obs(**{**far, "home_out_of_reach": False})) is None
+    # landed already (where it is, or home): the landing's own exits, not this one
+    landed = advance(State.landing, obs(**far, uav_landed=True))
+    assert landed is not None and landed.cause != "home_out_of_reach"

@@ -35,6 +35,7 @@ export const CAUSES = {
   landing_off_contacts: "landed off the charging contacts",
   landed_without_precision: "landed on GNSS alone (precision landing sent nothing)",
   operator_abort: "aborted by an operator",
+  home_out_of_reach: "home out of reach: landed where it was",
 };
 
 export function causeWords(cause) {
