@@ -108,9 +108,7 @@ async def test_a_wind_it_cannot_beat_lands_the_uav_where_it_is_with_an_alert(
     empty."""
     # with the camera and IR beacon: a LAND 300 m from the pad is not a precision landing on it
     # (no search flies it back towards the pad: [precland] pad_reach_m)
-    async with platform(
-        live_server.url, tenant, tmp_path, pad=PAD, plan=_plan(), precland={}
-    ) as p:
+    async with platform(live_server.url, tenant, tmp_path, pad=PAD, plan=_plan(), precland={}) as p:
         r = await p.api.patch(
             f"/api/v1/assets/{p.ids['uav_id']}",
             headers=tenant.h("admin"),

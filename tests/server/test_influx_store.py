@@ -12,8 +12,8 @@ import httpx
 import pytest
 
 from server.kit.time import rfc3339 as utc_z
-from server.telemetry.influx import InfluxTelemetryStore
 from server.telemetry import influx_lines
+from server.telemetry.influx import InfluxTelemetryStore
 from server.telemetry.influx_flux import flux_downsampled
 from server.telemetry.influx_lines import major_version, rfc3339, to_line, to_ns
 from server.telemetry.sql import downsample
