@@ -54,19 +54,6 @@ def return_need_pct(
     return seconds * model.consumption_pct_per_s
 
 
-def return_margin_pct(
-    battery_pct: float,
-    uav: tuple[float, float, float],
-    base: tuple[float, float],
-    wind_mps: float | None,
-    wind_from_deg: float | None,
-    model: ReturnModel,
-) -> float:
-    """What would be left above the reserve after flying home now (negative: turn back)."""
-    need = return_need_pct(uav, base, wind_mps, wind_from_deg, model)
-    return battery_pct - need - model.reserve_pct
-
-
 @dataclass(frozen=True)
 class HomeReach:
     """Flying home now, as the run judges it (percent of the battery)."""

@@ -9,7 +9,7 @@ import pytest
 
 from sim.vehicle.geo import GeoOrigin
 from tests.conftest import Tenant
-from tests.e2e.harness import FINAL, platform
+from tests.e2e.harness import FINAL, Platform, platform
 from tests.polling import eventually
 
 pytestmark = pytest.mark.slow  # whole processes end to end: not in the fast lane
@@ -43,22 +43,27 @@ def _plan() -> dict:
     }  # fmt: skip
 
 
+async def with_a_reserve(p: Platform, tenant: Tenant) -> None:
+    """The UAV's return model: 0.1 %/s, the reserve at RESERVE_PCT."""
+    r = await p.api.patch(
+        f"/api/v1/assets/{p.ids['uav_id']}",
+        headers=tenant.h("admin"),
+        json={
+            "attributes": {
+                "mass_g": 1450,
+                "consumption_pct_per_s": 0.1,
+                "battery_reserve_pct": RESERVE_PCT,
+            }
+        },
+    )
+    assert r.status_code == 200, r.text
+
+
 async def test_a_headwind_home_turns_the_uav_back_before_the_reserve(
     live_server, tenant: Tenant, tmp_path
 ):
     async with platform(live_server.url, tenant, tmp_path, pad=PAD, plan=_plan()) as p:
-        r = await p.api.patch(
-            f"/api/v1/assets/{p.ids['uav_id']}",
-            headers=tenant.h("admin"),
-            json={
-                "attributes": {
-                    "mass_g": 1450,
-                    "consumption_pct_per_s": 0.1,
-                    "battery_reserve_pct": RESERVE_PCT,
-                }
-            },
-        )
-        assert r.status_code == 200, r.text
+        await with_a_reserve(p, tenant)
         # 6 m/s from the south: the base's station measures it; flying home is into it
         p.world.weather.force(wind_mps=6.0, gust_mps=7.0, direction_deg=180.0)
         run_id = await p.start_run()
@@ -109,18 +114,7 @@ async def test_a_wind_it_cannot_beat_lands_the_uav_where_it_is_with_an_alert(
     # with the camera and IR beacon: a LAND 300 m from the pad is not a precision landing on it
     # (no search flies it back towards the pad: [precland] pad_reach_m)
     async with platform(live_server.url, tenant, tmp_path, pad=PAD, plan=_plan(), precland={}) as p:
-        r = await p.api.patch(
-            f"/api/v1/assets/{p.ids['uav_id']}",
-            headers=tenant.h("admin"),
-            json={
-                "attributes": {
-                    "mass_g": 1450,
-                    "consumption_pct_per_s": 0.1,
-                    "battery_reserve_pct": RESERVE_PCT,
-                }
-            },
-        )
-        assert r.status_code == 200, r.text
+        await with_a_reserve(p, tenant)
         run_id = await p.start_run()
         body = await p.wait_state(run_id, ("flying", *FINAL), 90)
         assert body["state"] == "flying", (body["reason"], body["timeline"])

@@ -9,7 +9,6 @@ from server.runs.machine import Observations, State, advance
 from server.runs.reserve import (
     ReturnModel,
     home_reach,
-    return_margin_pct,
     return_model,
     return_need_pct,
 )
@@ -30,8 +29,8 @@ def test_a_headwind_home_costs_more_than_calm_and_a_tailwind_less():
     storm = return_need_pct(NORTH_400, BASE, 12.0, 180.0, MODEL)
     assert storm == pytest.approx((400 / 1 + 10 + 30) * 0.1)  # never below 1 m/s over ground
     # with 40 % left: calm leaves 11 % above the reserve, the headwind would eat 4 % into it
-    assert return_margin_pct(40.0, NORTH_400, BASE, None, None, MODEL) == pytest.approx(11.0)
-    assert return_margin_pct(40.0, NORTH_400, BASE, 6.0, 180.0, MODEL) == pytest.approx(-4.0)
+    assert home_reach(40.0, NORTH_400, BASE, None, None, MODEL).margin_pct == pytest.approx(11.0)
+    assert home_reach(40.0, NORTH_400, BASE, 6.0, 180.0, MODEL).margin_pct == pytest.approx(-4.0)
 
 
 def test_the_uavs_attributes_set_the_model():
