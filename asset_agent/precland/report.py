@@ -1,5 +1,6 @@
 """What a landing did, for the daemon's logs and its `landed` event: the loop's counters, the last
-measured fix of the pad (the agent's touchdown offset) and the pad's offset from a GNSS position."""
+measured fix of the pad (the agent's touchdown offset) and the pad's offset from a GNSS position
+(also the landing's prior: `pad_prior`)."""
 
 from __future__ import annotations
 
@@ -57,3 +58,27 @@ def pad_offset_ned(lat: float, lon: float, pad_lat: float, pad_lon: float) -> tu
     dn = math.radians(pad_lat - lat) * EARTH_RADIUS_M
     de = math.radians(pad_lon - lon) * EARTH_RADIUS_M * math.cos(math.radians(lat))
     return dn, de
+
+
+def pad_prior(
+    section: Any, state: Any, touchdown_height: float
+) -> tuple[float, float, float] | None:
+    """Pad minus vehicle (NED, camera height as down) from the `[precland]` section's pad (the
+    surveyed one, else the autopilot's home) and the GNSS position; None when unknown, or farther
+    than `pad_reach_m` (a LAND somewhere else: nothing to look for there)."""
+    if (
+        section.pad_source == "surveyed"
+        and section.pad_lat is not None
+        and section.pad_lon is not None
+    ):
+        pad = (section.pad_lat, section.pad_lon)
+    elif state.home_lat is not None and state.home_lon is not None:
+        pad = (state.home_lat, state.home_lon)
+    else:
+        return None
+    if state.lat is None or state.lon is None or state.alt_rel is None:
+        return None
+    dn, de = pad_offset_ned(state.lat, state.lon, *pad)
+    if math.hypot(dn, de) > section.pad_reach_m:
+        return None
+    return dn, de, state.alt_rel + touchdown_height

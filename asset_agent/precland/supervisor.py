@@ -27,7 +27,6 @@ import asyncio
 import contextlib
 import dataclasses
 import logging
-import math
 import time
 from types import MappingProxyType
 from typing import Any
@@ -42,7 +41,7 @@ from asset_agent.precland.hold import HoldWatch
 from asset_agent.precland.loop import PrecisionLandingLoop
 from asset_agent.precland.pipeline import Tick, VehicleState
 from asset_agent.precland.readiness import descent_gate
-from asset_agent.precland.report import LandingStats, PadFix, pad_offset_ned
+from asset_agent.precland.report import LandingStats, PadFix, pad_prior
 from asset_agent.precland.restore import ParamLedger
 from asset_agent.precland.resume import Memory, TakeoverRecord
 from asset_agent.precland.silence import SilenceWatch
@@ -189,7 +188,7 @@ class PrecisionLander:
             self.takeover = None  # a new flight searches afresh
         # where the pad is, from the survey or home: without it a search or a fallback would
         # centre on nothing (an agent just started has not heard HOME_POSITION yet)
-        prior = self._pad_prior(state)
+        prior = pad_prior(self.section, state, self.config.control.touchdown_height)
         decision = self.record.first_sight(state) if prior is not None else None
         disarmed = self._armed and not state.armed and self.record.current is not None
         if decision is not None or disarmed:
@@ -298,23 +297,6 @@ class PrecisionLander:
         if task is not None:
             await cancel_and_wait([task])
             log.info("precland: inactive (%d LANDING_TARGET sent)", self.stats.targets_sent)
-
-    def _pad_prior(self, state: Any) -> tuple[float, float, float] | None:
-        """Pad minus vehicle (NED, camera height as down) from the surveyed pad and the GNSS
-        position; None when unknown, or farther than `pad_reach_m`."""
-        s = self.section
-        if s.pad_source == "surveyed" and s.pad_lat is not None and s.pad_lon is not None:
-            pad = (s.pad_lat, s.pad_lon)
-        elif state.home_lat is not None and state.home_lon is not None:
-            pad = (state.home_lat, state.home_lon)
-        else:
-            return None
-        if state.lat is None or state.lon is None or state.alt_rel is None:
-            return None
-        dn, de = pad_offset_ned(state.lat, state.lon, *pad)
-        if math.hypot(dn, de) > self.section.pad_reach_m:
-            return None  # landing somewhere else: nothing to look for here
-        return dn, de, state.alt_rel + self.config.control.touchdown_height
 
     def touchdown_offset(self) -> dict[str, Any]:
         """What the agent knows of where it touched down: its last measured fix of the pad, and
