@@ -31,6 +31,7 @@ class ReturnModel:
     # home is out of reach once flying there now would land with less than this: the run lands
     # the UAV where it is instead (ArduPilot's critical battery level, BATT_CRT_PCT, lands it too)
     critical_pct: float = 5.0
+    home_radius_m: float = 50.0  # over the base: its own landing, whatever the battery
 
 
 def return_need_pct(
@@ -72,10 +73,14 @@ def home_reach(
     wind_from_deg: float | None,
     model: ReturnModel,
 ) -> HomeReach:
-    """What flying home now would cost and leave; out of reach below `critical_pct` on arrival."""
+    """What flying home now would cost and leave; out of reach below `critical_pct` on arrival,
+    unless it is home already (within `home_radius_m` of the base: landing there is landing home,
+    however little the battery holds)."""
     need = return_need_pct(uav, base, wind_mps, wind_from_deg, model)
     left = battery_pct - need
-    return HomeReach(battery_pct, need, left - model.reserve_pct, left < model.critical_pct)
+    away = math.hypot(*LocalProjection(base[0], base[1]).to_local(uav[0], uav[1]))
+    out = left < model.critical_pct and away > model.home_radius_m
+    return HomeReach(battery_pct, need, left - model.reserve_pct, out)
 
 
 def finite(v: Any) -> float | None:

@@ -68,6 +68,10 @@ def test_home_is_out_of_reach_when_the_return_would_land_below_the_critical_leve
     tight = home_reach(16.0, NORTH_400, BASE, None, None, MODEL)  # would land with 7 %
     assert tight.margin_pct < 0 and not tight.out_of_reach
     assert return_model({"battery_critical_pct": 8}, None).critical_pct == 8.0
+    # over the base with 6 % and the descent and landing to pay (4 %): it lands home, not away
+    over_base = home_reach(6.0, (*BASE, 10.0), BASE, 15.0, 180.0, MODEL)
+    assert over_base.need_pct == pytest.approx((10 / 1.5 + 30) * 0.1)
+    assert 6.0 - over_base.need_pct < MODEL.critical_pct and not over_base.out_of_reach
 
 
 def test_a_uav_that_cannot_reach_home_is_landed_where_it_is_with_an_alert():
