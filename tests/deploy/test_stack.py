@@ -1,4 +1,4 @@
-"""docker-compose.yml started as README's "docker compose up" tells an operator, in containers:
+"""docker-compose.yml started as docs/operations.md's "docker compose up" tells an operator, in containers:
 the images build, `migrate` runs once, both replicas become healthy behind nginx, the first user
 is made with `docker-compose run`, the demo profile's simulated site connects through the proxy
 and flies a whole run, which the console in Debian's Chromium follows live through the proxy, a
@@ -58,7 +58,7 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
     tmp = tmp_path_factory.mktemp("stack")
     assets = tmp / "assets"
     assets.mkdir()
-    # README step 7 saves the asset files in deploy/demo/assets; here they go to this test's folder
+    # docs/operations.md step 7 saves the asset files in deploy/demo/assets; here they go to this test's folder
     override = tmp / "demo-assets.yml"
     mount = f"      - {assets}:/run/aerobase:ro\n"
     override.write_text(
@@ -86,7 +86,7 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
     with docker_daemon(tmp / "dockerd.log"):
         base_image()
         s = Stack(f"aerobase-test-{uuid.uuid4().hex[:8]}", env, [override])
-        s.compose("build", timeout=1500)  # README step 2
+        s.compose("build", timeout=1500)  # docs/operations.md step 2
         try:
             s.compose("up", "-d", "--no-build", timeout=600)  # step 3
             yield Site(
@@ -125,7 +125,7 @@ def _replicas_answer(stack: Stack, api: httpx.Client) -> None:
 
 
 def _fleet(api: httpx.Client, assets: Path) -> tuple[Tenant, Any, Any, Any]:
-    """README steps 5 and 7: an organisation with its users, a base and a UAV bound to it, their
+    """docs/operations.md steps 5 and 7: an organisation with its users, a base and a UAV bound to it, their
     asset files saved where the demo profile's daemons read them; and a UAV with a camera."""
     tenant = Tenant(api, ROOT_EMAIL, "stack")
     base = tenant.create_asset("landing_base", password=ASSET_PASSWORD)

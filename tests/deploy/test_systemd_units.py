@@ -1,6 +1,6 @@
 """deploy/systemd/: the daemons' unit files, checked by systemd's own parser, run against this
 checkout's `aerobase` as the units would run it, and held to what the daemons' restart behaviour
-relies on (README, "The daemons as services")."""
+relies on (docs/operations.md, "The daemons as services")."""
 
 from __future__ import annotations
 

@@ -35,7 +35,7 @@ pytestmark = [
 # is more than a landing loop holds without oscillating
 # (ArduPilot's PLND_LAG compensates at most 0.25 s): runs landed 23 and 8 cm off and two RTK
 # dropouts left it 1.4-1.5 m off; at 2x 15 of 16 landings under load 7-12 seated the contacts
-# (README, "Flying an external autopilot").
+# (docs/operations.md, "Flying an external autopilot").
 SPEED = "2"
 
 
